@@ -1,1 +1,40 @@
-fn main() {}
+//! `exo`: the command-line tool of the exo project.
+//!
+//! Subcommands:
+//! - `exo design`: the paper's loop-shaping recipe for the fractional-order
+//!   amplification controller (gains, filter, discrete coefficients, margins,
+//!   predicted amplification, Bode plot).
+
+mod args;
+mod design_cmd;
+mod plot;
+
+use clap::{Parser, Subcommand};
+
+/// exo: identify a human joint's complex-stiffness impedance and run an
+/// amplification controller tuned to it.
+#[derive(Debug, Parser)]
+#[command(name = "exo", version, about, long_about = None)]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Debug, Subcommand)]
+enum Command {
+    /// Design the fractional-order amplification controller (He et al. 2020,
+    /// "Loop Shaping Methods"): kp, kf, f, lag filters, discrete coefficients,
+    /// phase margins at both stiffness bounds, predicted amplification.
+    Design(design_cmd::DesignArgs),
+}
+
+fn main() {
+    let cli = Cli::parse();
+    let result = match cli.command {
+        Command::Design(args) => design_cmd::run(&args),
+    };
+    if let Err(err) = result {
+        eprintln!("exo: error: {err:#}");
+        std::process::exit(1);
+    }
+}

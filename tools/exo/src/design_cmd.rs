@@ -1,0 +1,424 @@
+//! `exo design`: runs [`exo_impedance::design::design`] and prints it.
+
+use std::fmt::Write as _;
+use std::path::PathBuf;
+
+use anyhow::{Context, Result};
+use clap::Args;
+use exo_impedance::design::{design, Design, DesignInputs, FractionalOrderSource};
+use exo_impedance::{PowerLaw, ScienceError, SeaModel, StiffnessRange};
+use serde::Serialize;
+
+use crate::args;
+
+/// Arguments of `exo design`. Defaults are the paper's setup (section
+/// "Experimental Protocol for Loop Shaping").
+#[derive(Debug, Args)]
+pub struct DesignArgs {
+    /// Exoskeleton inertia M_e (kg·m²), load included.
+    #[arg(long, value_name = "KG_M2", default_value = "1.01", allow_negative_numbers = true, value_parser = args::positive)]
+    pub me: f64,
+    /// Human inertia M_h (kg·m²).
+    #[arg(long, value_name = "KG_M2", default_value = "0.11", allow_negative_numbers = true, value_parser = args::positive)]
+    pub mh: f64,
+    /// Lowest human stiffness the controller must be stable for (Nm/rad).
+    #[arg(long, value_name = "NM_PER_RAD", default_value = "10.03", allow_negative_numbers = true, value_parser = args::positive)]
+    pub k_min: f64,
+    /// Highest human stiffness the controller must be stable for (Nm/rad).
+    #[arg(long, value_name = "NM_PER_RAD", default_value = "108.33", allow_negative_numbers = true, value_parser = args::positive)]
+    pub k_max: f64,
+    /// Intercept β0 of the subject's power law log10 H = β0 + β1 log10 K.
+    #[arg(long, value_name = "BETA0", allow_hyphen_values = true, requires = "beta1", value_parser = args::finite)]
+    pub beta0: Option<f64>,
+    /// Slope β1 of the subject's power law.
+    #[arg(long, value_name = "BETA1", allow_hyphen_values = true, requires = "beta0", value_parser = args::finite)]
+    pub beta1: Option<f64>,
+    /// A constant loss factor c = H/K for the margins, when no power law is known.
+    #[arg(long, value_name = "C", conflicts_with = "beta0", value_parser = args::positive)]
+    pub loss_factor: Option<f64>,
+    /// Guaranteed phase margin φ (degrees) for eq. f.
+    #[arg(long, value_name = "DEG", allow_negative_numbers = true, value_parser = args::positive)]
+    pub phase_margin_deg: Option<f64>,
+    /// Explicit fractional order f in (0, 1) (overrides eq. f).
+    #[arg(long, value_name = "F", allow_negative_numbers = true, value_parser = args::fractional_order)]
+    pub f: Option<f64>,
+    /// Explicit proportional gain kp (overrides eq. kp).
+    #[arg(long, value_name = "KP", allow_negative_numbers = true, value_parser = args::positive)]
+    pub kp: Option<f64>,
+    /// Number of lag filters n (1 to 16).
+    #[arg(long, value_name = "N", default_value_t = 5, value_parser = clap::value_parser!(u8).range(1..=16))]
+    pub filters: u8,
+    /// First pole p1 of the lag-filter cascade (rad/s).
+    #[arg(long, value_name = "RAD_S", default_value = "1.0", allow_negative_numbers = true, value_parser = args::positive)]
+    pub p1: f64,
+    /// Pole-to-pole ratio r_pp (> 1); the paper uses 10^0.5.
+    #[arg(long, value_name = "RATIO", default_value = "3.1622776601683795", allow_negative_numbers = true, value_parser = args::positive)]
+    pub rpp: f64,
+    /// Controller sample rate (Hz) for the discrete coefficients.
+    #[arg(long, value_name = "HZ", default_value = "1000", allow_negative_numbers = true, value_parser = args::positive)]
+    pub rate_hz: f64,
+    /// SEA torque-loop natural frequency (Hz).
+    #[arg(long, value_name = "HZ", default_value = "10", allow_negative_numbers = true, value_parser = args::positive)]
+    pub sea_hz: f64,
+    /// SEA torque-loop damping ratio.
+    #[arg(long, value_name = "ZETA", default_value = "0.7", allow_negative_numbers = true, value_parser = args::positive)]
+    pub sea_zeta: f64,
+    /// Frequencies (rad/s) at which to predict the amplification.
+    #[arg(long, value_name = "RAD_S", value_delimiter = ',', default_value = "1,10", value_parser = args::positive)]
+    pub omega: Vec<f64>,
+    /// Print one JSON object instead of tables.
+    #[arg(long)]
+    pub json: bool,
+    /// Write the Bode plot of L(jω) at both stiffness bounds to this SVG file.
+    #[arg(long, value_name = "FILE.svg")]
+    pub plot: Option<PathBuf>,
+}
+
+impl DesignArgs {
+    fn inputs(&self) -> Result<DesignInputs> {
+        if self.k_min > self.k_max {
+            anyhow::bail!(
+                "--k-min ({}) is above --k-max ({}): the stiffness range is reversed",
+                self.k_min,
+                self.k_max
+            );
+        }
+        if self.rpp <= 1.0 {
+            anyhow::bail!("--rpp must be greater than 1, got {}", self.rpp);
+        }
+        let power_law = match (self.beta0, self.beta1) {
+            (Some(b0), Some(b1)) => Some(PowerLaw::new(b0, b1).map_err(flag_error)?),
+            _ => None,
+        };
+        Ok(DesignInputs {
+            m_e_kg_m2: self.me,
+            m_h_kg_m2: self.mh,
+            range: StiffnessRange::new(self.k_min, self.k_max).map_err(flag_error)?,
+            power_law,
+            loss_factor: self.loss_factor,
+            phase_margin_deg: self.phase_margin_deg,
+            f: self.f,
+            kp: self.kp,
+            n_filters: usize::from(self.filters),
+            p1_rad_s: self.p1,
+            r_pp: self.rpp,
+            rate_hz: self.rate_hz,
+            sea: SeaModel::new(self.sea_hz, self.sea_zeta).map_err(flag_error)?,
+            prediction_omegas_rad_s: self.omega.clone(),
+        })
+    }
+}
+
+/// Rewrites a science-core error so it names the command-line flag.
+fn flag_error(err: ScienceError) -> anyhow::Error {
+    const FLAGS: [(&str, &str); 14] = [
+        ("m_e_kg_m2", "--me"),
+        ("m_h_kg_m2", "--mh"),
+        ("k_min", "--k-min"),
+        ("k_max", "--k-max"),
+        ("beta0", "--beta0"),
+        ("beta1", "--beta1"),
+        ("loss_factor", "--loss-factor"),
+        ("phase_margin_deg", "--phase-margin-deg"),
+        ("kp", "--kp"),
+        ("p1_rad_s", "--p1"),
+        ("r_pp", "--rpp"),
+        ("sample_rate_hz", "--rate-hz"),
+        ("sea natural_frequency_hz", "--sea-hz"),
+        ("sea damping_ratio", "--sea-zeta"),
+    ];
+    let name = match &err {
+        ScienceError::NotFinite { name, .. }
+        | ScienceError::NotPositive { name, .. }
+        | ScienceError::OutOfRange { name, .. } => Some(*name),
+        _ => None,
+    };
+    match name.and_then(|n| FLAGS.iter().find(|(k, _)| *k == n)) {
+        Some((_, flag)) => anyhow::anyhow!("{flag}: {err}"),
+        None => anyhow::anyhow!("{err}"),
+    }
+}
+
+/// Runs `exo design`.
+pub fn run(args: &DesignArgs) -> Result<()> {
+    let inputs = args.inputs()?;
+    let d = design(&inputs).map_err(flag_error)?;
+    if let Some(path) = &args.plot {
+        crate::plot::bode_svg(&inputs, &d, path)
+            .with_context(|| format!("writing the Bode plot to {}", path.display()))?;
+    }
+    if args.json {
+        let out = serde_json::to_string_pretty(&JsonDesign::new(&inputs, &d))?;
+        println!("{out}");
+    } else {
+        print!("{}", human(&inputs, &d, args.plot.as_deref()));
+    }
+    Ok(())
+}
+
+/// The `--json` document. Stable keys: `kp`, `omega_gc`, `kf`, `f`,
+/// `phase_margin_deg` {`k_min`, `k_max`}, `predicted` [{`omega`,
+/// `magnitude`, `phase_deg`}]; the rest is detail.
+#[derive(Serialize)]
+struct JsonDesign<'a> {
+    kp: f64,
+    kp_source: &'static str,
+    omega_gc: f64,
+    k_nominal: f64,
+    kf: f64,
+    f: f64,
+    f_source: FractionalOrderSource,
+    phase_margin_deg: Bounds<Option<f64>>,
+    crossovers: Bounds<Vec<exo_impedance::Crossover>>,
+    loss_factor: Bounds<Option<f64>>,
+    predicted: &'a [exo_impedance::design::Prediction],
+    filter: JsonFilter,
+    discrete: JsonDiscrete<'a>,
+    inputs: &'a DesignInputs,
+}
+
+#[derive(Serialize)]
+struct Bounds<T> {
+    k_min: T,
+    k_max: T,
+}
+
+#[derive(Serialize)]
+struct JsonFilter {
+    n: usize,
+    p1_rad_s: f64,
+    r_pp: f64,
+    r_zp: f64,
+    gain: f64,
+    poles_rad_s: Vec<f64>,
+    zeros_rad_s: Vec<f64>,
+}
+
+#[derive(Serialize)]
+struct JsonDiscrete<'a> {
+    rate_hz: f64,
+    method: &'static str,
+    gain: f64,
+    sections: &'a [exo_impedance::FirstOrderSection],
+}
+
+const DISCRETISATION: &str =
+    "bilinear (Tustin) per first-order section, pre-warped at sqrt(p_i z_i)";
+
+impl<'a> JsonDesign<'a> {
+    fn new(inputs: &'a DesignInputs, d: &'a Design) -> Self {
+        let pick = |i: usize| d.margins.as_ref().map(|m| &m[i]);
+        JsonDesign {
+            kp: d.kp,
+            kp_source: if d.kp_explicit { "explicit" } else { "eq_kp" },
+            omega_gc: d.omega_gc,
+            k_nominal: d.k_nominal,
+            kf: d.kf,
+            f: d.f,
+            f_source: d.f_source,
+            phase_margin_deg: Bounds {
+                k_min: pick(0).and_then(|c| c.analysis.min_phase_margin_deg),
+                k_max: pick(1).and_then(|c| c.analysis.min_phase_margin_deg),
+            },
+            crossovers: Bounds {
+                k_min: pick(0)
+                    .map(|c| c.analysis.crossovers.clone())
+                    .unwrap_or_default(),
+                k_max: pick(1)
+                    .map(|c| c.analysis.crossovers.clone())
+                    .unwrap_or_default(),
+            },
+            loss_factor: Bounds {
+                k_min: pick(0).map(|c| c.loss_factor),
+                k_max: pick(1).map(|c| c.loss_factor),
+            },
+            predicted: &d.predicted,
+            filter: JsonFilter {
+                n: d.filter.n_filters(),
+                p1_rad_s: d.filter.p1_rad_s(),
+                r_pp: d.filter.r_pp(),
+                r_zp: d.filter.r_zp(),
+                gain: d.filter.gain(),
+                poles_rad_s: d.filter.poles_rad_s(),
+                zeros_rad_s: d.filter.zeros_rad_s(),
+            },
+            discrete: JsonDiscrete {
+                rate_hz: d.rate_hz,
+                method: DISCRETISATION,
+                gain: d.discrete.gain(),
+                sections: d.discrete.sections(),
+            },
+            inputs,
+        }
+    }
+}
+
+/// The human-readable report.
+fn human(inputs: &DesignInputs, d: &Design, plot: Option<&std::path::Path>) -> String {
+    let mut o = String::new();
+    let _ = writeln!(
+        o,
+        "exo design: fractional-order amplification controller (He et al., IEEE TNSRE 2020)"
+    );
+    let _ = writeln!(o);
+    let _ = writeln!(o, "Inputs");
+    let _ = writeln!(
+        o,
+        "  M_e = {:.3} kg·m², M_h = {:.3} kg·m², K from {} to {} Nm/rad (nominal K̂ = {:.2})",
+        inputs.m_e_kg_m2, inputs.m_h_kg_m2, inputs.range.k_min, inputs.range.k_max, d.k_nominal
+    );
+    match (inputs.power_law, inputs.loss_factor) {
+        (Some(l), _) => {
+            let _ = writeln!(o, "  power law H = 10^{:.3} · K^{:.3}", l.beta0, l.beta1);
+        }
+        (None, Some(c)) => {
+            let _ = writeln!(o, "  constant loss factor c = {c}");
+        }
+        _ => {}
+    }
+    let _ = writeln!(
+        o,
+        "  SEA {} Hz, ζ = {}; controller at {} Hz",
+        inputs.sea.natural_frequency_hz, inputs.sea.damping_ratio, d.rate_hz
+    );
+    let _ = writeln!(o);
+    let _ = writeln!(o, "Gains");
+    let kp_src = if d.kp_explicit {
+        "given"
+    } else {
+        "eq. kp: (M_he/M_h)^1/2"
+    };
+    let _ = writeln!(o, "  kp     = {:.4}   ({kp_src})", d.kp);
+    let _ = writeln!(o, "  ω̂_gc   = {:.4} rad/s   (eq. kf, at K̂)", d.omega_gc);
+    let f_src = match d.f_source {
+        FractionalOrderSource::Explicit => "given".to_string(),
+        FractionalOrderSource::EqF => format!(
+            "eq. f, guaranteed phase margin {}°",
+            inputs.phase_margin_deg.unwrap_or_default()
+        ),
+    };
+    let _ = writeln!(o, "  f      = {:.4}   ({f_src})", d.f);
+    let _ = writeln!(o, "  kf     = {:.4}   (eq. kf: ω̂_gc^f)", d.kf);
+    let _ = writeln!(o);
+    let _ = writeln!(
+        o,
+        "Lag filters (eq. Fs): n = {}, p1 = {} rad/s, r_pp = {:.4}, r_zp = r_pp^f = {:.4}, gain kf/p1^f = {:.4}",
+        d.filter.n_filters(),
+        d.filter.p1_rad_s(),
+        d.filter.r_pp(),
+        d.filter.r_zp(),
+        d.filter.gain()
+    );
+    let _ = writeln!(
+        o,
+        "  {:>3}  {:>14}  {:>14}",
+        "#", "pole (rad/s)", "zero (rad/s)"
+    );
+    for (i, (p, z)) in d
+        .filter
+        .poles_rad_s()
+        .iter()
+        .zip(d.filter.zeros_rad_s())
+        .enumerate()
+    {
+        let _ = writeln!(o, "  {:>3}  {:>14.4}  {:>14.4}", i + 1, p, z);
+    }
+    let _ = writeln!(o);
+    let _ = writeln!(
+        o,
+        "Discrete cascade at {} Hz, {}:\n  y = {:.6} · Π (b0 + b1 q⁻¹)/(1 + a1 q⁻¹)",
+        d.rate_hz,
+        DISCRETISATION,
+        d.discrete.gain()
+    );
+    let _ = writeln!(o, "  {:>3}  {:>18}  {:>18}  {:>18}", "#", "b0", "b1", "a1");
+    for (i, s) in d.discrete.sections().iter().enumerate() {
+        let _ = writeln!(
+            o,
+            "  {:>3}  {:>18.12}  {:>18.12}  {:>18.12}",
+            i + 1,
+            s.b0,
+            s.b1,
+            s.a1
+        );
+    }
+    let _ = writeln!(o);
+    match &d.margins {
+        Some(cases) => {
+            let _ = writeln!(o, "Loop L = kp·F·P at the stiffness bounds");
+            let _ = writeln!(
+                o,
+                "  {:>10}  {:>6}  {:>11}  {:>14}  {:>12}",
+                "K (Nm/rad)", "c", "atan(c)/90", "crossover rad/s", "phase margin"
+            );
+            for c in cases {
+                let pm = c
+                    .analysis
+                    .min_phase_margin_deg
+                    .map_or("none".into(), |p| format!("{p:.2}°"));
+                let xs: Vec<String> = c
+                    .analysis
+                    .crossovers
+                    .iter()
+                    .map(|x| format!("{:.3} ({:.1}°)", x.omega_rad_s, x.phase_margin_deg))
+                    .collect();
+                let _ = writeln!(
+                    o,
+                    "  {:>10.2}  {:>6.3}  {:>11.3}  {:>14}  {:>12}",
+                    c.k_nm_per_rad,
+                    c.loss_factor,
+                    c.f_bound,
+                    if xs.is_empty() {
+                        "none".into()
+                    } else {
+                        xs.join(", ")
+                    },
+                    pm
+                );
+                if c.analysis.crossovers.len() > 1 {
+                    let _ = writeln!(
+                        o,
+                        "  warning: {} crossovers at K = {}: the paper warns that multiple crossovers make the design unreliable",
+                        c.analysis.crossovers.len(),
+                        c.k_nm_per_rad
+                    );
+                }
+                if d.f >= c.f_bound {
+                    let _ = writeln!(
+                        o,
+                        "  warning: f = {:.3} is not below atan(c)/90 = {:.3} at K = {}: no guaranteed positive margin",
+                        d.f, c.f_bound, c.k_nm_per_rad
+                    );
+                }
+            }
+        }
+        None => {
+            let _ = writeln!(
+                o,
+                "Phase margins: not computed (give --beta0/--beta1 or --loss-factor for the human's loss factor)"
+            );
+        }
+    }
+    let _ = writeln!(o);
+    let _ = writeln!(
+        o,
+        "Predicted amplification τ̃s/τ̃c = α − 1 = kp·F(jω) (Table IV's quantity)"
+    );
+    let _ = writeln!(
+        o,
+        "  {:>10}  {:>10}  {:>10}  {:>16}  {:>16}",
+        "ω (rad/s)", "|τs/τc|", "phase", "|.| through SEA", "phase thr. SEA"
+    );
+    for p in &d.predicted {
+        let _ = writeln!(
+            o,
+            "  {:>10.3}  {:>10.3}  {:>9.1}°  {:>16.3}  {:>15.1}°",
+            p.omega, p.magnitude, p.phase_deg, p.magnitude_with_sea, p.phase_deg_with_sea
+        );
+    }
+    if let Some(p) = plot {
+        let _ = writeln!(o);
+        let _ = writeln!(o, "Bode plot of L(jω) written to {}", p.display());
+    }
+    o
+}
