@@ -1,0 +1,255 @@
+//! The protocol clock: what the excitation, bias and settings are at a given
+//! time (Table I and section "Experimental Protocol for Modeling").
+//!
+//! Every period is `ramp-in → settling → analysis → ramp-out → rest`. The bias
+//! ramps with a raised cosine (smooth start and end) during ramp-in and
+//! ramp-out; the sine `A sin(ω (t − t_sine))` runs through settling and
+//! analysis, starting at zero phase. [`Protocol::at`] is a pure function of
+//! time, so a run is reproducible and the identifier can rebuild the windows
+//! from the recorded protocol state alone.
+
+use exo_config::{ExperimentSpec, ExperimentTable, ProtocolTiming};
+
+/// Phase of a period; the numbers are those of the `ProtocolState.phase` field.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[repr(u32)]
+pub enum Phase {
+    /// Before the first or after the last period.
+    Idle = 0,
+    /// Bias ramping in.
+    RampIn = 1,
+    /// Sine on, response settling.
+    Settling = 2,
+    /// Sine on, analysis window.
+    Analysis = 3,
+    /// Bias ramping out.
+    RampOut = 4,
+    /// Rest.
+    Rest = 5,
+}
+
+/// The protocol's state at one instant.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ProtocolPoint {
+    /// Experiment number (0 when idle).
+    pub experiment: u32,
+    /// Period number, 1-based (0 when idle).
+    pub period: u32,
+    /// Phase.
+    pub phase: Phase,
+    /// Sine frequency of this period (rad/s).
+    pub omega_rad_s: f64,
+    /// Sine amplitude of this period (Nm).
+    pub amplitude_nm: f64,
+    /// Constant amplification α of the experiment.
+    pub alpha: f64,
+    /// Load (kg).
+    pub load_kg: f64,
+    /// Grip (kg).
+    pub grip_kg: f64,
+    /// The experiment's bias torque (Nm), the plateau value.
+    pub bias_nm: f64,
+    /// Bias torque commanded now (Nm), ramped.
+    pub tau_bias_nm: f64,
+    /// Excitation torque commanded now (Nm).
+    pub tau_excitation_nm: f64,
+    /// Whether the protocol has finished.
+    pub done: bool,
+}
+
+/// The sequence of (experiment, period) the run goes through.
+#[derive(Debug, Clone)]
+pub struct Protocol {
+    steps: Vec<(ExperimentSpec, u32)>,
+    table: ExperimentTable,
+    timing: ProtocolTiming,
+}
+
+impl Protocol {
+    /// A protocol over `experiments` (numbers in `table`), each over `periods`
+    /// (1-based; all of the table's when `None`). Unknown numbers are skipped
+    /// by the caller's validation (see `exo_config::RunConfig`).
+    pub fn new(table: &ExperimentTable, experiments: &[u32], periods: Option<&[u32]>) -> Self {
+        let all: Vec<u32> = (1..=table.periods).collect();
+        let periods = periods.unwrap_or(&all);
+        let steps = experiments
+            .iter()
+            .filter_map(|n| table.get(*n))
+            .flat_map(|e| periods.iter().map(move |p| (*e, *p)))
+            .collect();
+        Protocol {
+            steps,
+            table: table.clone(),
+            timing: table.timing,
+        }
+    }
+
+    /// Total duration (s).
+    pub fn duration_s(&self) -> f64 {
+        self.steps.len() as f64 * self.timing.period_s()
+    }
+
+    /// Number of (experiment, period) steps.
+    pub fn len(&self) -> usize {
+        self.steps.len()
+    }
+
+    /// Whether the protocol has no step.
+    pub fn is_empty(&self) -> bool {
+        self.steps.is_empty()
+    }
+
+    /// The state at time `t_s` since the protocol started. Allocation-free.
+    pub fn at(&self, t_s: f64) -> ProtocolPoint {
+        let period_s = self.timing.period_s();
+        let idle = ProtocolPoint {
+            experiment: 0,
+            period: 0,
+            phase: Phase::Idle,
+            omega_rad_s: 0.0,
+            amplitude_nm: 0.0,
+            alpha: 1.0,
+            load_kg: self.steps.last().map_or(0.0, |(e, _)| e.load_kg),
+            grip_kg: 0.0,
+            bias_nm: 0.0,
+            tau_bias_nm: 0.0,
+            tau_excitation_nm: 0.0,
+            done: t_s >= 0.0,
+        };
+        if t_s.is_nan() || t_s < 0.0 || period_s <= 0.0 {
+            return ProtocolPoint {
+                done: false,
+                ..idle
+            };
+        }
+        let index = (t_s / period_s).floor() as usize;
+        let Some((e, period)) = self.steps.get(index) else {
+            return idle;
+        };
+        let tau = t_s - index as f64 * period_s;
+        let t = &self.timing;
+        let omega = self.table.omega_rad_s(e, *period);
+        let amplitude = self.table.amplitude_nm(e, *period);
+        let sine_start = t.ramp_in_s;
+        let analysis_start = sine_start + t.settling_s;
+        let ramp_out_start = analysis_start + t.analysis_s;
+        let rest_start = ramp_out_start + t.ramp_out_s;
+        let (phase, bias_fraction) = if tau < sine_start {
+            (Phase::RampIn, smooth_step(tau / t.ramp_in_s))
+        } else if tau < analysis_start {
+            (Phase::Settling, 1.0)
+        } else if tau < ramp_out_start {
+            (Phase::Analysis, 1.0)
+        } else if tau < rest_start {
+            (
+                Phase::RampOut,
+                1.0 - smooth_step((tau - ramp_out_start) / t.ramp_out_s),
+            )
+        } else {
+            (Phase::Rest, 0.0)
+        };
+        let excitation = match phase {
+            Phase::Settling | Phase::Analysis => amplitude * (omega * (tau - sine_start)).sin(),
+            _ => 0.0,
+        };
+        ProtocolPoint {
+            experiment: e.number,
+            period: *period,
+            phase,
+            omega_rad_s: omega,
+            amplitude_nm: amplitude,
+            alpha: e.alpha,
+            load_kg: e.load_kg,
+            grip_kg: e.grip_kg,
+            bias_nm: e.bias_nm,
+            tau_bias_nm: e.bias_nm * bias_fraction,
+            tau_excitation_nm: excitation,
+            done: false,
+        }
+    }
+}
+
+/// Raised-cosine step from 0 at `x ≤ 0` to 1 at `x ≥ 1` (smooth at both ends).
+fn smooth_step(x: f64) -> f64 {
+    if x.is_nan() || x <= 0.0 {
+        0.0
+    } else if x >= 1.0 {
+        1.0
+    } else {
+        0.5 - 0.5 * (std::f64::consts::PI * x).cos()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn table() -> ExperimentTable {
+        ExperimentTable::from_file(&exo_config::configs_dir().join("experiments.toml")).unwrap()
+    }
+
+    #[test]
+    fn nine_experiments_of_ten_sixty_second_periods() {
+        let t = table();
+        let p = Protocol::new(&t, &[1, 2, 3, 4, 5, 6, 7, 8, 9], None);
+        assert_eq!(p.len(), 90);
+        assert_eq!(p.duration_s(), 90.0 * 60.0);
+        // Period 1 of experiment 4: ramp-in to 5 s, sine 5–15 s, ramp-out 15–20 s, rest to 60 s.
+        let base = 30.0 * 60.0;
+        let phases = [
+            (2.0, Phase::RampIn),
+            (7.0, Phase::Settling),
+            (12.0, Phase::Analysis),
+            (17.0, Phase::RampOut),
+            (40.0, Phase::Rest),
+        ];
+        for (dt, phase) in phases {
+            let s = p.at(base + dt);
+            assert_eq!(
+                (s.experiment, s.period, s.phase),
+                (4, 1, phase),
+                "at +{dt} s"
+            );
+        }
+        assert_eq!(p.at(base + 12.0).omega_rad_s, 3.0);
+        assert_eq!(p.at(base + 12.0).tau_bias_nm, 4.0);
+        assert_eq!(p.at(base + 40.0).tau_bias_nm, 0.0);
+        assert!(p.at(90.0 * 60.0 + 1.0).done);
+    }
+
+    #[test]
+    fn frequencies_step_by_ten_to_the_tenth_and_amplitude_rises_from_period_8() {
+        let t = table();
+        let p = Protocol::new(&t, &[7], None);
+        for period in 1..=10u32 {
+            let s = p.at((period - 1) as f64 * 60.0 + 10.0);
+            assert_eq!(s.period, period);
+            let expected = 4.0 * 10f64.powf(0.1 * (period - 1) as f64);
+            assert!((s.omega_rad_s - expected).abs() < 1e-9 * expected);
+            let amp = if period >= 8 {
+                2.0 * 10f64.powf(0.2)
+            } else {
+                2.0
+            };
+            assert!((s.amplitude_nm - amp).abs() < 1e-12);
+        }
+    }
+
+    #[test]
+    fn excitation_is_the_sine_and_bias_ramps_smoothly() {
+        let t = table();
+        let p = Protocol::new(&t, &[4], Some(&[3]));
+        let w = 3.0 * 10f64.powf(0.2);
+        let s = p.at(5.0 + 1.234);
+        assert!((s.tau_excitation_nm - 2.0 * (w * 1.234).sin()).abs() < 1e-12);
+        assert_eq!(p.at(4.0).tau_excitation_nm, 0.0);
+        assert_eq!(p.at(0.0).tau_bias_nm, 0.0);
+        assert!((p.at(2.5).tau_bias_nm - 2.0).abs() < 1e-12);
+        let mut prev = 0.0;
+        for i in 0..=500 {
+            let b = p.at(i as f64 * 0.01).tau_bias_nm;
+            assert!(b >= prev - 1e-12 && (b - prev).abs() < 0.02);
+            prev = b;
+        }
+    }
+}

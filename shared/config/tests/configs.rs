@@ -1,0 +1,132 @@
+//! The shipped configuration files load, and bad ones are refused naming the key.
+
+use exo_config::*;
+use std::path::{Path, PathBuf};
+
+fn write(dir: &Path, name: &str, text: &str) -> PathBuf {
+    let p = dir.join(name);
+    std::fs::write(&p, text).unwrap();
+    p
+}
+
+fn temp_dir(tag: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("exo-config-{tag}-{}", std::process::id()));
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+#[test]
+fn table_i_is_the_papers() {
+    let t = ExperimentTable::from_file(&configs_dir().join("experiments.toml")).unwrap();
+    assert_eq!(t.periods, 10);
+    assert_eq!(t.experiment.len(), 9);
+    assert_eq!(t.timing.period_s(), 60.0);
+    for e in &t.experiment {
+        let group = (e.number - 1) / 3;
+        assert_eq!(e.alpha, [1.0, 2.0, 4.0][((e.number - 1) % 3) as usize]);
+        assert_eq!(e.grip_kg, [10.0, 14.0, 27.0][group as usize]);
+        assert_eq!(e.bias_nm, [0.0, 4.0, 8.0][group as usize]);
+        assert_eq!(e.load_kg, 4.5);
+        // Frequency range start·10^0 to start·10^0.9.
+        let last = t.omega_rad_s(e, 10);
+        assert!((last / e.start_omega_rad_s - 10f64.powf(0.9)).abs() < 1e-12);
+        assert_eq!(t.amplitude_nm(e, 7), 2.0);
+        assert!((t.amplitude_nm(e, 8) - 2.0 * 10f64.powf(0.2)).abs() < 1e-12);
+    }
+}
+
+#[test]
+fn ten_subjects_with_nine_experiments_each() {
+    for name in ["A", "B", "C", "D", "E", "F", "G", "H", "I", "J"] {
+        let s = Subject::from_file(&configs_dir().join(format!("subjects/{name}.toml"))).unwrap();
+        assert_eq!(s.name, name);
+        assert_eq!(s.experiment.len(), 9);
+        assert_eq!(s.inertia_kg_m2, 0.11);
+    }
+}
+
+#[test]
+fn default_run_loads_with_its_files() {
+    let cfg = RunConfig::from_file(&configs_dir().join("default.toml")).unwrap();
+    assert_eq!(cfg.run.timing, TimingMode::Lockstep);
+    assert_eq!(cfg.subject().name, "B");
+    assert_eq!(cfg.experiment_table().timing.rest_s, 1.0);
+    assert!((cfg.exo_inertia_kg_m2(4.5) - 1.01125).abs() < 1e-12);
+}
+
+#[test]
+fn unknown_key_is_named_with_the_file() {
+    let d = temp_dir("unknown");
+    let text = std::fs::read_to_string(configs_dir().join("default.toml"))
+        .unwrap()
+        .replace("seed = 1", "seed = 1\nsped = 2");
+    let f = write(&d, "run.toml", &text);
+    let err = RunConfig::from_file(&f).unwrap_err().to_string();
+    assert!(err.contains("run.toml") && err.contains("sped"), "{err}");
+}
+
+#[test]
+fn impossible_values_are_named_with_the_key() {
+    let base = std::fs::read_to_string(configs_dir().join("default.toml")).unwrap();
+    let d = temp_dir("values");
+    // Copy the referenced files' directory layout by pointing back at configs/.
+    let base = base
+        .replace(
+            "\"plants/",
+            &format!("\"{}/plants/", configs_dir().display()),
+        )
+        .replace(
+            "\"subjects/",
+            &format!("\"{}/subjects/", configs_dir().display()),
+        )
+        .replace(
+            "\"experiments.toml\"",
+            &format!("\"{}/experiments.toml\"", configs_dir().display()),
+        );
+    for (from, to, key) in [
+        ("rate_hz = 1000.0", "rate_hz = -5.0", "run.rate_hz"),
+        (
+            "command_deadline_ms = 5.0",
+            "command_deadline_ms = 0.1",
+            "safety.command_deadline_ms",
+        ),
+        (
+            "torque_nm = 40.0",
+            "torque_nm = nan",
+            "controller.limits.torque_nm",
+        ),
+        ("arm_mass_kg = 1.5", "arm_mass_kg = -1.5", "rig.arm_mass_kg"),
+        (
+            "experiments = [1]",
+            "experiments = [12]",
+            "protocol.experiments[0]",
+        ),
+        (
+            "periods = [1, 4, 7]",
+            "periods = [0]",
+            "protocol.periods[0]",
+        ),
+        (
+            "f_bounds = [0.0, 0.9]",
+            "f_bounds = [0.0, 0.9]\nf = 1.5",
+            "controller.f",
+        ),
+    ] {
+        assert!(base.contains(from), "{from}");
+        let f = write(&d, "run.toml", &base.replace(from, to));
+        let err = RunConfig::from_file(&f).unwrap_err().to_string();
+        assert!(err.contains("run.toml") && err.contains(key), "{to}: {err}");
+    }
+    let f = write(
+        &d,
+        "run.toml",
+        &base.replace("[safety]\n", "[safety]\nsafe_state2 = 1\n"),
+    );
+    let err = RunConfig::from_file(&f).unwrap_err().to_string();
+    assert!(err.contains("safe_state2"), "{err}");
+    let missing = base.replace("seed = 1\n", "");
+    let err = RunConfig::from_file(&write(&d, "run.toml", &missing))
+        .unwrap_err()
+        .to_string();
+    assert!(err.contains("seed"), "missing field not named: {err}");
+}
