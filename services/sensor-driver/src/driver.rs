@@ -1,0 +1,325 @@
+//! The driver's cycle and its safety latch.
+
+use exo_config::{RigSettings, SafeState};
+
+use crate::calibration::{Calibration, VelocityFilter};
+
+/// Status bits of a calibrated sample (`SensorSample.status`).
+pub mod status {
+    /// The encoder reading was invalid.
+    pub const ENCODER_FAULT: u32 = 1 << 0;
+    /// The cuff force/torque reading was NaN or infinite.
+    pub const FT_FAULT: u32 = 1 << 1;
+    /// The SEA deflection reading was invalid.
+    pub const SEA_FAULT: u32 = 1 << 2;
+    /// The bus frame itself carried a fault flag.
+    pub const BUS_FAULT: u32 = 1 << 3;
+    /// The driver is in its latched safe state.
+    pub const SAFE_STATE: u32 = 1 << 4;
+    /// All bits that mean "do not trust this sample".
+    pub const FAULT_MASK: u32 = ENCODER_FAULT | FT_FAULT | SEA_FAULT | BUS_FAULT;
+}
+
+/// One raw frame from the hardware bus.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct RawFrame {
+    /// Frame sequence number.
+    pub seq: u64,
+    /// Monotonic time stamp (ns).
+    pub stamp_ns: u64,
+    /// Joint encoder counts.
+    pub encoder_counts: i64,
+    /// Cuff 6-axis reading `[f_x, f_y, f_z, t_x, t_y, t_z]` (N, Nm), sensor frame.
+    pub cuff_wrench: [f64; 6],
+    /// SEA spring-deflection encoder counts.
+    pub sea_deflection_counts: i64,
+    /// Bus status (non-zero: the bus reports a fault).
+    pub status: u32,
+}
+
+/// A calibrated sample, ready to publish as `SensorSample`.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct CalibratedSample {
+    /// Frame sequence number.
+    pub seq: u64,
+    /// Monotonic time stamp (ns).
+    pub stamp_ns: u64,
+    /// θ_e (rad).
+    pub theta_e: f64,
+    /// ω_e (rad/s), filtered.
+    pub omega_e: f64,
+    /// τ_c (Nm), the torque the cuff applies to the human.
+    pub tau_c: f64,
+    /// τ_s (Nm), the SEA spring torque.
+    pub tau_s: f64,
+    /// Status bits ([`status`]).
+    pub status: u32,
+}
+
+/// Where the torque written to the bus came from.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum CommandSource {
+    /// The controller's command for the current frame.
+    Controller,
+    /// Safe state: gravity compensation only.
+    SafeGravityOnly,
+    /// Safe state: zero torque.
+    SafeZeroTorque,
+}
+
+/// Why the driver entered its safe state.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum SafetyEvent {
+    /// No fresh command for frame `frame_seq` within the deadline.
+    CommandDeadlineMissed {
+        /// The frame left unanswered.
+        frame_seq: u64,
+    },
+    /// The controller sent a non-finite torque.
+    NonFiniteCommand {
+        /// The frame it answered.
+        frame_seq: u64,
+    },
+}
+
+/// What to write to the bus for the current frame.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct DriverOutput {
+    /// Motor torque (Nm), clamped.
+    pub tau_motor_nm: f64,
+    /// Its source.
+    pub source: CommandSource,
+}
+
+/// The driver's state.
+#[derive(Debug, Clone)]
+pub struct Driver {
+    calibration: Calibration,
+    velocity: VelocityFilter,
+    rig: RigSettings,
+    safe_state: SafeState,
+    torque_limit_nm: f64,
+    load_kg: f64,
+    current_frame: Option<u64>,
+    answered: bool,
+    last_good: CalibratedSample,
+    latched: Option<SafetyEvent>,
+}
+
+impl Driver {
+    /// A driver for the rig, at `rate_hz`, with the given safe state and torque limit.
+    pub fn new(
+        rig: &RigSettings,
+        rate_hz: f64,
+        safe_state: SafeState,
+        torque_limit_nm: f64,
+        load_kg: f64,
+    ) -> Self {
+        Driver {
+            calibration: Calibration::new(rig),
+            velocity: VelocityFilter::new(rig.velocity_cutoff_hz, rate_hz),
+            rig: *rig,
+            safe_state,
+            torque_limit_nm,
+            load_kg,
+            current_frame: None,
+            answered: true,
+            last_good: CalibratedSample::default(),
+            latched: None,
+        }
+    }
+
+    /// Sets the load (kg) the gravity-only safe state compensates.
+    pub fn set_load_kg(&mut self, load_kg: f64) {
+        if load_kg.is_finite() && load_kg >= 0.0 {
+            self.load_kg = load_kg;
+        }
+    }
+
+    /// The latched safety event, if any.
+    pub fn latched(&self) -> Option<SafetyEvent> {
+        self.latched
+    }
+
+    /// Clears the latch (operator command).
+    pub fn reset(&mut self) {
+        self.latched = None;
+    }
+
+    /// Converts a raw frame. Non-finite readings never leave the driver: the
+    /// last good value is kept and a fault bit is set instead.
+    pub fn on_frame(&mut self, f: &RawFrame) -> CalibratedSample {
+        self.current_frame = Some(f.seq);
+        self.answered = false;
+        let mut st = 0;
+        if f.status != 0 {
+            st |= status::BUS_FAULT;
+        }
+        let theta = self.calibration.theta_rad(f.encoder_counts);
+        let tau_c = self.calibration.tau_c_nm(&f.cuff_wrench);
+        let tau_c = if f.cuff_wrench.iter().all(|v| v.is_finite()) && tau_c.is_finite() {
+            tau_c
+        } else {
+            st |= status::FT_FAULT;
+            self.last_good.tau_c
+        };
+        let tau_s = self.calibration.tau_s_nm(f.sea_deflection_counts);
+        let omega = self.velocity.update(theta);
+        if self.latched.is_some() {
+            st |= status::SAFE_STATE;
+        }
+        let s = CalibratedSample {
+            seq: f.seq,
+            stamp_ns: f.stamp_ns,
+            theta_e: theta,
+            omega_e: omega,
+            tau_c,
+            tau_s,
+            status: st,
+        };
+        self.last_good = s;
+        s
+    }
+
+    /// A command from the controller for frame `sensor_seq`. Returns what to
+    /// write, or `None` if the command is stale (answers another frame) or the
+    /// frame was already answered.
+    pub fn on_command(&mut self, sensor_seq: u64, tau_d_nm: f64) -> Option<DriverOutput> {
+        if self.current_frame != Some(sensor_seq) || self.answered {
+            return None;
+        }
+        self.answered = true;
+        if !tau_d_nm.is_finite() {
+            self.latch(SafetyEvent::NonFiniteCommand {
+                frame_seq: sensor_seq,
+            });
+        }
+        if self.latched.is_some() {
+            return Some(self.safe_output());
+        }
+        Some(DriverOutput {
+            tau_motor_nm: tau_d_nm.clamp(-self.torque_limit_nm, self.torque_limit_nm),
+            source: CommandSource::Controller,
+        })
+    }
+
+    /// The deadline for the current frame passed without a fresh command:
+    /// latches the safe state and returns its torque (`None` if the frame was answered).
+    pub fn on_deadline(&mut self) -> Option<DriverOutput> {
+        if self.answered {
+            return None;
+        }
+        let frame_seq = self.current_frame.unwrap_or(0);
+        self.answered = true;
+        self.latch(SafetyEvent::CommandDeadlineMissed { frame_seq });
+        Some(self.safe_output())
+    }
+
+    fn latch(&mut self, e: SafetyEvent) {
+        if self.latched.is_none() {
+            self.latched = Some(e);
+        }
+    }
+
+    /// The safe-state torque for the latest angle.
+    pub fn safe_output(&self) -> DriverOutput {
+        match self.safe_state {
+            SafeState::GravityOnly => DriverOutput {
+                tau_motor_nm: self
+                    .rig
+                    .gravity_torque_nm(self.last_good.theta_e, self.load_kg)
+                    .clamp(-self.torque_limit_nm, self.torque_limit_nm),
+                source: CommandSource::SafeGravityOnly,
+            },
+            SafeState::ZeroTorque => DriverOutput {
+                tau_motor_nm: 0.0,
+                source: CommandSource::SafeZeroTorque,
+            },
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn rig() -> RigSettings {
+        RigSettings {
+            arm_inertia_kg_m2: 0.1,
+            arm_mass_kg: 1.5,
+            arm_com_m: 0.2,
+            load_lever_arm_m: 0.45,
+            encoder_counts_per_rev: 4096.0,
+            cuff_lever_arm_m: 0.25,
+            sea_stiffness_nm_per_rad: 350.0,
+            sea_counts_per_rev: 4096.0,
+            velocity_cutoff_hz: 50.0,
+        }
+    }
+
+    fn frame(seq: u64) -> RawFrame {
+        RawFrame {
+            seq,
+            encoder_counts: 512,
+            cuff_wrench: [0.0, 4.0, 0.0, 0.0, 0.0, 0.0],
+            ..Default::default()
+        }
+    }
+
+    #[test]
+    fn fresh_command_is_clamped_and_stale_one_ignored() {
+        let mut d = Driver::new(&rig(), 1000.0, SafeState::GravityOnly, 10.0, 4.5);
+        d.on_frame(&frame(1));
+        assert_eq!(d.on_command(0, 3.0), None, "stale");
+        let out = d.on_command(1, 30.0).unwrap();
+        assert_eq!(
+            (out.tau_motor_nm, out.source),
+            (10.0, CommandSource::Controller)
+        );
+        assert_eq!(d.on_command(1, 1.0), None, "already answered");
+        assert_eq!(d.on_deadline(), None);
+    }
+
+    #[test]
+    fn missed_deadline_latches_gravity_only_until_reset() {
+        let r = rig();
+        let mut d = Driver::new(&r, 1000.0, SafeState::GravityOnly, 40.0, 4.5);
+        let s = d.on_frame(&frame(7));
+        let out = d.on_deadline().unwrap();
+        assert_eq!(out.source, CommandSource::SafeGravityOnly);
+        assert!((out.tau_motor_nm - r.gravity_torque_nm(s.theta_e, 4.5)).abs() < 1e-12);
+        assert_eq!(
+            d.latched(),
+            Some(SafetyEvent::CommandDeadlineMissed { frame_seq: 7 })
+        );
+        // Later commands do not leave the safe state.
+        let s8 = d.on_frame(&frame(8));
+        assert_ne!(s8.status & status::SAFE_STATE, 0);
+        assert_eq!(
+            d.on_command(8, 5.0).unwrap().source,
+            CommandSource::SafeGravityOnly
+        );
+        d.reset();
+        d.on_frame(&frame(9));
+        assert_eq!(
+            d.on_command(9, 5.0).unwrap().source,
+            CommandSource::Controller
+        );
+    }
+
+    #[test]
+    fn nan_reading_never_leaves_the_driver() {
+        let mut d = Driver::new(&rig(), 1000.0, SafeState::ZeroTorque, 40.0, 4.5);
+        let good = d.on_frame(&frame(1));
+        let mut f = frame(2);
+        f.cuff_wrench[1] = f64::NAN;
+        let s = d.on_frame(&f);
+        assert!(s.tau_c.is_finite());
+        assert_eq!(s.tau_c, good.tau_c);
+        assert_ne!(s.status & status::FT_FAULT, 0);
+        assert_eq!(
+            d.on_command(2, f64::INFINITY).unwrap().source,
+            CommandSource::SafeZeroTorque
+        );
+    }
+}

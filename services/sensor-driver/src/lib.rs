@@ -1,0 +1,32 @@
+//! # exo-sensor-driver (logic)
+//!
+//! The driver owns the actuator. Each cycle (ros2_control's `read → update →
+//! write`): it reads one raw frame from the hardware bus, converts it to a
+//! calibrated sample, hands the sample to the controller, and writes the
+//! controller's torque back to the bus, or, when no fresh command has come
+//! within the deadline, the safe-state torque, latched until reset.
+//!
+//! The bus is the [`HardwareBus`] trait. The simulator's bus (iceoryx2
+//! channels to `plant-sim`) is implemented in `main.rs`; an EtherCAT (e.g.
+//! `ethercrab`), CAN (`socketcan`) or UDP backend implements the same trait
+//! and is chosen by configuration: nothing in the controller, identifier or
+//! recorder changes.
+
+pub mod calibration;
+pub mod driver;
+
+pub use calibration::{Calibration, VelocityFilter};
+pub use driver::{
+    status, CalibratedSample, CommandSource, Driver, DriverOutput, RawFrame, SafetyEvent,
+};
+
+/// A hardware bus: where raw frames come from and motor torques go.
+pub trait HardwareBus {
+    /// Error type of the backend.
+    type Error: std::error::Error + Send + Sync + 'static;
+    /// Waits (bounded by the backend) for the next raw frame; `Ok(None)` on timeout.
+    fn read(&mut self) -> Result<Option<RawFrame>, Self::Error>;
+    /// Writes the motor torque (Nm) answering frame `frame_seq`; `enable = false` powers the motor down.
+    fn write(&mut self, frame_seq: u64, tau_motor_nm: f64, enable: bool)
+        -> Result<(), Self::Error>;
+}
