@@ -4,10 +4,13 @@
 //! - `exo design`: the paper's loop-shaping recipe for the fractional-order
 //!   amplification controller (gains, filter, discrete coefficients, margins,
 //!   predicted amplification, Bode plot).
+//! - `exo run CONFIG`: start and supervise the processes of a run.
 
 mod args;
 mod design_cmd;
 mod plot;
+mod run_cmd;
+mod supervisor;
 
 use clap::{Parser, Subcommand};
 
@@ -26,12 +29,16 @@ enum Command {
     /// "Loop Shaping Methods"): kp, kf, f, lag filters, discrete coefficients,
     /// phase margins at both stiffness bounds, predicted amplification.
     Design(design_cmd::DesignArgs),
+    /// Start and supervise the processes of a run configuration (plant
+    /// simulator or hardware driver, controller, identifier, recorder).
+    Run(run_cmd::RunArgs),
 }
 
 fn main() {
     let cli = Cli::parse();
     let result = match cli.command {
         Command::Design(args) => design_cmd::run(&args),
+        Command::Run(args) => run_cmd::run(&args),
     };
     if let Err(err) = result {
         eprintln!("exo: error: {err:#}");

@@ -1,0 +1,222 @@
+//! `exo run`'s process supervisor: starts the services of a run, forwards
+//! their logs, reaps them (so iceoryx2 sees dead nodes as dead), stops them
+//! all on Ctrl-C, SIGTERM or the first failure, and reports which one failed.
+
+use std::io::{BufRead, BufReader};
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command, ExitStatus, Stdio};
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+
+use anyhow::{bail, Context, Result};
+
+/// What a service's exit means for the run.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Role {
+    /// Its normal exit ends the run successfully (the controller, at protocol end).
+    EndsRun,
+    /// On the real-time path: any exit before the end fails the run.
+    Critical,
+    /// Off the real-time path (identifier, recorder): restarted on failure,
+    /// at most `MAX_RESTARTS` times, never stopping control.
+    Restartable,
+}
+
+/// One service to run.
+#[derive(Debug, Clone)]
+pub struct ServiceSpec {
+    /// Short name used in logs and errors, e.g. `controller`.
+    pub name: &'static str,
+    /// Executable.
+    pub program: PathBuf,
+    /// Arguments.
+    pub args: Vec<String>,
+    /// Role.
+    pub role: Role,
+}
+
+const MAX_RESTARTS: u32 = 3;
+const STOP_GRACE: Duration = Duration::from_secs(3);
+
+struct Running {
+    spec: ServiceSpec,
+    child: Child,
+    restarts: u32,
+}
+
+/// Path of a sibling executable of the running `exo` (same target directory
+/// or install prefix).
+pub fn sibling_program(name: &str) -> Result<PathBuf> {
+    let exe = std::env::current_exe().context("locating the exo executable")?;
+    let dir = exe.parent().context("exo executable has no directory")?;
+    let p = dir.join(format!("{name}{}", std::env::consts::EXE_SUFFIX));
+    if !p.exists() {
+        bail!(
+            "{} not found next to exo ({}): build the workspace (cargo build --release --workspace)",
+            name,
+            dir.display()
+        );
+    }
+    Ok(p)
+}
+
+fn spawn(spec: &ServiceSpec) -> Result<Child> {
+    let mut child = Command::new(&spec.program)
+        .args(&spec.args)
+        .stdin(Stdio::null())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .with_context(|| format!("starting {} ({})", spec.name, spec.program.display()))?;
+    for (stream, is_err) in [
+        (
+            child
+                .stdout
+                .take()
+                .map(|s| Box::new(s) as Box<dyn std::io::Read + Send>),
+            false,
+        ),
+        (
+            child
+                .stderr
+                .take()
+                .map(|s| Box::new(s) as Box<dyn std::io::Read + Send>),
+            true,
+        ),
+    ] {
+        if let Some(stream) = stream {
+            let name = spec.name;
+            std::thread::spawn(move || {
+                for line in BufReader::new(stream).lines().map_while(Result::ok) {
+                    if is_err {
+                        eprintln!("[{name}] {line}");
+                    } else {
+                        println!("[{name}] {line}");
+                    }
+                }
+            });
+        }
+    }
+    Ok(child)
+}
+
+fn terminate(child: &mut Child) {
+    // SIGTERM first, so the service can release its shared memory.
+    if let Ok(pid) = i32::try_from(child.id()) {
+        // SAFETY: sending a signal to our own child's pid has no memory effects.
+        unsafe {
+            libc::kill(pid, libc::SIGTERM);
+        }
+    }
+}
+
+fn stop_all(running: &mut [Running]) {
+    for r in running.iter_mut() {
+        if matches!(r.child.try_wait(), Ok(None)) {
+            terminate(&mut r.child);
+        }
+    }
+    let deadline = Instant::now() + STOP_GRACE;
+    for r in running.iter_mut() {
+        loop {
+            match r.child.try_wait() {
+                Ok(Some(_)) | Err(_) => break,
+                Ok(None) if Instant::now() >= deadline => {
+                    eprintln!(
+                        "exo: {} did not stop within {:?}; killing it",
+                        r.spec.name, STOP_GRACE
+                    );
+                    let _ = r.child.kill();
+                    let _ = r.child.wait();
+                    break;
+                }
+                Ok(None) => std::thread::sleep(Duration::from_millis(20)),
+            }
+        }
+    }
+}
+
+fn describe(status: ExitStatus) -> String {
+    use std::os::unix::process::ExitStatusExt;
+    match (status.code(), status.signal()) {
+        (Some(c), _) => format!("exit code {c}"),
+        (None, Some(s)) => format!("signal {s}"),
+        _ => "unknown status".into(),
+    }
+}
+
+/// Runs the services until the one with [`Role::EndsRun`] exits cleanly,
+/// a critical one fails, or a stop signal arrives.
+pub fn supervise(services: Vec<ServiceSpec>, mut on_tick: impl FnMut()) -> Result<()> {
+    let stop = Arc::new(AtomicBool::new(false));
+    for sig in [signal_hook::consts::SIGINT, signal_hook::consts::SIGTERM] {
+        signal_hook::flag::register(sig, Arc::clone(&stop))
+            .context("installing signal handlers")?;
+    }
+    let mut running: Vec<Running> = Vec::new();
+    for spec in services {
+        match spawn(&spec) {
+            Ok(child) => running.push(Running {
+                spec,
+                child,
+                restarts: 0,
+            }),
+            Err(e) => {
+                stop_all(&mut running);
+                return Err(e);
+            }
+        }
+    }
+    let outcome: Result<()> = 'supervise: loop {
+        if stop.load(Ordering::Relaxed) {
+            eprintln!("exo: stop requested; stopping every service");
+            break Ok(());
+        }
+        for i in 0..running.len() {
+            let status = match running[i].child.try_wait() {
+                Ok(Some(s)) => s,
+                Ok(None) => continue,
+                Err(e) => {
+                    break 'supervise Err(anyhow::anyhow!(
+                        "waiting for {}: {e}",
+                        running[i].spec.name
+                    ))
+                }
+            };
+            let name = running[i].spec.name;
+            match running[i].spec.role {
+                Role::EndsRun if status.success() => break 'supervise Ok(()),
+                Role::Restartable if running[i].restarts < MAX_RESTARTS => {
+                    running[i].restarts += 1;
+                    eprintln!(
+                        "exo: {name} stopped ({}); restarting it ({}/{MAX_RESTARTS}); control is unaffected",
+                        describe(status),
+                        running[i].restarts
+                    );
+                    std::thread::sleep(Duration::from_millis(200 * u64::from(running[i].restarts)));
+                    match spawn(&running[i].spec) {
+                        Ok(child) => running[i].child = child,
+                        Err(e) => break 'supervise Err(e),
+                    }
+                }
+                _ => {
+                    break 'supervise Err(anyhow::anyhow!(
+                        "process `{name}` ({}) stopped with {}",
+                        running[i].spec.program.display(),
+                        describe(status)
+                    ))
+                }
+            }
+        }
+        on_tick();
+        std::thread::sleep(Duration::from_millis(20));
+    };
+    stop_all(&mut running);
+    outcome
+}
+
+/// The standard argument list of a service: `--config FILE`.
+pub fn config_args(config: &Path) -> Vec<String> {
+    vec!["--config".into(), config.display().to_string()]
+}
