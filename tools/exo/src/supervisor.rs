@@ -173,37 +173,34 @@ pub fn supervise(services: Vec<ServiceSpec>, mut on_tick: impl FnMut()) -> Resul
             eprintln!("exo: stop requested; stopping every service");
             break Ok(());
         }
-        for i in 0..running.len() {
-            let status = match running[i].child.try_wait() {
+        for r in running.iter_mut() {
+            let status = match r.child.try_wait() {
                 Ok(Some(s)) => s,
                 Ok(None) => continue,
                 Err(e) => {
-                    break 'supervise Err(anyhow::anyhow!(
-                        "waiting for {}: {e}",
-                        running[i].spec.name
-                    ))
+                    break 'supervise Err(anyhow::anyhow!("waiting for {}: {e}", r.spec.name))
                 }
             };
-            let name = running[i].spec.name;
-            match running[i].spec.role {
+            let name = r.spec.name;
+            match r.spec.role {
                 Role::EndsRun if status.success() => break 'supervise Ok(()),
-                Role::Restartable if running[i].restarts < MAX_RESTARTS => {
-                    running[i].restarts += 1;
+                Role::Restartable if r.restarts < MAX_RESTARTS => {
+                    r.restarts += 1;
                     eprintln!(
                         "exo: {name} stopped ({}); restarting it ({}/{MAX_RESTARTS}); control is unaffected",
                         describe(status),
-                        running[i].restarts
+                        r.restarts
                     );
-                    std::thread::sleep(Duration::from_millis(200 * u64::from(running[i].restarts)));
-                    match spawn(&running[i].spec) {
-                        Ok(child) => running[i].child = child,
+                    std::thread::sleep(Duration::from_millis(200 * u64::from(r.restarts)));
+                    match spawn(&r.spec) {
+                        Ok(child) => r.child = child,
                         Err(e) => break 'supervise Err(e),
                     }
                 }
                 _ => {
                     break 'supervise Err(anyhow::anyhow!(
                         "process `{name}` ({}) stopped with {}",
-                        running[i].spec.program.display(),
+                        r.spec.program.display(),
                         describe(status)
                     ))
                 }
