@@ -1,0 +1,76 @@
+//! Round trips through real iceoryx2 shared memory, in one process.
+
+use std::time::Duration;
+
+use exo_messages::ipc::Ipc;
+use exo_messages::services::Channel;
+use exo_messages::SensorSample;
+
+fn instance(tag: &str) -> String {
+    format!("exotest-{tag}-{}", std::process::id())
+}
+
+#[test]
+fn sensor_sample_arrives_bit_identical_with_a_wake_up() {
+    let inst = instance("pubsub");
+    let a = Ipc::open("test_pub", &inst, None).unwrap();
+    let b = Ipc::open("test_sub", &inst, None).unwrap();
+    let inbox = b.inbox::<SensorSample>(Channel::Sensor, 4).unwrap();
+    let outbox = a.outbox::<SensorSample>(Channel::Sensor).unwrap();
+    let sent = SensorSample {
+        seq: 42,
+        stamp_ns: 7,
+        theta_e: 0.123456789,
+        omega_e: -1.5,
+        tau_c: f64::MIN_POSITIVE,
+        tau_s: 1e300,
+        status: 5,
+        _pad: 0,
+    };
+    outbox.send(sent).unwrap();
+    let got = inbox
+        .recv_timeout(Duration::from_secs(2))
+        .unwrap()
+        .expect("a sample");
+    assert_eq!(got, sent);
+    assert_eq!(got.tau_c.to_bits(), sent.tau_c.to_bits());
+    assert!(inbox.try_recv().unwrap().is_none());
+}
+
+#[test]
+fn bounded_wait_returns_none_without_a_publisher_sample() {
+    let inst = instance("timeout");
+    let b = Ipc::open("test_sub3", &inst, None).unwrap();
+    let inbox = b.inbox::<SensorSample>(Channel::Sensor, 4).unwrap();
+    assert!(inbox
+        .recv_timeout(Duration::from_millis(20))
+        .unwrap()
+        .is_none());
+}
+
+#[test]
+fn missing_config_file_is_named() {
+    let err = Ipc::open(
+        "test_cfg",
+        &instance("cfg"),
+        Some(std::path::Path::new("/nonexistent/ice.toml")),
+    )
+    .err()
+    .expect("error");
+    assert!(err.to_string().contains("/nonexistent/ice.toml"), "{err}");
+}
+
+#[test]
+#[ignore = "probe: prints how long a bounded wait with no sample takes"]
+fn probe_timed_wait_granularity() {
+    let inst = instance("probe");
+    let b = Ipc::open("test_probe", &inst, None).unwrap();
+    let inbox = b.inbox::<SensorSample>(Channel::Sensor, 4).unwrap();
+    for us in [1u64, 100, 1000, 5000] {
+        let t = std::time::Instant::now();
+        for _ in 0..20 {
+            inbox.wait(Duration::from_micros(us)).unwrap();
+        }
+        eprintln!("wait({us} µs) took {:?} on average", t.elapsed() / 20);
+    }
+}
