@@ -1,0 +1,532 @@
+//! The simulated plant: state-space assembly from the plant model, exact
+//! zero-order-hold stepping, and the raw sensor readings a rig would deliver.
+//!
+//! States (SI units): exoskeleton angle and velocity; forearm angle and
+//! velocity when the cuff is compliant (otherwise forearm and exoskeleton
+//! move together); SEA torque and its rate when the SEA has dynamics; one
+//! internal state per Prony element. Inputs held over a step: the motor
+//! torque command (after the actuator delay and saturation), the posture
+//! the human holds `θ_eq` and its rate, and the nonlinear exoskeleton torques
+//! (gravity `−g(m_a l_a + m_L l_L) sin θ_e`, Coulomb friction) evaluated at
+//! the start of the step.
+//!
+//! Sign convention (the paper's): `τ_c` is the torque the cuff applies to
+//! the human; the human's impedance pulls the forearm back towards `θ_eq`.
+
+use nalgebra::{DMatrix, DVector};
+
+use crate::expm::zoh;
+use crate::model::{HysteresisMode, PlantModel};
+use crate::prony::PronyBank;
+use crate::rng::Rng;
+
+const U_TAU_D: usize = 0;
+const U_THETA_EQ: usize = 1;
+const U_OMEGA_EQ: usize = 2;
+const U_TAU_NL: usize = 3;
+const N_INPUTS: usize = 4;
+
+/// What the human does (set by the caller each control period).
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct HumanDrive {
+    /// Equilibrium posture `θ_eq` (rad) the impedance pulls towards.
+    pub theta_eq_rad: f64,
+    /// Its rate (rad/s).
+    pub omega_eq_rad_s: f64,
+}
+
+/// Noise-free physical values (for tests and diagnostics).
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct PlantTruth {
+    /// Simulated time (s).
+    pub t_s: f64,
+    /// Exoskeleton angle θ_e (rad).
+    pub theta_e_rad: f64,
+    /// Exoskeleton velocity (rad/s).
+    pub omega_e_rad_s: f64,
+    /// Forearm angle (rad).
+    pub theta_h_rad: f64,
+    /// Interaction torque τ_c (Nm): cuff on human.
+    pub tau_c_nm: f64,
+    /// SEA spring torque τ_s (Nm).
+    pub tau_s_nm: f64,
+    /// Gravity torque on the exoskeleton (Nm), `+g(...) sin θ` (the controller's compensation target).
+    pub tau_g_nm: f64,
+}
+
+/// Raw readings, as the bus delivers them.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct RawSensors {
+    /// Joint encoder counts.
+    pub encoder_counts: i64,
+    /// Cuff wrench `[f_x, f_y, f_z, t_x, t_y, t_z]` (N, Nm).
+    pub cuff_wrench: [f64; 6],
+    /// SEA deflection counts.
+    pub sea_deflection_counts: i64,
+}
+
+#[derive(Debug, Clone, Copy)]
+struct Layout {
+    th_e: usize,
+    w_e: usize,
+    th_h: usize,
+    w_h: usize,
+    sea: Option<usize>,
+    z0: usize,
+    n_z: usize,
+    n: usize,
+}
+
+/// A fixed-size ring buffer of delayed values (one slot per integration step).
+#[derive(Debug, Clone)]
+struct Delay {
+    buf: Vec<f64>,
+    head: usize,
+}
+
+impl Delay {
+    fn new(steps: usize, initial: f64) -> Self {
+        Delay {
+            buf: vec![initial; steps + 1],
+            head: 0,
+        }
+    }
+    /// Pushes the newest value, returns the one `steps` steps old.
+    fn push(&mut self, v: f64) -> f64 {
+        self.buf[self.head] = v;
+        self.head = (self.head + 1) % self.buf.len();
+        self.buf[self.head]
+    }
+    /// The value pushed `steps` pushes ago (the one `push` returned last).
+    fn oldest(&self) -> f64 {
+        self.buf[self.head]
+    }
+}
+
+/// The plant.
+#[derive(Debug, Clone)]
+pub struct Plant {
+    model: PlantModel,
+    k_h: f64,
+    h_h: f64,
+    load_kg: f64,
+    excitation_omega: f64,
+    layout: Layout,
+    bank: PronyBank,
+    b_human: f64,
+    phi: DMatrix<f64>,
+    gamma: DMatrix<f64>,
+    a: DMatrix<f64>,
+    b: DMatrix<f64>,
+    x: DVector<f64>,
+    x_next: DVector<f64>,
+    u: DVector<f64>,
+    t_s: f64,
+    drive: HumanDrive,
+    actuator_delay: Delay,
+    theta_delay: Delay,
+    tau_c_delay: Delay,
+    tau_s_delay: Delay,
+    tau_d_held: f64,
+    rng: Rng,
+}
+
+fn steps_of(delay_s: f64, h: f64) -> usize {
+    (delay_s / h).round() as usize
+}
+
+impl Plant {
+    /// A plant at rest at the human's rest posture.
+    pub fn new(model: &PlantModel) -> Self {
+        let h = model.integration.step_s;
+        let mut p = Plant {
+            model: *model,
+            k_h: model.human.stiffness_nm_per_rad,
+            h_h: model.human.stiffness_nm_per_rad * model.human.hysteretic_damping.loss_factor,
+            load_kg: model.exo.load_kg,
+            excitation_omega: model.human.hysteretic_damping.reference_rad_s,
+            layout: Layout {
+                th_e: 0,
+                w_e: 1,
+                th_h: 0,
+                w_h: 1,
+                sea: None,
+                z0: 2,
+                n_z: 0,
+                n: 2,
+            },
+            bank: PronyBank {
+                k_inf_nm_per_rad: 0.0,
+                k_nm_per_rad: vec![],
+                tau_s: vec![],
+            },
+            b_human: 0.0,
+            phi: DMatrix::zeros(0, 0),
+            gamma: DMatrix::zeros(0, 0),
+            a: DMatrix::zeros(0, 0),
+            b: DMatrix::zeros(0, 0),
+            x: DVector::zeros(0),
+            x_next: DVector::zeros(0),
+            u: DVector::zeros(N_INPUTS),
+            t_s: 0.0,
+            drive: HumanDrive {
+                theta_eq_rad: model.human.rest_angle_rad,
+                omega_eq_rad_s: 0.0,
+            },
+            actuator_delay: Delay::new(steps_of(model.actuator.delay_s, h), 0.0),
+            theta_delay: Delay::new(
+                steps_of(model.sensors.encoder.terms.delay_s, h),
+                model.human.rest_angle_rad,
+            ),
+            tau_c_delay: Delay::new(steps_of(model.sensors.cuff_ft.terms.delay_s, h), 0.0),
+            tau_s_delay: Delay::new(steps_of(model.sensors.sea_deflection.terms.delay_s, h), 0.0),
+            tau_d_held: 0.0,
+            rng: Rng::new(model.integration.seed),
+        };
+        p.rebuild();
+        let rest = model.human.rest_angle_rad;
+        p.x[p.layout.th_e] = rest;
+        p.x[p.layout.th_h] = rest;
+        p
+    }
+
+    /// The model.
+    pub fn model(&self) -> &PlantModel {
+        &self.model
+    }
+
+    /// Sets the human's stiffness `K` and hysteretic damping `H` (Nm/rad).
+    pub fn set_human_impedance(&mut self, k_nm_per_rad: f64, h_nm_per_rad: f64) {
+        if (k_nm_per_rad, h_nm_per_rad) != (self.k_h, self.h_h)
+            && k_nm_per_rad > 0.0
+            && h_nm_per_rad >= 0.0
+        {
+            self.k_h = k_nm_per_rad;
+            self.h_h = h_nm_per_rad;
+            self.rebuild();
+        }
+    }
+
+    /// Sets the load on the exoskeleton arm (kg).
+    pub fn set_load_kg(&mut self, load_kg: f64) {
+        if load_kg != self.load_kg && load_kg.is_finite() && load_kg >= 0.0 {
+            self.load_kg = load_kg;
+            self.rebuild();
+        }
+    }
+
+    /// Sets the running excitation frequency (rad/s) used by the
+    /// equivalent-viscous hysteresis mode (`B_eq = H/ω`).
+    pub fn set_excitation_omega(&mut self, omega_rad_s: f64) {
+        let uses_it = self.model.human.hysteretic_damping.enabled
+            && self.model.human.hysteretic_damping.mode == HysteresisMode::EquivalentViscous;
+        if uses_it
+            && omega_rad_s > 0.0
+            && omega_rad_s.is_finite()
+            && omega_rad_s != self.excitation_omega
+        {
+            self.excitation_omega = omega_rad_s;
+            self.rebuild();
+        }
+    }
+
+    /// Sets what the human does.
+    pub fn set_drive(&mut self, drive: HumanDrive) {
+        if drive.theta_eq_rad.is_finite() && drive.omega_eq_rad_s.is_finite() {
+            self.drive = drive;
+        }
+    }
+
+    /// Rebuilds the state space and its discretisation (on parameter changes only).
+    fn rebuild(&mut self) {
+        let m = &self.model;
+        let hd = m.human.hysteretic_damping;
+        let prony = hd.enabled && hd.mode == HysteresisMode::Prony && self.h_h > 0.0;
+        self.bank = if prony {
+            PronyBank::fit(
+                self.k_h,
+                self.h_h / self.k_h,
+                hd.band_rad_s,
+                hd.elements_per_decade,
+                hd.reference_rad_s,
+            )
+            .unwrap_or(PronyBank {
+                k_inf_nm_per_rad: self.k_h,
+                k_nm_per_rad: vec![],
+                tau_s: vec![],
+            })
+        } else {
+            PronyBank {
+                k_inf_nm_per_rad: self.k_h,
+                k_nm_per_rad: vec![],
+                tau_s: vec![],
+            }
+        };
+        let mut b_h = if m.human.viscous_damping.enabled {
+            m.human.viscous_damping.b_nm_s_per_rad
+        } else {
+            0.0
+        };
+        if hd.enabled && hd.mode == HysteresisMode::EquivalentViscous {
+            b_h += self.h_h / self.excitation_omega;
+        }
+        self.b_human = b_h;
+        let compliant = m.cuff.compliance.enabled;
+        let sea = m.sea.dynamics.enabled;
+        let n_z = self.bank.k_nm_per_rad.len();
+        let mut n = 2;
+        let (th_h, w_h) = if compliant {
+            n += 2;
+            (2, 3)
+        } else {
+            (0, 1)
+        };
+        let sea_idx = if sea {
+            n += 2;
+            Some(n - 2)
+        } else {
+            None
+        };
+        let z0 = n;
+        n += n_z;
+        let l = Layout {
+            th_e: 0,
+            w_e: 1,
+            th_h,
+            w_h,
+            sea: sea_idx,
+            z0,
+            n_z,
+            n,
+        };
+
+        let m_h = m.human.inertia_kg_m2;
+        let m_e = m.exo_inertia_kg_m2(self.load_kg);
+        let b_f = if m.joint_friction.viscous.enabled {
+            m.joint_friction.viscous.b_nm_s_per_rad
+        } else {
+            0.0
+        };
+        let k_total = self.bank.k_inf_nm_per_rad + self.bank.k_nm_per_rad.iter().sum::<f64>();
+        let mut a = DMatrix::<f64>::zeros(n, n);
+        let mut b = DMatrix::<f64>::zeros(n, N_INPUTS);
+        // Impedance torque on the human, as a row over states and inputs, with
+        // the deviation ξ = θ_h − θ_eq from the held posture and z_i the
+        // dashpot extension of Maxwell element i:
+        // τ_imp = −K_∞ ξ − Σ k_i (ξ − z_i) − B (ω_h − ω_eq).
+        let mut imp_x = DVector::<f64>::zeros(n);
+        let mut imp_u = DVector::<f64>::zeros(N_INPUTS);
+        imp_x[th_h] -= k_total;
+        imp_x[w_h] -= b_h;
+        imp_u[U_THETA_EQ] += k_total;
+        imp_u[U_OMEGA_EQ] += b_h;
+        for (i, k) in self.bank.k_nm_per_rad.iter().enumerate() {
+            imp_x[z0 + i] += k;
+        }
+        // Maxwell elements: ż_i = (ξ − z_i)/τ_i (dashpot k_i τ_i in series with spring k_i).
+        for (i, tau) in self.bank.tau_s.iter().enumerate() {
+            a[(z0 + i, th_h)] = 1.0 / tau;
+            a[(z0 + i, z0 + i)] = -1.0 / tau;
+            b[(z0 + i, U_THETA_EQ)] = -1.0 / tau;
+        }
+        // Actuator torque on the exoskeleton.
+        let mut act_x = DVector::<f64>::zeros(n);
+        let mut act_u = DVector::<f64>::zeros(N_INPUTS);
+        match sea_idx {
+            Some(s) => {
+                let wn = 2.0 * std::f64::consts::PI * m.sea.dynamics.natural_frequency_hz;
+                let z = m.sea.dynamics.damping_ratio;
+                a[(s, s + 1)] = 1.0;
+                a[(s + 1, s)] = -wn * wn;
+                a[(s + 1, s + 1)] = -2.0 * z * wn;
+                b[(s + 1, U_TAU_D)] = wn * wn;
+                act_x[s] = 1.0;
+            }
+            None => act_u[U_TAU_D] = 1.0,
+        }
+        a[(0, 1)] = 1.0;
+        if compliant {
+            let (kc, bc) = (
+                m.cuff.compliance.stiffness_nm_per_rad,
+                m.cuff.compliance.damping_nm_s_per_rad,
+            );
+            // Cuff torque on the human: kc (θ_e − θ_h) + bc (ω_e − ω_h).
+            let mut cuff = DVector::<f64>::zeros(n);
+            cuff[0] = kc;
+            cuff[th_h] -= kc;
+            cuff[1] = bc;
+            cuff[w_h] -= bc;
+            a[(th_h, w_h)] = 1.0;
+            for j in 0..n {
+                a[(w_h, j)] += (imp_x[j] + cuff[j]) / m_h;
+                a[(1, j)] += (act_x[j] - cuff[j]) / m_e;
+            }
+            a[(1, 1)] -= b_f / m_e;
+            for j in 0..N_INPUTS {
+                b[(w_h, j)] += imp_u[j] / m_h;
+                b[(1, j)] += act_u[j] / m_e;
+            }
+            b[(1, U_TAU_NL)] += 1.0 / m_e;
+        } else {
+            let m_tot = m_e + m_h;
+            for j in 0..n {
+                a[(1, j)] += (imp_x[j] + act_x[j]) / m_tot;
+            }
+            a[(1, 1)] -= b_f / m_tot;
+            for j in 0..N_INPUTS {
+                b[(1, j)] += (imp_u[j] + act_u[j]) / m_tot;
+            }
+            b[(1, U_TAU_NL)] += 1.0 / m_tot;
+        }
+        let (phi, gamma) = zoh(&a, &b, m.integration.step_s);
+        // Carry the state over a rebuild (new Prony states start at θ_h).
+        let mut x = DVector::<f64>::zeros(n);
+        if self.x.len() == self.layout.n {
+            let old = self.layout;
+            x[0] = self.x[old.th_e];
+            x[1] = self.x[old.w_e];
+            x[th_h] = self.x[old.th_h];
+            x[w_h] = self.x[old.w_h];
+            if let (Some(s), Some(os)) = (sea_idx, old.sea) {
+                x[s] = self.x[os];
+                x[s + 1] = self.x[os + 1];
+            }
+            for i in 0..n_z.min(old.n_z) {
+                x[z0 + i] = self.x[old.z0 + i];
+            }
+        }
+        self.layout = l;
+        self.a = a;
+        self.b = b;
+        self.phi = phi;
+        self.gamma = gamma;
+        self.x = x;
+        self.x_next = DVector::zeros(n);
+    }
+
+    fn nonlinear_torque(&self) -> f64 {
+        let m = &self.model;
+        let (th, w) = (self.x[self.layout.th_e], self.x[self.layout.w_e]);
+        let mut tau = -self.gravity_torque(th);
+        let c = m.joint_friction.coulomb;
+        if c.enabled {
+            tau -= c.torque_nm * (w / c.smoothing_rad_s).tanh();
+        }
+        tau
+    }
+
+    fn gravity_torque(&self, theta: f64) -> f64 {
+        let g = &self.model.gravity;
+        if !g.enabled {
+            return 0.0;
+        }
+        g.g_m_s2
+            * (g.arm_mass_kg * g.arm_com_m + self.load_kg * self.model.exo.load_lever_arm_m)
+            * theta.sin()
+    }
+
+    /// Advances one integration step with motor command `tau_d_nm`. Allocation-free.
+    pub fn step(&mut self, tau_d_nm: f64) {
+        let limit = self.model.sea.torque_limit_nm;
+        let cmd = if tau_d_nm.is_finite() {
+            tau_d_nm.clamp(-limit, limit)
+        } else {
+            0.0
+        };
+        self.tau_d_held = self.actuator_delay.push(cmd);
+        self.u[U_TAU_D] = self.tau_d_held;
+        self.u[U_THETA_EQ] = self.drive.theta_eq_rad;
+        self.u[U_OMEGA_EQ] = self.drive.omega_eq_rad_s;
+        self.u[U_TAU_NL] = self.nonlinear_torque();
+        self.x_next.gemv(1.0, &self.phi, &self.x, 0.0);
+        self.x_next.gemv(1.0, &self.gamma, &self.u, 1.0);
+        std::mem::swap(&mut self.x, &mut self.x_next);
+        self.t_s += self.model.integration.step_s;
+        self.drive.theta_eq_rad += self.drive.omega_eq_rad_s * self.model.integration.step_s;
+        let t = self.truth();
+        self.theta_delay.push(t.theta_e_rad);
+        self.tau_c_delay.push(t.tau_c_nm);
+        self.tau_s_delay.push(t.tau_s_nm);
+    }
+
+    /// Advances `duration_s` (rounded to whole steps) with the command held.
+    pub fn advance(&mut self, duration_s: f64, tau_d_nm: f64) {
+        let n = (duration_s / self.model.integration.step_s).round() as usize;
+        for _ in 0..n {
+            self.step(tau_d_nm);
+        }
+    }
+
+    fn impedance_torque(&self) -> f64 {
+        let l = self.layout;
+        let x = &self.x;
+        let th_h = x[l.th_h];
+        let mut tau = -self.bank.k_inf_nm_per_rad * (th_h - self.drive.theta_eq_rad)
+            - self.b_human * (x[l.w_h] - self.drive.omega_eq_rad_s);
+        for (i, k) in self.bank.k_nm_per_rad.iter().enumerate() {
+            tau -= k * (th_h - self.drive.theta_eq_rad - x[l.z0 + i]);
+        }
+        tau
+    }
+
+    /// The noise-free physical state.
+    pub fn truth(&self) -> PlantTruth {
+        let l = self.layout;
+        let x = &self.x;
+        let tau_s = match l.sea {
+            Some(s) => x[s],
+            None => self.tau_d_held,
+        };
+        let tau_c = if self.model.cuff.compliance.enabled {
+            let c = self.model.cuff.compliance;
+            c.stiffness_nm_per_rad * (x[l.th_e] - x[l.th_h])
+                + c.damping_nm_s_per_rad * (x[l.w_e] - x[l.w_h])
+        } else {
+            // Rigid: the cuff supplies what accelerates the forearm against its impedance.
+            let mut acc = 0.0;
+            for j in 0..l.n {
+                acc += self.a[(l.w_e, j)] * x[j];
+            }
+            for j in 0..N_INPUTS {
+                acc += self.b[(l.w_e, j)] * self.u[j];
+            }
+            self.model.human.inertia_kg_m2 * acc - self.impedance_torque()
+        };
+        PlantTruth {
+            t_s: self.t_s,
+            theta_e_rad: x[l.th_e],
+            omega_e_rad_s: x[l.w_e],
+            theta_h_rad: x[l.th_h],
+            tau_c_nm: tau_c,
+            tau_s_nm: tau_s,
+            tau_g_nm: self.gravity_torque(x[l.th_e]),
+        }
+    }
+
+    /// The raw sensor readings now (delayed, with gain, offset, noise and quantisation).
+    pub fn raw_sensors(&mut self) -> RawSensors {
+        let s = self.model.sensors;
+        let tau = std::f64::consts::TAU;
+        let e = s.encoder.terms;
+        let theta =
+            e.gain * self.theta_delay.oldest() + e.offset + e.noise_std * self.rng.gaussian();
+        let encoder_counts = (theta / tau * s.encoder.counts_per_rev).round() as i64;
+        let f = s.cuff_ft.terms;
+        let tau_c =
+            f.gain * self.tau_c_delay.oldest() + f.offset + f.noise_std * self.rng.gaussian();
+        let mut f_y = tau_c / s.cuff_ft.lever_arm_m;
+        if s.cuff_ft.force_resolution_n > 0.0 {
+            f_y = (f_y / s.cuff_ft.force_resolution_n).round() * s.cuff_ft.force_resolution_n;
+        }
+        let d = s.sea_deflection.terms;
+        let tau_s =
+            d.gain * self.tau_s_delay.oldest() + d.offset + d.noise_std * self.rng.gaussian();
+        let deflection = tau_s / self.model.sea.spring_stiffness_nm_per_rad;
+        RawSensors {
+            encoder_counts,
+            cuff_wrench: [0.0, f_y, 0.0, 0.0, 0.0, 0.0],
+            sea_deflection_counts: (deflection / tau * s.sea_deflection.counts_per_rev).round()
+                as i64,
+        }
+    }
+}
