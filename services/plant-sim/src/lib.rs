@@ -21,11 +21,13 @@
 //! (Prony) bank ([`prony`]); see its docs for how close it comes.
 
 pub mod expm;
+pub mod human;
 pub mod model;
 pub mod plant;
 pub mod prony;
 pub mod rng;
 
+pub use human::PostureDrive;
 pub use model::{PlantModel, PlantModelError};
 pub use plant::{HumanDrive, Plant, PlantTruth, RawSensors};
 pub use prony::PronyBank;

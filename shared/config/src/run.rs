@@ -177,6 +177,16 @@ pub struct SafetySettings {
     pub sample_deadline_ms: f64,
     /// What the safe state commands.
     pub safe_state: SafeState,
+    /// In lockstep, simulated time stands still while a process waits, so
+    /// deadlines are counted in ticks: a missing answer is declared after
+    /// this much wall time (ms), and the safe state then takes effect at the
+    /// same simulated tick.
+    #[serde(default = "default_lockstep_timeout_ms")]
+    pub lockstep_timeout_ms: f64,
+}
+
+fn default_lockstep_timeout_ms() -> f64 {
+    1000.0
 }
 
 /// `[rig]`: what the software believes about the hardware (calibration and
@@ -421,6 +431,10 @@ impl RunConfig {
                 ));
             }
         }
+        c.positive(
+            "safety.lockstep_timeout_ms",
+            self.safety.lockstep_timeout_ms,
+        )?;
         let r = &self.rig;
         c.positive("rig.arm_inertia_kg_m2", r.arm_inertia_kg_m2)?;
         c.non_negative("rig.arm_mass_kg", r.arm_mass_kg)?;

@@ -2,9 +2,9 @@
 
 use std::time::Duration;
 
-use exo_messages::ipc::Ipc;
-use exo_messages::services::Channel;
 use exo_messages::SensorSample;
+use exo_service_kit::channels::Channel;
+use exo_service_kit::ipc::Ipc;
 
 fn instance(tag: &str) -> String {
     format!("exotest-{tag}-{}", std::process::id())

@@ -1,0 +1,170 @@
+//! Operator commands: operator console (the `exo` tool) → controller, sensor driver.
+
+use iceoryx2::prelude::ZeroCopySend;
+
+use crate::error::{check_finite, check_range, MessageError};
+
+/// What an [`OperatorCommand`] asks for; [`OperatorCommand::kind`] as a `u32`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+#[repr(u32)]
+pub enum OperatorCommandKind {
+    /// Clear a latched fault (controller and sensor driver); `value` unused (0).
+    ResetFault = 1,
+    /// Adopt the fractional order f given in `value` (dimensionless, in [0, 1),
+    /// further clamped to the run's configured bounds), e.g. the identifier's
+    /// `recommended_f`.
+    AdoptFractionalOrder = 2,
+    /// Start (or resume) the protocol; `value` is the experiment number to
+    /// start at (1–9), or 0 for the next one.
+    StartProtocol = 3,
+    /// Stop the protocol: ramp out and hold gravity compensation, without a fault; `value` unused (0).
+    StopProtocol = 4,
+}
+
+impl OperatorCommandKind {
+    /// Every kind, in code order.
+    pub const ALL: [OperatorCommandKind; 4] = [
+        OperatorCommandKind::ResetFault,
+        OperatorCommandKind::AdoptFractionalOrder,
+        OperatorCommandKind::StartProtocol,
+        OperatorCommandKind::StopProtocol,
+    ];
+
+    /// The kind of a raw code (1–4), or `None`.
+    pub fn from_u32(code: u32) -> Option<Self> {
+        match code {
+            1 => Some(OperatorCommandKind::ResetFault),
+            2 => Some(OperatorCommandKind::AdoptFractionalOrder),
+            3 => Some(OperatorCommandKind::StartProtocol),
+            4 => Some(OperatorCommandKind::StopProtocol),
+            _ => None,
+        }
+    }
+
+    /// The raw code sent in [`OperatorCommand::kind`].
+    pub fn as_u32(self) -> u32 {
+        self as u32
+    }
+}
+
+/// A command from the operator.
+///
+/// 32 bytes, 8-aligned, no implicit padding.
+#[derive(Debug, Clone, Copy, Default, PartialEq, ZeroCopySend)]
+#[type_name("exo.OperatorCommand.v1")]
+#[repr(C)]
+pub struct OperatorCommand {
+    /// Sequence number (count); receivers act on each `seq` once.
+    pub seq: u64,
+    /// Time stamp (ns) on the monotonic clock when the operator issued the command.
+    pub stamp_ns: u64,
+    /// [`OperatorCommandKind`] code.
+    pub kind: u32,
+    /// Explicit padding before `value` (always 0), so the struct has no implicit padding.
+    pub _pad: u32,
+    /// Argument of the command; its meaning and unit depend on `kind` (see [`OperatorCommandKind`]).
+    pub value: f64,
+}
+
+crate::impl_message!(OperatorCommand, "exo.OperatorCommand.v1", |c| [
+    "value" => c.value,
+]);
+
+impl OperatorCommand {
+    /// A command of `kind` with argument `value`.
+    pub fn new(seq: u64, stamp_ns: u64, kind: OperatorCommandKind, value: f64) -> Self {
+        OperatorCommand {
+            seq,
+            stamp_ns,
+            kind: kind.as_u32(),
+            _pad: 0,
+            value,
+        }
+    }
+
+    /// The kind, or `None` if `kind` holds an unknown code.
+    pub fn command_kind(&self) -> Option<OperatorCommandKind> {
+        OperatorCommandKind::from_u32(self.kind)
+    }
+
+    /// Checks the kind code and that `value` is finite and valid for it
+    /// (f in [0, 1) for `AdoptFractionalOrder`, experiment 0–9 for `StartProtocol`).
+    pub fn validate(&self) -> Result<(), MessageError> {
+        const M: &str = "OperatorCommand";
+        check_finite(M, self.first_non_finite())?;
+        match self.command_kind() {
+            None => Err(MessageError::UnknownCode {
+                message: M,
+                field: "kind",
+                value: self.kind,
+            }),
+            Some(OperatorCommandKind::AdoptFractionalOrder) => {
+                check_range(M, "value", self.value, 0.0, 1.0 - f64::EPSILON)
+            }
+            Some(OperatorCommandKind::StartProtocol) => check_range(
+                M,
+                "value",
+                self.value,
+                0.0,
+                crate::protocol::MAX_EXPERIMENT as f64,
+            ),
+            Some(_) => Ok(()),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use core::mem::{align_of, offset_of, size_of};
+
+    #[test]
+    fn layout() {
+        assert_eq!(size_of::<OperatorCommand>(), 32);
+        assert_eq!(align_of::<OperatorCommand>(), 8);
+        assert_eq!(offset_of!(OperatorCommand, seq), 0);
+        assert_eq!(offset_of!(OperatorCommand, stamp_ns), 8);
+        assert_eq!(offset_of!(OperatorCommand, kind), 16);
+        assert_eq!(offset_of!(OperatorCommand, _pad), 20);
+        assert_eq!(offset_of!(OperatorCommand, value), 24);
+    }
+
+    #[test]
+    fn kinds_round_trip_and_validate() {
+        for k in OperatorCommandKind::ALL {
+            assert_eq!(OperatorCommandKind::from_u32(k.as_u32()), Some(k));
+        }
+        assert_eq!(OperatorCommandKind::from_u32(0), None);
+        let adopt = OperatorCommand::new(1, 2, OperatorCommandKind::AdoptFractionalOrder, 0.35);
+        assert_eq!(adopt.validate(), Ok(()));
+        assert_eq!(
+            OperatorCommand {
+                value: 1.0,
+                ..adopt
+            }
+            .validate()
+            .unwrap_err()
+            .field(),
+            "value"
+        );
+        assert_eq!(
+            OperatorCommand {
+                value: f64::NAN,
+                ..adopt
+            }
+            .validate()
+            .unwrap_err()
+            .field(),
+            "value"
+        );
+        assert_eq!(
+            OperatorCommand { kind: 99, ..adopt }
+                .validate()
+                .unwrap_err()
+                .field(),
+            "kind"
+        );
+        let start = OperatorCommand::new(3, 4, OperatorCommandKind::StartProtocol, 10.0);
+        assert_eq!(start.validate().unwrap_err().field(), "value");
+    }
+}

@@ -1,0 +1,364 @@
+//! The IPC helpers every exo process uses: a node with the project's
+//! iceoryx2 configuration loaded explicitly, and per-channel "outboxes"
+//! (publisher + wake-up notifier) and "inboxes" (subscriber + listener).
+//!
+//! Every service is opened or created with the same settings here, so the
+//! processes always agree on them. Publishers never block: a full subscriber
+//! buffer drops its oldest sample (safe overflow); the recorder asks for a
+//! deep buffer and counts drops from sequence gaps.
+
+use std::fmt::Debug;
+use std::path::{Path, PathBuf};
+use std::time::Duration;
+
+use iceoryx2::port::listener::Listener;
+use iceoryx2::port::notifier::Notifier;
+use iceoryx2::port::publisher::Publisher;
+use iceoryx2::port::subscriber::Subscriber;
+use iceoryx2::prelude::*;
+use thiserror::Error;
+
+use crate::channels::Channel;
+
+/// The iceoryx2 service flavour of exo: inter-process, shared memory.
+pub type Svc = iceoryx2::service::ipc::Service;
+
+/// Environment variable naming the iceoryx2 configuration file.
+pub const CONFIG_ENV: &str = "EXO_ICEORYX2_CONFIG";
+
+/// Deepest subscriber buffer a channel allows (the recorder's).
+pub const MAX_BUFFER: usize = 8192;
+
+/// An IPC error, naming the service or file.
+#[derive(Debug, Error)]
+pub enum IpcError {
+    /// The iceoryx2 configuration could not be loaded.
+    #[error("iceoryx2 configuration {path}: {message}")]
+    Config {
+        /// The file.
+        path: PathBuf,
+        /// What went wrong.
+        message: String,
+    },
+    /// The node could not be created.
+    #[error("iceoryx2 node `{name}`: {message}")]
+    Node {
+        /// Node name.
+        name: String,
+        /// What went wrong.
+        message: String,
+    },
+    /// A service or port could not be opened, or an operation on it failed.
+    #[error("{what} on `{service}`: {message}")]
+    Port {
+        /// Which operation.
+        what: &'static str,
+        /// Service name.
+        service: String,
+        /// What went wrong.
+        message: String,
+    },
+}
+
+fn port_err(what: &'static str, service: &str, e: impl Debug) -> IpcError {
+    IpcError::Port {
+        what,
+        service: service.to_string(),
+        message: format!("{e:?}"),
+    }
+}
+
+/// The configuration file to load: `explicit`, else `$EXO_ICEORYX2_CONFIG`,
+/// else `configs/iceoryx2.toml` of the source tree this was built from.
+pub fn config_path(explicit: Option<&Path>) -> PathBuf {
+    if let Some(p) = explicit {
+        return p.to_path_buf();
+    }
+    if let Some(p) = std::env::var_os(CONFIG_ENV) {
+        return PathBuf::from(p);
+    }
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../../configs/iceoryx2.toml")
+}
+
+/// Loads an iceoryx2 configuration file.
+pub fn load_config(path: &Path) -> Result<Config, IpcError> {
+    let err = |message: String| IpcError::Config {
+        path: path.to_path_buf(),
+        message,
+    };
+    let text = path
+        .to_str()
+        .ok_or_else(|| err("path is not UTF-8".into()))?;
+    let file = FilePath::new(text.as_bytes()).map_err(|e| err(format!("invalid path: {e:?}")))?;
+    Config::from_file(&file).map_err(|e| err(format!("{e:?}")))
+}
+
+/// A process's iceoryx2 node and the instance prefix of its services.
+pub struct Ipc {
+    node: Node<Svc>,
+    instance: String,
+}
+
+impl Ipc {
+    /// Creates the node `name` with the configuration at `config` (see
+    /// [`config_path`]) for the services of `instance`. Dead nodes of earlier,
+    /// killed processes are cleaned up on the way.
+    pub fn open(name: &str, instance: &str, config: Option<&Path>) -> Result<Self, IpcError> {
+        let path = config_path(config);
+        let cfg = load_config(&path)?;
+        let node_err = |message: String| IpcError::Node {
+            name: name.to_string(),
+            message,
+        };
+        let node_name = NodeName::new(name).map_err(|e| node_err(format!("{e:?}")))?;
+        let node = NodeBuilder::new()
+            .name(&node_name)
+            .config(&cfg)
+            .signal_handling_mode(SignalHandlingMode::Disabled)
+            .create::<Svc>()
+            .map_err(|e| node_err(format!("{e:?}")))?;
+        let ipc = Ipc {
+            node,
+            instance: instance.to_string(),
+        };
+        ipc.cleanup_dead_nodes();
+        Ok(ipc)
+    }
+
+    /// The instance prefix.
+    pub fn instance(&self) -> &str {
+        &self.instance
+    }
+
+    /// Removes the resources of nodes whose processes died (e.g. `kill -9`).
+    /// Returns how many were cleaned up.
+    pub fn cleanup_dead_nodes(&self) -> usize {
+        let state = self.node.try_cleanup_dead_nodes();
+        state.cleanups as usize
+    }
+
+    fn pubsub<T: Debug + ZeroCopySend + Copy + 'static>(
+        &self,
+        ch: Channel,
+    ) -> Result<
+        (
+            String,
+            iceoryx2::service::port_factory::publish_subscribe::PortFactory<Svc, T, ()>,
+        ),
+        IpcError,
+    > {
+        let name = ch.service_name(&self.instance);
+        let sn = ServiceName::new(&name).map_err(|e| port_err("service name", &name, e))?;
+        let factory = self
+            .node
+            .service_builder(&sn)
+            .publish_subscribe::<T>()
+            .max_publishers(4)
+            .max_subscribers(8)
+            .max_nodes(16)
+            .history_size(1)
+            .subscriber_max_buffer_size(MAX_BUFFER)
+            .enable_safe_overflow(true)
+            .open_or_create()
+            .map_err(|e| port_err("open publish-subscribe service", &name, e))?;
+        Ok((name, factory))
+    }
+
+    fn event(
+        &self,
+        ch: Channel,
+    ) -> Result<
+        Option<(
+            String,
+            iceoryx2::service::port_factory::event::PortFactory<Svc>,
+        )>,
+        IpcError,
+    > {
+        if !ch.info().has_event {
+            return Ok(None);
+        }
+        let name = ch.event_name(&self.instance);
+        let sn = ServiceName::new(&name).map_err(|e| port_err("service name", &name, e))?;
+        let factory = self
+            .node
+            .service_builder(&sn)
+            .event()
+            .max_listeners(8)
+            .max_notifiers(8)
+            .max_nodes(16)
+            .open_or_create()
+            .map_err(|e| port_err("open event service", &name, e))?;
+        Ok(Some((name, factory)))
+    }
+
+    /// A publisher on `ch` and, where the channel has one, its wake-up notifier.
+    pub fn outbox<T: Debug + ZeroCopySend + Copy + 'static>(
+        &self,
+        ch: Channel,
+    ) -> Result<Outbox<T>, IpcError> {
+        let (name, f) = self.pubsub::<T>(ch)?;
+        let publisher = f
+            .publisher_builder()
+            .create()
+            .map_err(|e| port_err("create publisher", &name, e))?;
+        let notifier = match self.event(ch)? {
+            Some((en, ef)) => Some(
+                ef.notifier_builder()
+                    .create()
+                    .map_err(|e| port_err("create notifier", &en, e))?,
+            ),
+            None => None,
+        };
+        Ok(Outbox {
+            name,
+            publisher,
+            notifier,
+        })
+    }
+
+    /// A subscriber on `ch` with a buffer of `buffer` samples and, where the
+    /// channel has one, its wake-up listener.
+    pub fn inbox<T: Debug + ZeroCopySend + Copy + 'static>(
+        &self,
+        ch: Channel,
+        buffer: usize,
+    ) -> Result<Inbox<T>, IpcError> {
+        let (name, f) = self.pubsub::<T>(ch)?;
+        let subscriber = f
+            .subscriber_builder()
+            .buffer_size(buffer.clamp(1, MAX_BUFFER))
+            .create()
+            .map_err(|e| port_err("create subscriber", &name, e))?;
+        let listener = match self.event(ch)? {
+            Some((en, ef)) => Some(
+                ef.listener_builder()
+                    .create()
+                    .map_err(|e| port_err("create listener", &en, e))?,
+            ),
+            None => None,
+        };
+        // SAFETY: the descriptor stays owned by the listener, which lives as
+        // long as the inbox; we only poll it.
+        let fd = listener
+            .as_ref()
+            .map(|l| unsafe { l.file_descriptor().native_handle() });
+        Ok(Inbox {
+            name,
+            subscriber,
+            listener,
+            fd,
+        })
+    }
+}
+
+/// A publisher and its wake-up notifier.
+pub struct Outbox<T: Debug + ZeroCopySend + Copy + 'static> {
+    name: String,
+    publisher: Publisher<Svc, T, ()>,
+    notifier: Option<Notifier<Svc>>,
+}
+
+impl<T: Debug + ZeroCopySend + Copy + 'static> Outbox<T> {
+    /// Publishes `value` (copied into shared memory) and wakes the listeners.
+    /// Never blocks.
+    pub fn send(&self, value: T) -> Result<(), IpcError> {
+        self.publisher
+            .send_copy(value)
+            .map_err(|e| port_err("send", &self.name, e))?;
+        if let Some(n) = &self.notifier {
+            n.notify().map_err(|e| port_err("notify", &self.name, e))?;
+        }
+        Ok(())
+    }
+
+    /// The service name.
+    pub fn name(&self) -> &str {
+        &self.name
+    }
+}
+
+/// A subscriber and its wake-up listener.
+pub struct Inbox<T: Debug + ZeroCopySend + Copy + 'static> {
+    name: String,
+    subscriber: Subscriber<Svc, T, ()>,
+    listener: Option<Listener<Svc>>,
+    fd: Option<i32>,
+}
+
+impl<T: Debug + ZeroCopySend + Copy + 'static> Inbox<T> {
+    /// The next sample, if one is waiting.
+    pub fn try_recv(&self) -> Result<Option<T>, IpcError> {
+        Ok(self
+            .subscriber
+            .receive()
+            .map_err(|e| port_err("receive", &self.name, e))?
+            .map(|s| *s.payload()))
+    }
+
+    /// Waits at most `timeout` for a wake-up unless a sample is already
+    /// waiting: a bounded wait, no busy spin, no allocation.
+    ///
+    /// iceoryx2 0.10's `Listener::timed_wait` rests on `SO_RCVTIMEO`, which
+    /// the kernel rounds up to whole scheduler ticks (≈ 8 ms measured here
+    /// for a 1 µs timeout); too coarse for a 5 ms deadline at 1 kHz. So the
+    /// listener's file descriptor is polled with `ppoll` (nanosecond timeout)
+    /// and the notifications are then drained with `try_wait`. Channels
+    /// without an event sleep a tenth of `timeout`.
+    pub fn wait(&self, timeout: Duration) -> Result<(), IpcError> {
+        if self
+            .subscriber
+            .has_samples()
+            .map_err(|e| port_err("has_samples", &self.name, e))?
+        {
+            return self.drain_wake_ups();
+        }
+        match self.fd {
+            Some(fd) => {
+                let mut pfd = libc::pollfd {
+                    fd,
+                    events: libc::POLLIN,
+                    revents: 0,
+                };
+                let ts = libc::timespec {
+                    tv_sec: timeout.as_secs() as libc::time_t,
+                    tv_nsec: timeout.subsec_nanos() as libc::c_long,
+                };
+                // SAFETY: one valid pollfd, a valid timespec, no signal mask.
+                let rc = unsafe { libc::ppoll(&mut pfd, 1, &ts, std::ptr::null()) };
+                if rc < 0 {
+                    let err = std::io::Error::last_os_error();
+                    if err.kind() != std::io::ErrorKind::Interrupted {
+                        return Err(port_err("ppoll", &self.name, err));
+                    }
+                }
+                self.drain_wake_ups()
+            }
+            None => {
+                std::thread::sleep(timeout / 10);
+                Ok(())
+            }
+        }
+    }
+
+    fn drain_wake_ups(&self) -> Result<(), IpcError> {
+        if let Some(l) = &self.listener {
+            l.try_wait(|_| {})
+                .map_err(|e| port_err("try_wait", &self.name, e))?;
+        }
+        Ok(())
+    }
+
+    /// Receives with a bounded wait: the next sample, or `None` after `timeout`.
+    pub fn recv_timeout(&self, timeout: Duration) -> Result<Option<T>, IpcError> {
+        if let Some(v) = self.try_recv()? {
+            return Ok(Some(v));
+        }
+        self.wait(timeout)?;
+        self.try_recv()
+    }
+
+    /// The service name.
+    pub fn name(&self) -> &str {
+        &self.name
+    }
+}
