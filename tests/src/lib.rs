@@ -1,13 +1,22 @@
 //! Helpers for the workspace-level integration tests in `tests/tests/`: they
-//! run the real exo binaries, built by `cargo test --workspace`.
+//! run the real exo binaries (built by `cargo test --workspace`) and watch
+//! their channels through iceoryx2 like any other subscriber.
 
-use std::path::PathBuf;
-use std::process::{Command, Output};
+use std::fmt::Debug;
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command, Output, Stdio};
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::{Arc, Mutex};
+use std::thread::JoinHandle;
+use std::time::{Duration, Instant};
+
+use exo_service_kit::channels::Channel;
+use exo_service_kit::ipc::Ipc;
+use iceoryx2::prelude::ZeroCopySend;
 
 /// Path of a workspace binary in the same target directory as the running test.
 pub fn workspace_bin(name: &str) -> PathBuf {
     let exe = std::env::current_exe().expect("path of the running test binary");
-    // target/<profile>/deps/<test> -> target/<profile>/<name>
     let dir = exe
         .parent()
         .and_then(|deps| deps.parent())
@@ -37,4 +46,211 @@ pub fn stdout(o: &Output) -> String {
 /// Standard error as UTF-8 text.
 pub fn stderr(o: &Output) -> String {
     String::from_utf8_lossy(&o.stderr).into_owned()
+}
+
+/// The workspace's `configs/` directory.
+pub fn configs_dir() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../configs")
+}
+
+/// A scratch directory for one test, with a run configuration derived from
+/// `configs/default.toml` by textual replacements, and a unique instance so
+/// parallel tests never share services.
+pub struct Scenario {
+    /// Directory.
+    pub dir: PathBuf,
+    /// The run configuration file.
+    pub config: PathBuf,
+    /// Its iceoryx2 instance prefix.
+    pub instance: String,
+}
+
+impl Scenario {
+    /// Writes the scenario `tag` with `replacements` applied to the default run file.
+    pub fn new(tag: &str, replacements: &[(&str, &str)]) -> Self {
+        let instance = format!("t{}{}", tag.replace(['_', '-'], ""), std::process::id());
+        let dir = std::env::temp_dir().join(format!("exo-it-{instance}"));
+        std::fs::create_dir_all(&dir).unwrap();
+        let cfgs = configs_dir();
+        let mut text = std::fs::read_to_string(cfgs.join("default.toml")).unwrap();
+        text = text
+            .replace("\"plants/", &format!("\"{}/plants/", cfgs.display()))
+            .replace("\"subjects/", &format!("\"{}/subjects/", cfgs.display()))
+            .replace(
+                "\"experiments.toml\"",
+                &format!("\"{}/experiments.toml\"", cfgs.display()),
+            )
+            .replace("instance = \"exo\"", &format!("instance = \"{instance}\""));
+        for (from, to) in replacements {
+            assert!(
+                text.contains(from),
+                "scenario {tag}: `{from}` not in the default run file"
+            );
+            text = text.replacen(from, to, 1);
+        }
+        let config = dir.join("run.toml");
+        std::fs::write(&config, text).unwrap();
+        Scenario {
+            dir,
+            config,
+            instance,
+        }
+    }
+
+    /// Writes a file next to the run configuration.
+    pub fn write(&self, name: &str, text: &str) -> PathBuf {
+        let p = self.dir.join(name);
+        std::fs::write(&p, text).unwrap();
+        p
+    }
+
+    /// Starts one service binary with this configuration and `extra` arguments;
+    /// its standard error goes to `<dir>/<name>.log`.
+    pub fn spawn(&self, bin: &str, extra: &[&str]) -> Child {
+        let log = std::fs::File::create(self.dir.join(format!("{bin}.log"))).unwrap();
+        Command::new(workspace_bin(bin))
+            .arg("--config")
+            .arg(&self.config)
+            .args(extra)
+            .stdin(Stdio::null())
+            .stdout(Stdio::null())
+            .stderr(log)
+            .spawn()
+            .unwrap_or_else(|e| panic!("starting {bin}: {e}"))
+    }
+
+    /// The log of a service started with [`Scenario::spawn`].
+    pub fn log(&self, bin: &str) -> String {
+        std::fs::read_to_string(self.dir.join(format!("{bin}.log"))).unwrap_or_default()
+    }
+
+    /// A background subscriber collecting every sample of `ch`.
+    pub fn collect<T: Debug + ZeroCopySend + Copy + Send + 'static>(
+        &self,
+        ch: Channel,
+    ) -> Collector<T> {
+        Collector::start(&self.instance, ch)
+    }
+}
+
+/// Kills a child with SIGKILL and reaps it.
+pub fn kill_9(child: &mut Child) {
+    let _ = child.kill();
+    let _ = child.wait();
+}
+
+/// Stops a child with SIGTERM and waits (up to 5 s, then SIGKILL).
+pub fn terminate(child: &mut Child) {
+    if let Ok(pid) = i32::try_from(child.id()) {
+        // SAFETY: signalling our own child.
+        unsafe { libc::kill(pid, libc::SIGTERM) };
+    }
+    let t = Instant::now();
+    while t.elapsed() < Duration::from_secs(5) {
+        if let Ok(Some(_)) = child.try_wait() {
+            return;
+        }
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    kill_9(child);
+}
+
+/// Waits for a child to exit within `timeout`; kills it and panics otherwise.
+pub fn wait_exit(child: &mut Child, timeout: Duration, what: &str) -> std::process::ExitStatus {
+    let t = Instant::now();
+    loop {
+        if let Ok(Some(s)) = child.try_wait() {
+            return s;
+        }
+        if t.elapsed() > timeout {
+            kill_9(child);
+            panic!("{what} did not finish within {timeout:?}");
+        }
+        std::thread::sleep(Duration::from_millis(20));
+    }
+}
+
+/// Collects every sample of one channel on a background thread.
+pub struct Collector<T: Copy + Send + 'static> {
+    samples: Arc<Mutex<Vec<T>>>,
+    stop: Arc<AtomicBool>,
+    handle: Option<JoinHandle<()>>,
+}
+
+impl<T: Debug + ZeroCopySend + Copy + Send + 'static> Collector<T> {
+    fn start(instance: &str, ch: Channel) -> Self {
+        let samples = Arc::new(Mutex::new(Vec::new()));
+        let stop = Arc::new(AtomicBool::new(false));
+        let ready = Arc::new(AtomicBool::new(false));
+        let (s2, st2, r2, inst) = (
+            Arc::clone(&samples),
+            Arc::clone(&stop),
+            Arc::clone(&ready),
+            instance.to_string(),
+        );
+        let handle = std::thread::spawn(move || {
+            let node = format!("collector_{}", std::process::id());
+            let ipc = Ipc::open(&node, &inst, None).expect("collector node");
+            let inbox = ipc
+                .inbox::<T>(ch, exo_service_kit::ipc::MAX_BUFFER)
+                .expect("collector inbox");
+            r2.store(true, Ordering::SeqCst);
+            while !st2.load(Ordering::Relaxed) {
+                let mut got = false;
+                while let Ok(Some(v)) = inbox.try_recv() {
+                    s2.lock().unwrap().push(v);
+                    got = true;
+                }
+                if !got {
+                    let _ = inbox.wait(Duration::from_millis(5));
+                }
+            }
+            while let Ok(Some(v)) = inbox.try_recv() {
+                s2.lock().unwrap().push(v);
+            }
+        });
+        while !ready.load(Ordering::SeqCst) {
+            std::thread::sleep(Duration::from_millis(5));
+        }
+        Collector {
+            samples,
+            stop,
+            handle: Some(handle),
+        }
+    }
+
+    /// A copy of what has arrived so far.
+    pub fn snapshot(&self) -> Vec<T> {
+        self.samples.lock().unwrap().clone()
+    }
+
+    /// Waits until `pred` holds for the samples so far (or panics after `timeout`).
+    pub fn wait_for(&self, timeout: Duration, what: &str, pred: impl Fn(&[T]) -> bool) {
+        let t = Instant::now();
+        while t.elapsed() < timeout {
+            if pred(&self.samples.lock().unwrap()) {
+                return;
+            }
+            std::thread::sleep(Duration::from_millis(10));
+        }
+        panic!("timed out after {timeout:?} waiting for {what}");
+    }
+
+    /// Stops collecting and returns everything.
+    pub fn finish(mut self) -> Vec<T> {
+        self.stop.store(true, Ordering::SeqCst);
+        if let Some(h) = self.handle.take() {
+            let _ = h.join();
+        }
+        self.samples.lock().unwrap().clone()
+    }
+}
+
+impl<T: Copy + Send + 'static> Drop for Collector<T> {
+    fn drop(&mut self) {
+        self.stop.store(true, Ordering::SeqCst);
+        if let Some(h) = self.handle.take() {
+            let _ = h.join();
+        }
+    }
 }

@@ -172,7 +172,7 @@ fn run(args: ServiceArgs) -> Result<()> {
         plant.set_drive(drive.update(period_s, protocol.phase));
         plant.advance(period_s, tau_motor);
         k += 1;
-        if k % (cfg.run.rate_hz as u64 * 10) == 0 {
+        if k.is_multiple_of(cfg.run.rate_hz as u64 * 10) {
             let t = plant.truth();
             info!(
                 "plant-sim: sim {:.1} s, wall {:.1} s, θ = {:.3} rad, missed deadlines {missed_deadlines}",

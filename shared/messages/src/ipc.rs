@@ -44,6 +44,7 @@
 //! non-blocking `try_wait`.
 
 use std::path::{Path, PathBuf};
+use std::sync::Mutex;
 use std::time::{Duration, Instant};
 
 use iceoryx2::config::Config;
@@ -219,15 +220,25 @@ pub fn load_config(path: &Path) -> Result<Config, IpcError> {
 /// Installs the file at `path` as iceoryx2's process-wide configuration
 /// (`Config::global_config()`), which iceoryx2 falls back to where no
 /// configuration is passed (e.g. when cleaning up a dead node whose details
-/// are unreadable). A no-op if a global configuration is already installed.
+/// are unreadable), so it never searches for a file of its own nor warns "No
+/// config file was loaded". The first successful call of a process wins;
+/// later calls are no-ops. Calls are serialised here because iceoryx2 0.10
+/// warns when two threads install the global configuration at once.
 pub fn install_global_config(path: &Path) -> Result<(), IpcError> {
+    static INSTALLED: Mutex<bool> = Mutex::new(false);
+    let mut installed = INSTALLED
+        .lock()
+        .unwrap_or_else(|poisoned| poisoned.into_inner());
+    if *installed {
+        return Ok(());
+    }
     let file = iceoryx_file_path(path)?;
-    Config::setup_global_config_from_file(&file)
-        .map(|_| ())
-        .map_err(|e| IpcError::Config {
-            path: path.to_path_buf(),
-            reason: format!("{e:?}"),
-        })
+    Config::setup_global_config_from_file(&file).map_err(|e| IpcError::Config {
+        path: path.to_path_buf(),
+        reason: format!("{e:?}"),
+    })?;
+    *installed = true;
+    Ok(())
 }
 
 /// Creates the node `name` with the configuration file of

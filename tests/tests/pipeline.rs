@@ -1,0 +1,169 @@
+//! The real processes in closed loop, in lockstep (deterministic, no
+//! wall-clock thresholds): the launcher runs a protocol end to end, a NaN
+//! reading latches the safe state, a controller killed with SIGKILL brings
+//! the driver to its safe state within the deadline plus one tick and can be
+//! restarted without anyone cleaning shared memory.
+
+use std::time::Duration;
+
+use exo_messages::{status, ActuatorCommand, ProtocolState, SensorSample};
+use exo_service_kit::channels::Channel;
+use exo_tests::*;
+
+const SHORT_RUN: &[(&str, &str)] = &[
+    ("periods = [1, 4, 7]", "periods = [1]"),
+    ("rest_s = 1.0 ", "rest_s = 0.5 "),
+];
+
+#[test]
+fn one_experiment_runs_end_to_end_through_the_launcher() {
+    let sc = Scenario::new("e2e", SHORT_RUN);
+    let protocol = sc.collect::<ProtocolState>(Channel::Protocol);
+    let commands = sc.collect::<ActuatorCommand>(Channel::Command);
+    let out = exo(&["run", sc.config.to_str().unwrap()]);
+    assert!(out.status.success(), "exo run failed:\n{}", stderr(&out));
+    let protocol = protocol.finish();
+    let commands = commands.finish();
+    // Every phase of period 1 of experiment 1 was reported, with Table I's sine.
+    for phase in 1..=5u32 {
+        assert!(
+            protocol
+                .iter()
+                .any(|p| p.experiment == 1 && p.period == 1 && p.phase == phase),
+            "phase {phase} never reported"
+        );
+    }
+    let sine = protocol.iter().find(|p| p.phase == 3).unwrap();
+    assert_eq!((sine.omega, sine.amplitude, sine.alpha), (2.0, 2.0, 1.0));
+    // One command per sample, in order, none missing, all in Run mode with
+    // finite torque. (A sample re-sent at start-up, before the controller was
+    // up, is answered again with the same command: those repeats are dropped.)
+    let mut answers = commands.clone();
+    answers.dedup_by_key(|c| c.sensor_seq);
+    assert!(answers.len() > 20_000, "{} commands", answers.len());
+    for (i, c) in answers.iter().enumerate() {
+        assert_eq!(
+            c.sensor_seq,
+            answers[0].sensor_seq + i as u64,
+            "gap at command {i}"
+        );
+        assert!(c.tau_d.is_finite() && c.tau_d.abs() <= 40.0);
+    }
+    assert!(commands.iter().filter(|c| c.mode != 4).all(|c| c.mode == 1));
+    assert!(
+        commands.iter().any(|c| c.tau_excitation.abs() > 1.9),
+        "no excitation seen"
+    );
+    assert!(stderr(&out).contains("protocol done"));
+}
+
+#[test]
+fn nan_reading_latches_the_safe_state() {
+    let sc = Scenario::new("nan", SHORT_RUN);
+    let commands = sc.collect::<ActuatorCommand>(Channel::Command);
+    let samples = sc.collect::<SensorSample>(Channel::Sensor);
+    let mut procs = vec![
+        sc.spawn("exo-plant-sim", &["--inject-fault-at", "3000"]),
+        sc.spawn("exo-sensor-driver", &[]),
+        sc.spawn("exo-controller", &[]),
+    ];
+    commands.wait_for(Duration::from_secs(120), "commands past the fault", |c| {
+        c.iter().any(|c| c.sensor_seq >= 3500)
+    });
+    for p in &mut procs {
+        terminate(p);
+    }
+    let commands = commands.finish();
+    let samples = samples.finish();
+    // The NaN never reached a sample: the driver flags it instead.
+    assert!(samples
+        .iter()
+        .all(|s| s.tau_c.is_finite() && s.theta_e.is_finite()));
+    assert!(samples
+        .iter()
+        .filter(|s| s.seq >= 3000)
+        .all(|s| s.status & status::FT_FAULT != 0));
+    for c in &commands {
+        assert!(c.tau_d.is_finite());
+        let expected = if c.sensor_seq < 3000 { 1 } else { 2 };
+        assert_eq!(
+            c.mode, expected,
+            "command for sample {}: mode {}",
+            c.sensor_seq, c.mode
+        );
+        if c.sensor_seq >= 3000 {
+            assert_eq!(
+                (c.tau_amplification, c.tau_excitation, c.tau_bias),
+                (0.0, 0.0, 0.0)
+            );
+        }
+    }
+    assert!(
+        sc.log("exo-controller")
+            .contains("safe state latched at sample 3000"),
+        "{}",
+        sc.log("exo-controller")
+    );
+}
+
+#[test]
+fn killed_controller_brings_the_driver_to_its_safe_state_and_a_restart_works() {
+    let sc = Scenario::new("kill", SHORT_RUN);
+    let samples = sc.collect::<SensorSample>(Channel::Sensor);
+    let commands = sc.collect::<ActuatorCommand>(Channel::Command);
+    let mut plant = sc.spawn("exo-plant-sim", &[]);
+    let mut driver = sc.spawn("exo-sensor-driver", &[]);
+    let mut controller = sc.spawn("exo-controller", &[]);
+    samples.wait_for(Duration::from_secs(120), "2000 samples", |s| {
+        s.iter().any(|s| s.seq >= 2000)
+    });
+    kill_9(&mut controller);
+    // Everything the controller answered before it died.
+    std::thread::sleep(Duration::from_millis(50));
+    let last_answered = commands
+        .snapshot()
+        .iter()
+        .map(|c| c.sensor_seq)
+        .max()
+        .unwrap();
+    samples.wait_for(
+        Duration::from_secs(120),
+        "3 s of simulated time after the kill",
+        |s| s.iter().any(|s| s.seq >= last_answered + 3000),
+    );
+    let s = samples.snapshot();
+    // Frame last+1 goes unanswered: the driver latches there (deadline), and the
+    // next sample, last+2, already carries the safe-state flag.
+    let first_safe = s
+        .iter()
+        .find(|s| s.status & status::SAFE_STATE != 0)
+        .expect("safe state")
+        .seq;
+    assert!(
+        first_safe <= last_answered + 2,
+        "safe state at sample {first_safe}, last answered {last_answered}"
+    );
+    assert!(sc.log("exo-sensor-driver").contains("safe state latched"));
+    // Gravity-only safe state: the arm stays bounded.
+    for x in s.iter().filter(|x| x.seq > last_answered) {
+        assert!(
+            x.theta_e > -0.6 && x.theta_e < 2.6,
+            "θ = {} at {}",
+            x.theta_e,
+            x.seq
+        );
+    }
+    // A controller restarted after kill -9 works without cleaning /dev/shm by hand.
+    let before = commands.snapshot().len();
+    let mut restarted = sc.spawn("exo-controller", &[]);
+    commands.wait_for(
+        Duration::from_secs(60),
+        "commands from the restarted controller",
+        |c| c.len() > before + 100,
+    );
+    let c = commands.finish();
+    assert!(c[before..].iter().all(|c| c.sensor_seq > last_answered));
+    for p in [&mut restarted, &mut driver, &mut plant] {
+        terminate(p);
+    }
+}
