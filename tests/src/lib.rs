@@ -97,6 +97,24 @@ impl Scenario {
         }
     }
 
+    /// Applies a textual replacement to the run configuration.
+    pub fn edit(&self, from: &str, to: &str) {
+        let text = std::fs::read_to_string(&self.config).unwrap();
+        assert!(
+            text.contains(from),
+            "`{from}` not in {}",
+            self.config.display()
+        );
+        std::fs::write(&self.config, text.replacen(from, to, 1)).unwrap();
+    }
+
+    /// Appends text to the run configuration.
+    pub fn append(&self, text: &str) {
+        let mut t = std::fs::read_to_string(&self.config).unwrap();
+        t.push_str(text);
+        std::fs::write(&self.config, t).unwrap();
+    }
+
     /// Writes a file next to the run configuration.
     pub fn write(&self, name: &str, text: &str) -> PathBuf {
         let p = self.dir.join(name);

@@ -92,6 +92,7 @@ pub struct Controller {
     previous_tau_d_nm: f64,
     f_bounds: [f64; 2],
     design: FractionalDesign,
+    gravity_compensation: bool,
 }
 
 /// What is needed to rebuild the fractional amplifier with a new f.
@@ -179,6 +180,7 @@ impl Controller {
             previous_tau_d_nm: 0.0,
             f_bounds: cfg.controller.f_bounds,
             design,
+            gravity_compensation: cfg.controller.gravity_compensation,
         })
     }
 
@@ -239,7 +241,11 @@ impl Controller {
         } else {
             0.0
         };
-        let gravity = self.rig.gravity_torque_nm(theta_for_gravity, p.load_kg);
+        let gravity = if self.gravity_compensation {
+            self.rig.gravity_torque_nm(theta_for_gravity, p.load_kg)
+        } else {
+            0.0
+        };
         let (mode, tau_g, tau_a, tau_b, tau_x) = if self.latch.is_latched() {
             match self.safe_state {
                 SafeState::GravityOnly => (Mode::SafeGravityOnly, gravity, 0.0, 0.0, 0.0),

@@ -137,6 +137,13 @@ pub struct ControllerSettings {
     pub f_bounds: [f64; 2],
     /// Torque and rate limits.
     pub limits: LimitSettings,
+    /// Compensate gravity with the rig model (off for a rig moving in a horizontal plane).
+    #[serde(default = "default_true")]
+    pub gravity_compensation: bool,
+}
+
+fn default_true() -> bool {
+    true
 }
 
 fn default_f_bounds() -> [f64; 2] {

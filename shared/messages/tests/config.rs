@@ -66,7 +66,8 @@ fn the_project_config_is_loaded_explicitly_and_nothing_warns() {
     {
         let log = LOG.lock().unwrap_or_else(|p| p.into_inner());
         assert!(
-            !log.iter().any(|(_, l)| l.contains("No config file was loaded")),
+            !log.iter()
+                .any(|(_, l)| l.contains("No config file was loaded")),
             "{log:#?}"
         );
         let warnings: Vec<_> = log
@@ -84,7 +85,10 @@ fn the_project_config_is_loaded_explicitly_and_nothing_warns() {
     assert_ne!(file, Config::default(), "the file was read");
     assert_eq!(file.global.prefix.as_bytes(), b"exo_");
     assert_eq!(node.config(), &file, "the node runs on the project's file");
-    assert_eq!(global, &file, "the project's file is the global configuration");
+    assert_eq!(
+        global, &file,
+        "the project's file is the global configuration"
+    );
 }
 
 /// Every leaf `(dotted.key, value)` of a TOML table.
