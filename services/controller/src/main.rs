@@ -143,20 +143,9 @@ fn run(args: ServiceArgs) -> Result<()> {
             tau_s_nm: s.tau_s,
             sensor_fault: s.status & FAULT_MASK != 0,
         });
-        let cmd = ActuatorCommand {
-            seq: last.map_or(0, |c| c.seq + 1),
-            stamp_ns: s.stamp_ns,
-            sensor_seq: s.seq,
-            tau_d: tick.tau_d_nm,
-            tau_gravity: tick.tau_gravity_nm,
-            tau_amplification: tick.tau_amplification_nm,
-            tau_bias: tick.tau_bias_nm,
-            tau_excitation: tick.tau_excitation_nm,
-            mode: mode_code(tick.mode),
-            ..Default::default()
-        };
-        command_out.send(cmd)?;
-        last = Some(cmd);
+        // The protocol state goes out before the command: the plant applies it
+        // when that command's motor command reaches it, so in lockstep it takes
+        // effect at the same tick in every run.
         let p = tick.protocol;
         let key = (p.experiment, p.period, p.phase as u32);
         if key != last_protocol || s.seq >= last_protocol_tick + rate as u64 {
@@ -188,6 +177,20 @@ fn run(args: ServiceArgs) -> Result<()> {
             last_protocol = key;
             last_protocol_tick = s.seq;
         }
+        let cmd = ActuatorCommand {
+            seq: last.map_or(0, |c| c.seq + 1),
+            stamp_ns: s.stamp_ns,
+            sensor_seq: s.seq,
+            tau_d: tick.tau_d_nm,
+            tau_gravity: tick.tau_gravity_nm,
+            tau_amplification: tick.tau_amplification_nm,
+            tau_bias: tick.tau_bias_nm,
+            tau_excitation: tick.tau_excitation_nm,
+            mode: mode_code(tick.mode),
+            ..Default::default()
+        };
+        command_out.send(cmd)?;
+        last = Some(cmd);
         if tick.fault != reported {
             if let Some(f) = tick.fault {
                 error!("controller: safe state latched at sample {}: {f}", s.seq);

@@ -4,7 +4,7 @@
 //! one list of service names, and the IPC helpers every process uses.
 //!
 //! Each message is a `#[repr(C)]`, fixed-size, `Copy` struct deriving
-//! iceoryx2's [`ZeroCopySend`](iceoryx2::prelude::ZeroCopySend) with a stable,
+//! iceoryx2's [`ZeroCopySend`] with a stable,
 //! versioned `type_name` (`exo.<Type>.v<N>`; bump `N` whenever the layout
 //! changes), so a publisher writes it once into shared memory and every
 //! subscriber reads it in place. Padding is explicit (`_pad` fields, always
@@ -32,6 +32,8 @@
 //! subscribers; [`ipc`] builds nodes (with the project's iceoryx2
 //! configuration loaded explicitly), services, ports and wake-up events, and
 //! cleans up after processes killed with `kill -9`.
+
+#![deny(missing_docs)]
 
 pub mod bus;
 pub mod command;

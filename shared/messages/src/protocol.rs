@@ -190,7 +190,7 @@ mod tests {
             experiment: 3,
             period: 10,
             phase: ProtocolPhase::Analysis.as_u32(),
-            omega: 6.28,
+            omega: 6.0,
             amplitude: 1.0,
             alpha: 2.0,
             ..Default::default()

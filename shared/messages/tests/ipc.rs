@@ -288,23 +288,18 @@ fn misuse_is_an_error_naming_the_service() {
     let inst = instance("misuse");
     let node = ipc::open_node("exotest_misuse", None).expect("node");
     let e = ipc::open_publish_subscribe::<ActuatorCommand>(&node, services::SENSOR, &inst)
-        .err()
-        .expect("payload mismatch");
+        .expect_err("payload mismatch");
     assert!(matches!(e, IpcError::PayloadMismatch { .. }), "{e}");
     assert!(e.to_string().contains("exo/sensor"), "{e}");
     assert!(e.to_string().contains("exo.ActuatorCommand.v1"), "{e}");
 
-    let e = ipc::open_event(&node, services::SENSOR, &inst)
-        .err()
-        .expect("wrong pattern");
+    let e = ipc::open_event(&node, services::SENSOR, &inst).expect_err("wrong pattern");
     assert!(matches!(e, IpcError::WrongPattern { .. }), "{e}");
-    let e = ipc::open_event(&node, "exo/nothing", &inst)
-        .err()
-        .expect("unknown");
+    let e = ipc::open_event(&node, "exo/nothing", &inst).expect_err("unknown");
     assert!(matches!(e, IpcError::UnknownService { .. }), "{e}");
     let e = Inbox::<ProtocolState>::open(&node, services::PROTOCOL, &inst, 1, Wake::Listen)
-        .err()
-        .expect("no event on the protocol channel");
+        .expect_err("no event on the protocol channel");
+    assert!(matches!(e, IpcError::NoWakeEvent { .. }), "{e}");
     assert!(e.to_string().contains("protocol"), "{e}");
 
     // A service created elsewhere with another layout under the same name.
@@ -314,8 +309,7 @@ fn misuse_is_an_error_naming_the_service() {
         ipc::open_publish_subscribe_with::<SensorSample>(&node, &raw, &services::STREAM_QOS)
             .expect("create");
     let e = ipc::open_publish_subscribe_with::<ActuatorCommand>(&node, &raw, &services::STREAM_QOS)
-        .err()
-        .expect("incompatible type");
+        .expect_err("incompatible type");
     assert!(matches!(e, IpcError::Service { .. }), "{e}");
     assert!(e.to_string().contains(&raw), "{e}");
 
@@ -323,8 +317,7 @@ fn misuse_is_an_error_naming_the_service() {
         "exotest_cfg",
         Some(std::path::Path::new("/nonexistent/ice.toml")),
     )
-    .err()
-    .expect("missing file");
+    .expect_err("missing file");
     assert!(matches!(e, IpcError::Config { .. }), "{e}");
     assert!(e.to_string().contains("/nonexistent/ice.toml"), "{e}");
 }

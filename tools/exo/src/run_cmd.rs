@@ -54,6 +54,7 @@ pub fn services_of(cfg: &RunConfig, config: &std::path::Path) -> Result<Vec<Serv
 pub fn run(args: &RunArgs) -> Result<()> {
     // Validate everything before any process starts.
     let cfg = RunConfig::from_file(&args.config)?;
+    exo_plant_sim::PlantModel::from_file(&cfg.plant_model)?;
     let services = services_of(&cfg, &args.config)?;
     eprintln!(
         "exo: starting {} for {} ({:?} timing at {} Hz)",

@@ -1,0 +1,48 @@
+//! The control tick makes no heap allocation (counted by a global allocator).
+
+use std::alloc::{GlobalAlloc, Layout, System};
+use std::sync::atomic::{AtomicUsize, Ordering};
+
+use exo_config::RunConfig;
+use exo_controller::{Controller, TickInput};
+
+struct Counting;
+static ALLOCATIONS: AtomicUsize = AtomicUsize::new(0);
+
+unsafe impl GlobalAlloc for Counting {
+    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
+        ALLOCATIONS.fetch_add(1, Ordering::Relaxed);
+        unsafe { System.alloc(layout) }
+    }
+    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
+        unsafe { System.dealloc(ptr, layout) }
+    }
+}
+
+#[global_allocator]
+static GLOBAL: Counting = Counting;
+
+#[test]
+fn controller_tick_and_adopting_f_do_not_allocate() {
+    let mut cfg = RunConfig::from_file(&exo_config::configs_dir().join("default.toml")).unwrap();
+    cfg.controller.f = Some(0.44);
+    let mut c = Controller::from_config(&cfg).unwrap();
+    let before = ALLOCATIONS.load(Ordering::Relaxed);
+    let mut acc = 0.0;
+    for seq in 0..100_000u64 {
+        let t = seq as f64 * 1e-3;
+        let tick = c.tick(&TickInput {
+            seq,
+            theta_e_rad: 0.7 + 0.05 * t.sin(),
+            omega_e_rad_s: 0.05 * t.cos(),
+            tau_c_nm: (3.0 * t).sin(),
+            tau_s_nm: 0.0,
+            sensor_fault: false,
+        });
+        acc += tick.tau_d_nm;
+    }
+    assert!(c.adopt_fractional_order(0.3));
+    let allocations = ALLOCATIONS.load(Ordering::Relaxed) - before;
+    assert!(acc.is_finite());
+    assert_eq!(allocations, 0, "{allocations} allocations in 100 000 ticks");
+}

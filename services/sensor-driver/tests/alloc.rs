@@ -1,0 +1,47 @@
+//! The driver's per-frame work makes no heap allocation.
+
+use std::alloc::{GlobalAlloc, Layout, System};
+use std::sync::atomic::{AtomicUsize, Ordering};
+
+use exo_config::{RunConfig, SafeState};
+use exo_sensor_driver::{Driver, RawFrame};
+
+struct Counting;
+static ALLOCATIONS: AtomicUsize = AtomicUsize::new(0);
+
+unsafe impl GlobalAlloc for Counting {
+    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
+        ALLOCATIONS.fetch_add(1, Ordering::Relaxed);
+        unsafe { System.alloc(layout) }
+    }
+    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
+        unsafe { System.dealloc(ptr, layout) }
+    }
+}
+
+#[global_allocator]
+static GLOBAL: Counting = Counting;
+
+#[test]
+fn frame_and_command_handling_do_not_allocate() {
+    let cfg = RunConfig::from_file(&exo_config::configs_dir().join("default.toml")).unwrap();
+    let mut d = Driver::new(&cfg.rig, 1000.0, SafeState::GravityOnly, 40.0, 4.5);
+    let before = ALLOCATIONS.load(Ordering::Relaxed);
+    for seq in 0..100_000u64 {
+        let f = RawFrame {
+            seq,
+            encoder_counts: (seq % 5000) as i64,
+            cuff_wrench: [0.0, 1.0, 0.0, 0.0, 0.0, 0.1],
+            ..Default::default()
+        };
+        let s = d.on_frame(&f);
+        let out = if seq % 1000 == 999 {
+            d.on_deadline()
+        } else {
+            d.on_command(seq, s.tau_c)
+        };
+        assert!(out.is_some());
+        d.reset();
+    }
+    assert_eq!(ALLOCATIONS.load(Ordering::Relaxed) - before, 0);
+}
