@@ -233,7 +233,7 @@ fn realtime_mode_runs_and_stops_cleanly() {
     // A one-second protocol: shorten the period by running only part of it.
     sc.edit("[run]\n", "[run]\nmax_sim_time_s = 1.5\n");
     let samples = sc.collect::<SensorSample>(Channel::Sensor);
-    let mut procs = vec![
+    let mut procs = [
         sc.spawn("exo-plant-sim", &[]),
         sc.spawn("exo-sensor-driver", &[]),
         sc.spawn("exo-controller", &[]),
