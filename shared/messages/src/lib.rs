@@ -28,10 +28,10 @@
 //! `validate(...)`, which name the offending field in a [`MessageError`], so
 //! NaN and infinities are stopped at the boundary.
 //!
-//! [`services`] names every iceoryx2 service with its payload, publisher and
-//! subscribers; [`ipc`] builds nodes (with the project's iceoryx2
-//! configuration loaded explicitly), services, ports and wake-up events, and
-//! cleans up after processes killed with `kill -9`.
+//! The channel table (service names, publisher and subscribers of each) and
+//! the IPC helpers live in `exo-service-kit` (`channels`, `ipc`); this crate
+//! holds only the payloads, so tools that read recordings need no iceoryx2
+//! node.
 
 #![deny(missing_docs)]
 
@@ -39,11 +39,9 @@ pub mod bus;
 pub mod command;
 pub mod error;
 pub mod identifier;
-pub mod ipc;
 pub mod operator;
 pub mod protocol;
 pub mod sensor;
-pub mod services;
 
 use core::fmt::Debug;
 
