@@ -1,0 +1,1 @@
+//! exo recorder (in progress).

@@ -1,0 +1,285 @@
+//! The baselines: a ping-pong and the pipeline's three-process topology
+//! with stand-in processes (see [`crate::roles`]), over iceoryx2 and over
+//! Unix-domain sockets. The bench itself plays the plant: it stamps a probe
+//! with `monotonic_ns()` immediately before sending it, paced like the
+//! plant in real time (absolute deadlines, `clock_nanosleep`), or back to
+//! back ("flat out", like lockstep), and stamps the answer on receipt.
+
+use std::ffi::OsStr;
+use std::os::unix::net::UnixListener;
+use std::path::Path;
+use std::time::Duration;
+
+use anyhow::{bail, Context, Result};
+use exo_messages::{ActuatorCommand, BusMotorCommand, BusSensorFrame, SensorSample};
+use exo_service_kit::channels::Channel;
+use exo_service_kit::ipc::Ipc;
+use exo_service_kit::{monotonic_ns, sleep_until_ns};
+
+use crate::link::{Answer, Got, Probe, Rx, Tx, UdsLink};
+use crate::procs::Fleet;
+use crate::roles::accept_within;
+use crate::stats::Latency;
+
+/// How long the start-up handshake may take.
+const HANDSHAKE_PATIENCE: Duration = Duration::from_secs(30);
+/// How long one probe may stay unanswered before the row fails.
+const ANSWER_PATIENCE: Duration = Duration::from_secs(5);
+/// One receive's wait before the children's liveness is checked.
+const POLL: Duration = Duration::from_millis(100);
+
+/// What a probe loop measured.
+pub struct LoopStats {
+    /// Probe sent → its answer received (ns), after the warm-up.
+    pub round_trip: Latency,
+    /// Round trips per second after the warm-up.
+    pub rate_per_s: f64,
+    /// Ticks after the warm-up whose deadline had passed by more than a
+    /// period (paced loops), sent late without sleeping, as the plant does.
+    pub late_ticks: u64,
+}
+
+/// How the bench paces its probes.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Pace {
+    /// One probe per period (ns) on absolute deadlines, like the plant in real time.
+    Period(u64),
+    /// The next probe as soon as the answer is in, like lockstep.
+    FlatOut,
+}
+
+/// Sends probes through `tx` and times their answers from `rx`.
+fn probe_loop<P: Probe, A: Answer>(
+    tx: &mut impl Tx<P>,
+    rx: &mut impl Rx<A>,
+    pace: Pace,
+    warmup: Duration,
+    measure: Duration,
+    fleet: &mut Fleet,
+) -> Result<LoopStats> {
+    // Handshake: probe 0 until it is answered (the peers may still be starting).
+    let t = monotonic_ns();
+    'handshake: loop {
+        tx.send(&P::probe(0, monotonic_ns()))?;
+        let sent = monotonic_ns();
+        while monotonic_ns() - sent < 50_000_000 {
+            match rx.recv(Duration::from_millis(50))? {
+                Got::Msg(a) if a.answers() == 0 => break 'handshake,
+                Got::Msg(_) | Got::Timeout => {}
+                Got::Closed => bail!("the peer closed the link during the handshake"),
+            }
+        }
+        fleet.check_alive()?;
+        if monotonic_ns() - t > HANDSHAKE_PATIENCE.as_nanos() as u64 {
+            bail!("no answer to the first probe within {HANDSHAKE_PATIENCE:?}");
+        }
+    }
+
+    let mut round_trip = Latency::new()?;
+    let mut late_ticks = 0u64;
+    let start = monotonic_ns();
+    let record_from = start + warmup.as_nanos() as u64;
+    let end = record_from + measure.as_nanos() as u64;
+    let mut seq = 1u64;
+    loop {
+        let now = monotonic_ns();
+        if now >= end {
+            break;
+        }
+        if let Pace::Period(p) = pace {
+            let deadline = start + seq * p;
+            if now > deadline + p {
+                if deadline >= record_from {
+                    late_ticks += 1;
+                }
+            } else {
+                sleep_until_ns(deadline);
+            }
+        }
+        let stamp = monotonic_ns();
+        tx.send(&P::probe(seq, stamp))?;
+        loop {
+            match rx.recv(POLL)? {
+                Got::Msg(a) if a.answers() == seq => {
+                    let now = monotonic_ns();
+                    if a.stamp_ns() != stamp {
+                        bail!(
+                            "the answer to probe {seq} carries stamp {} instead of {stamp}",
+                            a.stamp_ns()
+                        );
+                    }
+                    if stamp >= record_from {
+                        round_trip.record(now - stamp);
+                    }
+                    break;
+                }
+                Got::Msg(_) => {} // a late duplicate from the handshake
+                Got::Timeout => {
+                    fleet.check_alive()?;
+                    if monotonic_ns() - stamp > ANSWER_PATIENCE.as_nanos() as u64 {
+                        bail!("no answer to probe {seq} within {ANSWER_PATIENCE:?}");
+                    }
+                }
+                Got::Closed => bail!("the peer closed the link at probe {seq}"),
+            }
+        }
+        seq += 1;
+    }
+    Ok(LoopStats {
+        rate_per_s: round_trip.count() as f64 / measure.as_secs_f64(),
+        round_trip,
+        late_ticks,
+    })
+}
+
+fn role_args<'a>(role: &'a str, transport: &'a str, rest: &'a [&'a OsStr]) -> Vec<&'a OsStr> {
+    let mut v: Vec<&OsStr> = vec![
+        "--role".as_ref(),
+        role.as_ref(),
+        "--transport".as_ref(),
+        transport.as_ref(),
+    ];
+    v.extend_from_slice(rest);
+    v
+}
+
+/// Shape of a bare loop.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Shape {
+    /// Bench ↔ controller stand-in: `SensorSample` out, `ActuatorCommand` back.
+    PingPong,
+    /// Bench (plant) → driver → controller → driver → bench, the pipeline's
+    /// topology and payloads.
+    ThreeProcess,
+}
+
+/// A bare loop over iceoryx2 on the channels (and service settings) of the
+/// pipeline, under a fresh instance.
+pub fn iceoryx2(
+    exe: &Path,
+    shape: Shape,
+    pace: Pace,
+    warmup: Duration,
+    measure: Duration,
+    dir: &Path,
+    tag: &str,
+) -> Result<LoopStats> {
+    let instance = format!("pb{tag}{}", std::process::id());
+    let ipc = Ipc::open("bench_plant", &instance, None)?;
+    let mut fleet = Fleet::new(dir);
+    let inst: &OsStr = instance.as_ref();
+    let rest = ["--instance".as_ref(), inst];
+    let stats = match shape {
+        Shape::PingPong => {
+            let mut tx = ipc.outbox::<SensorSample>(Channel::Sensor)?;
+            let mut rx = ipc.inbox::<ActuatorCommand>(Channel::Command, 64)?;
+            fleet.spawn(
+                &format!("{tag}-controller"),
+                exe,
+                &role_args("controller", "iox", &rest),
+            )?;
+            probe_loop(&mut tx, &mut rx, pace, warmup, measure, &mut fleet)?
+        }
+        Shape::ThreeProcess => {
+            let mut tx = ipc.outbox::<BusSensorFrame>(Channel::BusSensor)?;
+            let mut rx = ipc.inbox::<BusMotorCommand>(Channel::BusMotor, 64)?;
+            fleet.spawn(
+                &format!("{tag}-controller"),
+                exe,
+                &role_args("controller", "iox", &rest),
+            )?;
+            fleet.spawn(
+                &format!("{tag}-driver"),
+                exe,
+                &role_args("driver", "iox", &rest),
+            )?;
+            probe_loop(&mut tx, &mut rx, pace, warmup, measure, &mut fleet)?
+        }
+    };
+    let trouble = fleet.stop();
+    if !trouble.is_empty() {
+        bail!("stopping the stand-ins: {}", trouble.join("; "));
+    }
+    Ok(stats)
+}
+
+fn bind(path: &Path) -> Result<UnixListener> {
+    let _ = std::fs::remove_file(path);
+    UnixListener::bind(path).with_context(|| format!("binding {}", path.display()))
+}
+
+/// A bare loop over Unix-domain stream sockets.
+pub fn unix_socket(
+    exe: &Path,
+    shape: Shape,
+    pace: Pace,
+    warmup: Duration,
+    measure: Duration,
+    dir: &Path,
+    tag: &str,
+) -> Result<LoopStats> {
+    let mut fleet = Fleet::new(dir);
+    let plant_path = dir.join(format!("{tag}-plant.sock"));
+    let listener = bind(&plant_path)?;
+    let plant: &OsStr = plant_path.as_os_str();
+    let peer_name = match shape {
+        Shape::PingPong => {
+            fleet.spawn(
+                &format!("{tag}-controller"),
+                exe,
+                &role_args("controller", "uds", &["--connect".as_ref(), plant]),
+            )?;
+            "controller"
+        }
+        Shape::ThreeProcess => {
+            let ctrl_path = dir.join(format!("{tag}-ctrl.sock"));
+            let _ = std::fs::remove_file(&ctrl_path);
+            fleet.spawn(
+                &format!("{tag}-driver"),
+                exe,
+                &role_args(
+                    "driver",
+                    "uds",
+                    &[
+                        "--connect".as_ref(),
+                        plant,
+                        "--listen".as_ref(),
+                        ctrl_path.as_os_str(),
+                    ],
+                ),
+            )?;
+            // The driver binds its own socket before connecting to ours.
+            fleet.spawn(
+                &format!("{tag}-controller"),
+                exe,
+                &role_args(
+                    "controller",
+                    "uds",
+                    &["--connect".as_ref(), ctrl_path.as_os_str()],
+                ),
+            )?;
+            "driver"
+        }
+    };
+    let stream = accept_within(&listener, HANDSHAKE_PATIENCE, "bench", || {
+        fleet.check_alive()
+    })?;
+    let mut rx = UdsLink::new(stream, peer_name)?;
+    let mut tx = rx.try_clone()?;
+    let stats = match shape {
+        Shape::PingPong => probe_loop::<SensorSample, ActuatorCommand>(
+            &mut tx, &mut rx, pace, warmup, measure, &mut fleet,
+        )?,
+        Shape::ThreeProcess => probe_loop::<BusSensorFrame, BusMotorCommand>(
+            &mut tx, &mut rx, pace, warmup, measure, &mut fleet,
+        )?,
+    };
+    // Closing the socket lets the stand-ins finish on their own.
+    drop(tx);
+    drop(rx);
+    let trouble = fleet.stop();
+    if !trouble.is_empty() {
+        bail!("stopping the stand-ins: {}", trouble.join("; "));
+    }
+    Ok(stats)
+}
