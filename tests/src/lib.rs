@@ -5,13 +5,9 @@
 use std::fmt::Debug;
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Output, Stdio};
-use std::sync::atomic::{AtomicBool, Ordering};
-use std::sync::{Arc, Mutex};
-use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
 use exo_service_kit::channels::Channel;
-use exo_service_kit::ipc::Ipc;
 use iceoryx2::prelude::ZeroCopySend;
 
 /// Path of a workspace binary in the same target directory as the running test.
@@ -188,65 +184,29 @@ pub fn wait_exit(child: &mut Child, timeout: Duration, what: &str) -> std::proce
     }
 }
 
-/// Collects every sample of one channel on a background thread.
-pub struct Collector<T: Copy + Send + 'static> {
-    samples: Arc<Mutex<Vec<T>>>,
-    stop: Arc<AtomicBool>,
-    handle: Option<JoinHandle<()>>,
-}
+/// Collects every sample of one channel on a background thread
+/// ([`exo_service_kit::collect::Collector`] with the tests' panicking API).
+pub struct Collector<T: Copy + Send + 'static>(exo_service_kit::collect::Collector<T>);
 
 impl<T: Debug + ZeroCopySend + Copy + Send + 'static> Collector<T> {
     fn start(instance: &str, ch: Channel) -> Self {
-        let samples = Arc::new(Mutex::new(Vec::new()));
-        let stop = Arc::new(AtomicBool::new(false));
-        let ready = Arc::new(AtomicBool::new(false));
-        let (s2, st2, r2, inst) = (
-            Arc::clone(&samples),
-            Arc::clone(&stop),
-            Arc::clone(&ready),
-            instance.to_string(),
-        );
-        let handle = std::thread::spawn(move || {
-            let node = format!("collector_{}", std::process::id());
-            let ipc = Ipc::open(&node, &inst, None).expect("collector node");
-            let inbox = ipc
-                .inbox::<T>(ch, exo_service_kit::ipc::MAX_BUFFER)
-                .expect("collector inbox");
-            r2.store(true, Ordering::SeqCst);
-            while !st2.load(Ordering::Relaxed) {
-                let mut got = false;
-                while let Ok(Some(v)) = inbox.try_recv() {
-                    s2.lock().unwrap().push(v);
-                    got = true;
-                }
-                if !got {
-                    let _ = inbox.wait(Duration::from_millis(5));
-                }
-            }
-            while let Ok(Some(v)) = inbox.try_recv() {
-                s2.lock().unwrap().push(v);
-            }
-        });
-        while !ready.load(Ordering::SeqCst) {
-            std::thread::sleep(Duration::from_millis(5));
-        }
-        Collector {
-            samples,
-            stop,
-            handle: Some(handle),
-        }
+        let node = format!("collector_{}", std::process::id());
+        Collector(
+            exo_service_kit::collect::Collector::start(&node, instance, ch)
+                .unwrap_or_else(|e| panic!("collector on {ch:?}: {e}")),
+        )
     }
 
     /// A copy of what has arrived so far.
     pub fn snapshot(&self) -> Vec<T> {
-        self.samples.lock().unwrap().clone()
+        self.0.snapshot()
     }
 
     /// Waits until `pred` holds for the samples so far (or panics after `timeout`).
     pub fn wait_for(&self, timeout: Duration, what: &str, pred: impl Fn(&[T]) -> bool) {
         let t = Instant::now();
         while t.elapsed() < timeout {
-            if pred(&self.samples.lock().unwrap()) {
+            if pred(&self.0.snapshot()) {
                 return;
             }
             std::thread::sleep(Duration::from_millis(10));
@@ -255,20 +215,7 @@ impl<T: Debug + ZeroCopySend + Copy + Send + 'static> Collector<T> {
     }
 
     /// Stops collecting and returns everything.
-    pub fn finish(mut self) -> Vec<T> {
-        self.stop.store(true, Ordering::SeqCst);
-        if let Some(h) = self.handle.take() {
-            let _ = h.join();
-        }
-        self.samples.lock().unwrap().clone()
-    }
-}
-
-impl<T: Copy + Send + 'static> Drop for Collector<T> {
-    fn drop(&mut self) {
-        self.stop.store(true, Ordering::SeqCst);
-        if let Some(h) = self.handle.take() {
-            let _ = h.join();
-        }
+    pub fn finish(self) -> Vec<T> {
+        self.0.finish().expect("collector")
     }
 }

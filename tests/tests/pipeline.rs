@@ -6,7 +6,7 @@
 
 use std::time::Duration;
 
-use exo_messages::{status, ActuatorCommand, ProtocolState, SensorSample};
+use exo_messages::{status, ActuatorCommand, ControlMode, ProtocolState, SensorSample};
 use exo_service_kit::channels::Channel;
 use exo_tests::*;
 
@@ -49,7 +49,11 @@ fn one_experiment_runs_end_to_end_through_the_launcher() {
         );
         assert!(c.tau_d.is_finite() && c.tau_d.abs() <= 40.0);
     }
-    assert!(commands.iter().filter(|c| c.mode != 4).all(|c| c.mode == 1));
+    let (run, done) = (ControlMode::Run.as_u32(), ControlMode::Done.as_u32());
+    assert!(commands
+        .iter()
+        .filter(|c| c.mode != done)
+        .all(|c| c.mode == run));
     assert!(
         commands.iter().any(|c| c.tau_excitation.abs() > 1.9),
         "no excitation seen"

@@ -135,8 +135,39 @@ impl Controller {
                     .experiment_table()
                     .get(v.experiment)
                     .map_or(4.5, |e| e.load_kg);
-                let table = voluntary_table(v.duration_s, v.grip_kg, v.bias_nm, load, v.experiment);
+                let table = one_period_table(
+                    v.duration_s / 2.0,
+                    v.duration_s / 2.0,
+                    v.grip_kg,
+                    v.bias_nm,
+                    load,
+                    v.experiment,
+                );
                 (Protocol::new(&table, &[v.experiment], None), load)
+            }
+            ProtocolMode::Release => {
+                let r = cfg.release.ok_or_else(|| {
+                    ControllerError::Config("release mode needs [release]".into())
+                })?;
+                let spec = cfg
+                    .experiment_table()
+                    .get(r.experiment)
+                    .copied()
+                    .ok_or_else(|| {
+                        ControllerError::Config(format!(
+                            "release.experiment {} is not in the experiment table",
+                            r.experiment
+                        ))
+                    })?;
+                let table = one_period_table(
+                    r.hold_s,
+                    r.observe_s,
+                    spec.grip_kg,
+                    spec.bias_nm,
+                    spec.load_kg,
+                    r.experiment,
+                );
+                (Protocol::new(&table, &[r.experiment], None), spec.load_kg)
             }
         };
         let m_e = cfg.exo_inertia_kg_m2(load_kg);
@@ -311,11 +342,14 @@ impl Controller {
     }
 }
 
-/// The voluntary-motion protocol as a one-experiment table: bias ramps in over
-/// 1 s, the motion's first half settles, its second half is the analysis
-/// window, the bias ramps out over 1 s. No perturbation (amplitude 0).
-fn voluntary_table(
-    duration_s: f64,
+/// A one-period protocol without perturbation (amplitude 0), for the
+/// voluntary-motion experiments and the spring-release test: the bias ramps
+/// in over 1 s, `settling_s` follow (the motion settles, or the spring stays
+/// attached), then the `analysis_s` window (the second half of the motion,
+/// or the response after the release), and the bias ramps out over 1 s.
+fn one_period_table(
+    settling_s: f64,
+    analysis_s: f64,
     grip_kg: f64,
     bias_nm: f64,
     load_kg: f64,
@@ -328,8 +362,8 @@ fn voluntary_table(
         frequency_step: 1.0,
         timing: ProtocolTiming {
             ramp_in_s: 1.0,
-            settling_s: duration_s / 2.0,
-            analysis_s: duration_s / 2.0,
+            settling_s,
+            analysis_s,
             ramp_out_s: 1.0,
             rest_s: 0.0,
         },

@@ -4,8 +4,8 @@
 //! sample's wake-up (bounded wait, no busy spin) and exits 0 when the
 //! protocol is done.
 //!
-//! In real time, no sample within `safety.sample_deadline_ms` (after the
-//! first) latches the safe state; in lockstep a stalled loop is the plant's
+//! In real time, no sample within `safety.sample_deadline_ms` latches the
+//! safe state, once the stream is established (0.1 s of samples answered); in lockstep a stalled loop is the plant's
 //! or driver's to report.
 
 use std::time::{Duration, Instant};
@@ -15,7 +15,7 @@ use exo_config::{RunConfig, TimingMode};
 use exo_controller::controller::Mode;
 use exo_controller::{Controller, Fault, TickInput};
 use exo_messages::{
-    ActuatorCommand, ImpedanceEstimate, OperatorCommand, ProtocolState, SensorSample,
+    ActuatorCommand, ControlMode, ImpedanceEstimate, OperatorCommand, ProtocolState, SensorSample,
 };
 use exo_service_kit::channels::Channel;
 use exo_service_kit::ipc::Ipc;
@@ -36,13 +36,15 @@ fn main() {
     }
 }
 
+/// The wire code of a controller mode (`exo_messages::ControlMode`).
 fn mode_code(m: Mode) -> u32 {
     match m {
-        Mode::Run => 1,
-        Mode::SafeGravityOnly => 2,
-        Mode::SafeZeroTorque => 3,
-        Mode::Done => 4,
+        Mode::Run => ControlMode::Run,
+        Mode::SafeGravityOnly => ControlMode::SafeGravityOnly,
+        Mode::SafeZeroTorque => ControlMode::SafeZeroTorque,
+        Mode::Done => ControlMode::Done,
     }
+    .as_u32()
 }
 
 fn run(args: ServiceArgs) -> Result<()> {
@@ -81,9 +83,13 @@ fn run(args: ServiceArgs) -> Result<()> {
     let mut reported: Option<Fault> = None;
     let mut done_ticks = 0u64;
     let mut idle_since = Instant::now();
+    // The sample deadline is armed once the stream is established (0.1 s of
+    // samples answered): start-up jitter of the other processes is not a fault.
+    let arm_after = (rate / 10.0).ceil() as u64;
+    let mut answered = 0u64;
     while !stop.requested() {
         let Some(s) = sensor_in.recv_timeout(wait)? else {
-            if last.is_some() && !lockstep {
+            if answered >= arm_after && !lockstep {
                 controller.raise(Fault::SampleTimeout);
             }
             if idle_since.elapsed() > Duration::from_secs(60) {
@@ -191,6 +197,7 @@ fn run(args: ServiceArgs) -> Result<()> {
         };
         command_out.send(cmd)?;
         last = Some(cmd);
+        answered += 1;
         if tick.fault != reported {
             if let Some(f) = tick.fault {
                 error!("controller: safe state latched at sample {}: {f}", s.seq);

@@ -14,7 +14,7 @@ use std::time::{Duration, Instant};
 
 use anyhow::{bail, Result};
 use exo_config::{ProtocolMode, RunConfig, TimingMode};
-use exo_messages::{BusMotorCommand, BusSensorFrame, ProtocolState};
+use exo_messages::{BusMotorCommand, BusSensorFrame, ProtocolPhase, ProtocolState};
 use exo_plant_sim::{Plant, PlantModel, PostureDrive};
 use exo_service_kit::channels::Channel;
 use exo_service_kit::ipc::Ipc;
@@ -71,6 +71,17 @@ fn run(args: ServiceArgs) -> Result<()> {
         }
         plant.set_excitation_omega(v.omega_rad_s);
     }
+    // Spring-release test: the springs pull until the analysis phase starts.
+    let release = cfg
+        .release
+        .filter(|_| cfg.protocol.mode == ProtocolMode::Release);
+    if let Some(r) = release {
+        if let Some(e) = cfg.subject().get(r.experiment) {
+            plant.set_human_impedance(e.stiffness_nm_per_rad, e.hysteretic_damping_nm_per_rad);
+        }
+        plant.set_external_torque_nm(r.spring_torque_nm);
+    }
+    let mut released = false;
     let mut protocol = ProtocolState::default();
     let period_ns = (period_s * 1e9).round() as u64;
     let max_ticks = cfg.run.max_sim_time_s.map(|t| (t / period_s).ceil() as u64);
@@ -97,7 +108,9 @@ fn run(args: ServiceArgs) -> Result<()> {
                         e.hysteretic_damping_nm_per_rad,
                     );
                 }
-                if p.omega > 0.0 {
+                // B_eq = H/ω follows the running sine; without one (voluntary
+                // motion, spring release) the plant keeps its setting.
+                if p.omega > 0.0 && p.amplitude > 0.0 {
                     plant.set_excitation_omega(p.omega);
                 }
                 if p.load_kg > 0.0 {
@@ -105,6 +118,14 @@ fn run(args: ServiceArgs) -> Result<()> {
                 }
             }
             protocol = p;
+        }
+        if release.is_some() && !released && protocol.phase == ProtocolPhase::Analysis.as_u32() {
+            plant.set_external_torque_nm(0.0);
+            released = true;
+            info!(
+                "plant-sim: springs released at sim {:.3} s",
+                plant.truth().t_s
+            );
         }
         let raw = plant.raw_sensors();
         let mut wrench = raw.cuff_wrench;

@@ -128,6 +128,7 @@ pub struct Plant {
     tau_c_delay: Delay,
     tau_s_delay: Delay,
     tau_d_held: f64,
+    external_torque_nm: f64,
     rng: Rng,
 }
 
@@ -181,6 +182,7 @@ impl Plant {
             tau_c_delay: Delay::new(steps_of(model.sensors.cuff_ft.terms.delay_s, h), 0.0),
             tau_s_delay: Delay::new(steps_of(model.sensors.sea_deflection.terms.delay_s, h), 0.0),
             tau_d_held: 0.0,
+            external_torque_nm: 0.0,
             rng: Rng::new(model.integration.seed),
         };
         p.rebuild();
@@ -227,6 +229,15 @@ impl Plant {
         {
             self.excitation_omega = omega_rad_s;
             self.rebuild();
+        }
+    }
+
+    /// Sets an external torque (Nm) on the exoskeleton joint, e.g. the test
+    /// springs of the paper's post-tuning test (positive = raising the arm).
+    /// It is not seen by the cuff sensor; non-finite values are ignored.
+    pub fn set_external_torque_nm(&mut self, tau_nm: f64) {
+        if tau_nm.is_finite() {
+            self.external_torque_nm = tau_nm;
         }
     }
 
@@ -407,7 +418,7 @@ impl Plant {
     fn nonlinear_torque(&self) -> f64 {
         let m = &self.model;
         let (th, w) = (self.x[self.layout.th_e], self.x[self.layout.w_e]);
-        let mut tau = -self.gravity_torque(th);
+        let mut tau = self.external_torque_nm - self.gravity_torque(th);
         let c = m.joint_friction.coulomb;
         if c.enabled {
             tau -= c.torque_nm * (w / c.smoothing_rad_s).tanh();

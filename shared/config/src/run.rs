@@ -73,6 +73,11 @@ pub enum ProtocolMode {
     /// The paper's amplification experiments: the subject moves voluntarily
     /// (sinusoid), the fractional-order controller amplifies; no perturbation.
     Voluntary,
+    /// The paper's post-tuning test (section "Tuning Results"): springs
+    /// attached to the exoskeleton arm's tip pull on it while the subject
+    /// holds a stiffness; they are detached at once and the response shows
+    /// whether the amplification loop is stable. Needs `[release]`.
+    Release,
 }
 
 /// `[protocol]`.
@@ -109,6 +114,25 @@ pub struct VoluntarySettings {
     pub bias_nm: f64,
     /// Experiment whose stiffness the subject holds.
     pub experiment: u32,
+}
+
+/// `[release]`: the spring-release perturbation of `mode = "release"`.
+///
+/// The protocol is one period: the experiment's bias ramps in over 1 s with
+/// the spring attached, the spring stays attached for `hold_s` (phase
+/// *settling*), is released at the start of the *analysis* phase, and the
+/// response is observed for `observe_s`; then the bias ramps out over 1 s.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ReleaseSettings {
+    /// Experiment of Table I whose stiffness, grip, bias and load the subject holds.
+    pub experiment: u32,
+    /// Torque (Nm) the attached springs exert on the exoskeleton joint (positive = raising).
+    pub spring_torque_nm: f64,
+    /// Time (s) the spring stays attached after the bias has ramped in.
+    pub hold_s: f64,
+    /// Time (s) observed after the release.
+    pub observe_s: f64,
 }
 
 /// `[controller]`.
@@ -253,6 +277,9 @@ pub struct RunConfig {
     /// `[protocol.voluntary]`, needed when `protocol.mode = "voluntary"`.
     #[serde(default)]
     pub voluntary: Option<VoluntarySettings>,
+    /// `[release]`, needed when `protocol.mode = "release"`.
+    #[serde(default)]
+    pub release: Option<ReleaseSettings>,
     /// `[controller]`.
     pub controller: ControllerSettings,
     /// `[safety]`.
@@ -323,6 +350,26 @@ impl RunConfig {
                 ));
             }
         }
+        let held = [
+            cfg.voluntary
+                .filter(|_| cfg.protocol.mode == ProtocolMode::Voluntary)
+                .map(|v| ("voluntary.experiment", v.experiment)),
+            cfg.release
+                .filter(|_| cfg.protocol.mode == ProtocolMode::Release)
+                .map(|r| ("release.experiment", r.experiment)),
+        ];
+        for (key, n) in held.into_iter().flatten() {
+            if table.get(n).is_none() || subject.get(n).is_none() {
+                return Err(c.fail(
+                    key,
+                    format!(
+                        "experiment {n} must be in both {} and {}",
+                        cfg.protocol.experiments_file.display(),
+                        cfg.subject_file.display()
+                    ),
+                ));
+            }
+        }
         cfg.experiments = Some(table);
         cfg.subject = Some(subject);
         Ok(cfg)
@@ -365,6 +412,17 @@ impl RunConfig {
             c.positive("voluntary.duration_s", v.duration_s)?;
             c.non_negative("voluntary.grip_kg", v.grip_kg)?;
             c.finite("voluntary.bias_nm", v.bias_nm)?;
+        }
+        if self.protocol.mode == ProtocolMode::Release {
+            let r = self.release.ok_or_else(|| {
+                c.fail(
+                    "release",
+                    "protocol.mode = \"release\" needs a [release] table",
+                )
+            })?;
+            c.finite("release.spring_torque_nm", r.spring_torque_nm)?;
+            c.positive("release.hold_s", r.hold_s)?;
+            c.positive("release.observe_s", r.observe_s)?;
         }
         let k = &self.controller;
         if let Some(kp) = k.kp {

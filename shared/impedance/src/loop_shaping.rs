@@ -337,6 +337,96 @@ impl AmplificationLoop {
     }
 }
 
+/// The lag-filter layout of a fractional-order controller: everything of
+/// eq. Fs but the order `f` (and `k_f`, which eq. kf derives from `f`).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct FractionalLayout {
+    /// Proportional gain `k_p` (eq. kp).
+    pub kp: f64,
+    /// Nominal crossover `ω̂_gc` (rad/s) that sets `k_f = ω̂_gc^f` (eq. kf).
+    pub omega_gc_hat_rad_s: f64,
+    /// Number of lag filters `n`.
+    pub filters: usize,
+    /// First pole `p_1` (rad/s).
+    pub p1_rad_s: f64,
+    /// Pole-to-pole ratio `r_pp`.
+    pub r_pp: f64,
+}
+
+impl FractionalLayout {
+    /// The loop `k_p F(s) P(s)` at order `f` around `plant`.
+    pub fn loop_at(&self, f: f64, plant: AmplificationPlant) -> Result<AmplificationLoop> {
+        let k_f = fractional_gain(self.omega_gc_hat_rad_s, f)?;
+        let filter = LagFilter::new(self.filters, self.p1_rad_s, self.r_pp, f, k_f)?;
+        Ok(AmplificationLoop {
+            kp: self.kp,
+            filter,
+            plant,
+        })
+    }
+
+    /// The smallest phase margin (degrees) over `plants` at order `f`, every
+    /// crossover counted (searched from `10⁻³ min(p_1, 1)` to `10³` times the
+    /// SEA's or the filter band's top frequency); `+∞` if no crossover.
+    pub fn min_phase_margin_deg(&self, f: f64, plants: &[AmplificationPlant]) -> Result<f64> {
+        let mut worst = f64::INFINITY;
+        for plant in plants {
+            let l = self.loop_at(f, *plant)?;
+            let lo = 1e-3 * self.p1_rad_s.min(1.0);
+            let hi = 1e3 * plant.sea.omega_n_rad_s().max(l.filter.band_rad_s().1);
+            if let Some(m) = l.analyze(lo, hi)?.min_phase_margin_deg {
+                worst = worst.min(m);
+            }
+        }
+        Ok(worst)
+    }
+}
+
+/// The model's stability bound on the fractional order: the largest `f` in
+/// `[0, 0.99]` for which the loop keeps a non-negative phase margin at every
+/// plant of `plants` (e.g. the subject's low and high stiffness), with the
+/// SEA. This is what the paper's tuning experiment finds on the rig ("raise f
+/// until the exoskeleton oscillates", section "Loop Shaping Experiments")
+/// before subtracting 0.12; eq. f is its SEA-free, power-law form.
+///
+/// Scans `f` in steps of 0.01 for the first loss of margin, then bisects to
+/// `1e-4`. Errors when the loop has no margin even at `f = 0`; returns 0.99
+/// when it never loses it.
+pub fn marginal_fractional_order(
+    layout: &FractionalLayout,
+    plants: &[AmplificationPlant],
+) -> Result<f64> {
+    if plants.is_empty() {
+        return Err(ScienceError::Infeasible(
+            "marginal fractional order: no plant given".into(),
+        ));
+    }
+    if layout.min_phase_margin_deg(0.0, plants)? < 0.0 {
+        return Err(ScienceError::Infeasible(
+            "the loop has a negative phase margin already at f = 0 (constant amplification k_p + 1)"
+                .into(),
+        ));
+    }
+    let mut stable = 0.0;
+    for i in 1..=99 {
+        let f = i as f64 * 0.01;
+        if layout.min_phase_margin_deg(f, plants)? < 0.0 {
+            let mut unstable = f;
+            while unstable - stable > 1e-4 {
+                let mid = 0.5 * (stable + unstable);
+                if layout.min_phase_margin_deg(mid, plants)? < 0.0 {
+                    unstable = mid;
+                } else {
+                    stable = mid;
+                }
+            }
+            return Ok(stable);
+        }
+        stable = f;
+    }
+    Ok(stable)
+}
+
 /// Predicted amplification `τ̃_s/τ̃_c = α(jω) − 1 = k_p F(jω)` with an ideal
 /// actuator: the quantity of the paper's Table IV (section "Loop Shaping
 /// Results", `α(s) = τ̃_s(s)/τ̃_c(s) + 1`).
@@ -390,5 +480,51 @@ mod tests {
                 p.phase_deg(w)
             );
         }
+    }
+
+    fn paper_layout() -> FractionalLayout {
+        let m_e = 0.1 + 4.5 * 0.45 * 0.45;
+        FractionalLayout {
+            kp: proportional_gain(m_e, 0.11).unwrap(),
+            omega_gc_hat_rad_s: nominal_crossover(
+                StiffnessRange::new(10.03, 108.33).unwrap(),
+                m_e,
+                0.11,
+            )
+            .unwrap(),
+            filters: 5,
+            p1_rad_s: 1.0,
+            r_pp: 10f64.sqrt(),
+        }
+    }
+
+    #[test]
+    fn the_marginal_order_is_where_the_phase_margin_reaches_zero() {
+        let lay = paper_layout();
+        let m_e = 0.1 + 4.5 * 0.45 * 0.45;
+        let plants = [
+            AmplificationPlant::new(m_e, 0.11, 20.0, 0.6, SeaModel::default()).unwrap(),
+            AmplificationPlant::new(m_e, 0.11, 70.0, 0.45, SeaModel::default()).unwrap(),
+        ];
+        let f = marginal_fractional_order(&lay, &plants).unwrap();
+        assert!(f > 0.0 && f < 0.99, "{f}");
+        assert!(lay.min_phase_margin_deg(f, &plants).unwrap() >= 0.0);
+        assert!(lay.min_phase_margin_deg(f + 2e-4, &plants).unwrap() < 0.0);
+        assert!(lay.min_phase_margin_deg(f - 0.05, &plants).unwrap() > 0.0);
+        // The bound over both plants is the lower of the two single bounds.
+        let each = plants.map(|p| marginal_fractional_order(&lay, &[p]).unwrap());
+        assert!((f - each[0].min(each[1])).abs() < 2e-4, "{f} vs {each:?}");
+        // More hysteretic damping (more low-frequency phase lead from the
+        // human) leaves room for a larger order.
+        let damped = AmplificationPlant {
+            loss_factor: 0.9,
+            ..plants[1]
+        };
+        assert!(marginal_fractional_order(&lay, &[damped]).unwrap() > each[1]);
+    }
+
+    #[test]
+    fn the_marginal_order_needs_a_plant() {
+        assert!(marginal_fractional_order(&paper_layout(), &[]).is_err());
     }
 }

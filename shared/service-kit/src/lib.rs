@@ -4,6 +4,7 @@
 //! a thin wiring of IPC around its service's library.
 
 pub mod channels;
+pub mod collect;
 pub mod ipc;
 
 use std::path::PathBuf;

@@ -5,12 +5,15 @@
 //!   amplification controller (gains, filter, discrete coefficients, margins,
 //!   predicted amplification, Bode plot).
 //! - `exo run CONFIG`: start and supervise the processes of a run.
+//! - `exo tune SUBJECT`: the paper's tuning experiment, automated.
 
 mod args;
 mod design_cmd;
 mod plot;
 mod run_cmd;
+mod stability;
 mod supervisor;
+mod tune_cmd;
 
 use clap::{Parser, Subcommand};
 
@@ -32,6 +35,10 @@ enum Command {
     /// Start and supervise the processes of a run configuration (plant
     /// simulator or hardware driver, controller, identifier, recorder).
     Run(run_cmd::RunArgs),
+    /// The paper's tuning experiment on a simulated subject: raise f until a
+    /// spring-release test oscillates at low and high stiffness, take the
+    /// lower, subtract 0.12; printed beside the model's prediction.
+    Tune(tune_cmd::TuneArgs),
 }
 
 fn main() {
@@ -39,6 +46,7 @@ fn main() {
     let result = match cli.command {
         Command::Design(args) => design_cmd::run(&args),
         Command::Run(args) => run_cmd::run(&args),
+        Command::Tune(args) => tune_cmd::run(&args),
     };
     if let Err(err) = result {
         eprintln!("exo: error: {err:#}");

@@ -2,11 +2,12 @@
 //! their logs, reaps them (so iceoryx2 sees dead nodes as dead), stops them
 //! all on Ctrl-C, SIGTERM or the first failure, and reports which one failed.
 
+use std::collections::VecDeque;
 use std::io::{BufRead, BufReader};
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, ExitStatus, Stdio};
 use std::sync::atomic::{AtomicBool, Ordering};
-use std::sync::Arc;
+use std::sync::{Arc, Mutex, PoisonError};
 use std::time::{Duration, Instant};
 
 use anyhow::{bail, Context, Result};
@@ -43,6 +44,19 @@ struct Running {
     spec: ServiceSpec,
     child: Child,
     restarts: u32,
+    tail: Tail,
+}
+
+impl Running {
+    fn last_lines(&self) -> String {
+        let t = self.tail.lock().unwrap_or_else(PoisonError::into_inner);
+        if t.is_empty() {
+            String::new()
+        } else {
+            let lines: Vec<&str> = t.iter().map(String::as_str).collect();
+            format!("; its last log lines:\n  {}", lines.join("\n  "))
+        }
+    }
 }
 
 /// Path of a sibling executable of the running `exo` (same target directory
@@ -61,7 +75,20 @@ pub fn sibling_program(name: &str) -> Result<PathBuf> {
     Ok(p)
 }
 
-fn spawn(spec: &ServiceSpec) -> Result<Child> {
+/// Whether the services' log lines are forwarded to the terminal.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Logs {
+    /// Every line, prefixed with the service's name.
+    Forward,
+    /// Kept back; the last lines of a failing service go into the error.
+    Quiet,
+}
+
+const TAIL_LINES: usize = 15;
+
+type Tail = Arc<Mutex<VecDeque<String>>>;
+
+fn spawn(spec: &ServiceSpec, logs: Logs, tail: &Tail) -> Result<Child> {
     let mut child = Command::new(&spec.program)
         .args(&spec.args)
         .stdin(Stdio::null())
@@ -87,13 +114,19 @@ fn spawn(spec: &ServiceSpec) -> Result<Child> {
     ] {
         if let Some(stream) = stream {
             let name = spec.name;
+            let tail = Arc::clone(tail);
             std::thread::spawn(move || {
                 for line in BufReader::new(stream).lines().map_while(Result::ok) {
-                    if is_err {
-                        eprintln!("[{name}] {line}");
-                    } else {
-                        println!("[{name}] {line}");
+                    match (logs, is_err) {
+                        (Logs::Forward, true) => eprintln!("[{name}] {line}"),
+                        (Logs::Forward, false) => println!("[{name}] {line}"),
+                        (Logs::Quiet, _) => {}
                     }
+                    let mut t = tail.lock().unwrap_or_else(PoisonError::into_inner);
+                    if t.len() == TAIL_LINES {
+                        t.pop_front();
+                    }
+                    t.push_back(line);
                 }
             });
         }
@@ -148,7 +181,7 @@ fn describe(status: ExitStatus) -> String {
 
 /// Runs the services until the one with [`Role::EndsRun`] exits cleanly,
 /// a critical one fails, or a stop signal arrives.
-pub fn supervise(services: Vec<ServiceSpec>, mut on_tick: impl FnMut()) -> Result<()> {
+pub fn supervise(services: Vec<ServiceSpec>, logs: Logs, mut on_tick: impl FnMut()) -> Result<()> {
     let stop = Arc::new(AtomicBool::new(false));
     for sig in [signal_hook::consts::SIGINT, signal_hook::consts::SIGTERM] {
         signal_hook::flag::register(sig, Arc::clone(&stop))
@@ -156,11 +189,13 @@ pub fn supervise(services: Vec<ServiceSpec>, mut on_tick: impl FnMut()) -> Resul
     }
     let mut running: Vec<Running> = Vec::new();
     for spec in services {
-        match spawn(&spec) {
+        let tail = Tail::default();
+        match spawn(&spec, logs, &tail) {
             Ok(child) => running.push(Running {
                 spec,
                 child,
                 restarts: 0,
+                tail,
             }),
             Err(e) => {
                 stop_all(&mut running);
@@ -192,16 +227,21 @@ pub fn supervise(services: Vec<ServiceSpec>, mut on_tick: impl FnMut()) -> Resul
                         r.restarts
                     );
                     std::thread::sleep(Duration::from_millis(200 * u64::from(r.restarts)));
-                    match spawn(&r.spec) {
+                    match spawn(&r.spec, logs, &r.tail) {
                         Ok(child) => r.child = child,
                         Err(e) => break 'supervise Err(e),
                     }
                 }
                 _ => {
                     break 'supervise Err(anyhow::anyhow!(
-                        "process `{name}` ({}) stopped with {}",
+                        "process `{name}` ({}) stopped with {}{}",
                         r.spec.program.display(),
-                        describe(status)
+                        describe(status),
+                        if logs == Logs::Quiet {
+                            r.last_lines()
+                        } else {
+                            String::new()
+                        }
                     ))
                 }
             }
