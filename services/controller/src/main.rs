@@ -19,7 +19,7 @@ use exo_messages::{
 };
 use exo_service_kit::channels::Channel;
 use exo_service_kit::ipc::Ipc;
-use exo_service_kit::{init_logging, ServiceArgs, StopFlag};
+use exo_service_kit::{init_logging, request_realtime, RealtimeRequest, ServiceArgs, StopFlag};
 use tracing::{error, info, warn};
 
 const OPERATOR_RESET_FAULT: u32 = 1;
@@ -55,12 +55,24 @@ fn run(args: ServiceArgs) -> Result<()> {
         &cfg.run.instance,
         args.iceoryx2_config.as_deref(),
     )?;
-    let sensor_in = ipc.inbox::<SensorSample>(Channel::Sensor, 64)?;
+    let sensor_in = ipc
+        .inbox::<SensorSample>(Channel::Sensor, 64)?
+        .with_spin(cfg.lockstep_spin());
     let command_out = ipc.outbox::<ActuatorCommand>(Channel::Command)?;
     let protocol_out = ipc.outbox::<ProtocolState>(Channel::Protocol)?;
     let operator_in = ipc.inbox::<OperatorCommand>(Channel::Operator, 16)?;
     let estimate_in = ipc.inbox::<ImpedanceEstimate>(Channel::IdentifierEstimate, 16)?;
     let mut controller = Controller::from_config(&cfg)?;
+    if let (TimingMode::Realtime, Some(rt)) = (cfg.run.timing, cfg.realtime) {
+        request_realtime(
+            "controller",
+            RealtimeRequest {
+                sched_fifo_priority: rt.sched_fifo_priority,
+                lock_memory: rt.lock_memory,
+                cpu: rt.controller_cpu,
+            },
+        );
+    }
     let lockstep = cfg.run.timing == TimingMode::Lockstep;
     let wait = Duration::from_secs_f64(
         if lockstep {

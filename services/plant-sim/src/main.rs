@@ -18,7 +18,10 @@ use exo_messages::{BusMotorCommand, BusSensorFrame, ProtocolPhase, ProtocolState
 use exo_plant_sim::{Plant, PlantModel, PostureDrive};
 use exo_service_kit::channels::Channel;
 use exo_service_kit::ipc::Ipc;
-use exo_service_kit::{init_logging, monotonic_ns, sleep_until_ns, ServiceArgs, StopFlag};
+use exo_service_kit::{
+    init_logging, monotonic_ns, request_realtime, sleep_until_ns, RealtimeRequest, ServiceArgs,
+    StopFlag,
+};
 use tracing::{info, warn};
 
 const RESEND_AFTER: Duration = Duration::from_millis(200);
@@ -52,10 +55,22 @@ fn run(args: ServiceArgs) -> Result<()> {
         args.iceoryx2_config.as_deref(),
     )?;
     let bus_out = ipc.outbox::<BusSensorFrame>(Channel::BusSensor)?;
-    let motor_in = ipc.inbox::<BusMotorCommand>(Channel::BusMotor, 64)?;
+    let motor_in = ipc
+        .inbox::<BusMotorCommand>(Channel::BusMotor, 64)?
+        .with_spin(cfg.lockstep_spin());
     let protocol_in = ipc.inbox::<ProtocolState>(Channel::Protocol, 64)?;
 
     let mut plant = Plant::new(&model);
+    if let (TimingMode::Realtime, Some(rt)) = (cfg.run.timing, cfg.realtime) {
+        request_realtime(
+            "plant-sim",
+            RealtimeRequest {
+                sched_fifo_priority: rt.sched_fifo_priority,
+                lock_memory: rt.lock_memory,
+                cpu: rt.plant_sim_cpu,
+            },
+        );
+    }
     let voluntary = match (cfg.protocol.mode, cfg.voluntary) {
         (ProtocolMode::Voluntary, Some(v)) => Some((v.amplitude_rad, v.omega_rad_s)),
         _ => None,

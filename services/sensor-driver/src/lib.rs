@@ -7,7 +7,7 @@
 //! within the deadline, the safe-state torque, latched until reset.
 //!
 //! The bus is the [`HardwareBus`] trait. The simulator's bus (iceoryx2
-//! channels to `plant-sim`) is implemented in `main.rs`; an EtherCAT (e.g.
+//! channels to `plant-sim`) is implemented in the process (`backends.rs`); an EtherCAT (e.g.
 //! `ethercrab`), CAN (`socketcan`) or UDP backend implements the same trait
 //! and is chosen by configuration: nothing in the controller, identifier or
 //! recorder changes.
@@ -21,12 +21,25 @@ pub use driver::{
 };
 
 /// A hardware bus: where raw frames come from and motor torques go.
+///
+/// Implementations: the simulator's bus (`backends::SimulatorBus` in the
+/// process, iceoryx2 channels to `exo-plant-sim`); a hardware backend
+/// (EtherCAT, CAN, UDP) implements the same two calls. Both calls are on the
+/// real-time path: bounded, no allocation per call.
 pub trait HardwareBus {
     /// Error type of the backend.
     type Error: std::error::Error + Send + Sync + 'static;
-    /// Waits (bounded by the backend) for the next raw frame; `Ok(None)` on timeout.
-    fn read(&mut self) -> Result<Option<RawFrame>, Self::Error>;
-    /// Writes the motor torque (Nm) answering frame `frame_seq`; `enable = false` powers the motor down.
-    fn write(&mut self, frame_seq: u64, tau_motor_nm: f64, enable: bool)
-        -> Result<(), Self::Error>;
+    /// A short name for logs, e.g. `simulator`.
+    fn name(&self) -> &'static str;
+    /// Waits at most `timeout` for the next raw frame; `Ok(None)` on timeout.
+    fn read(&mut self, timeout: std::time::Duration) -> Result<Option<RawFrame>, Self::Error>;
+    /// Writes the motor torque (Nm) answering frame `frame_seq` (time stamp
+    /// `stamp_ns` of that frame); `enable = false` powers the motor down.
+    fn write(
+        &mut self,
+        frame_seq: u64,
+        stamp_ns: u64,
+        tau_motor_nm: f64,
+        enable: bool,
+    ) -> Result<(), Self::Error>;
 }

@@ -3,9 +3,9 @@
 //! back to the bus, or, when none comes within the deadline, the latched
 //! safe-state torque.
 //!
-//! The bus here is the simulator's (iceoryx2 channels to `exo-plant-sim`);
-//! a hardware backend implements `exo_sensor_driver::HardwareBus` instead
-//! and is selected by configuration (see ARCHITECTURE.md).
+//! The bus is chosen by `[bus] backend` (see [`backends`]): the simulator's
+//! (iceoryx2 channels to `exo-plant-sim`) or, once written, a hardware
+//! backend implementing `exo_sensor_driver::HardwareBus` (ARCHITECTURE.md).
 //!
 //! The command watchdog arms at the first command, so a controller that
 //! starts late does not trip it. In real time the deadline is
@@ -17,14 +17,16 @@
 use std::time::{Duration, Instant};
 
 use anyhow::{bail, Result};
-use exo_config::{RunConfig, TimingMode};
-use exo_messages::{
-    ActuatorCommand, BusMotorCommand, BusSensorFrame, OperatorCommand, ProtocolState, SensorSample,
-};
-use exo_sensor_driver::{Driver, RawFrame};
+mod backends;
+
+use exo_config::{BusBackend, RunConfig, TimingMode};
+use exo_messages::{ActuatorCommand, OperatorCommand, ProtocolState, SensorSample};
+use exo_sensor_driver::{Driver, HardwareBus};
 use exo_service_kit::channels::Channel;
-use exo_service_kit::ipc::Ipc;
-use exo_service_kit::{init_logging, ServiceArgs, StopFlag};
+use exo_service_kit::ipc::{Inbox, Ipc, Outbox};
+
+use crate::backends::SimulatorBus;
+use exo_service_kit::{init_logging, request_realtime, RealtimeRequest, ServiceArgs, StopFlag};
 use tracing::{error, info};
 
 const RESEND_AFTER: Duration = Duration::from_millis(200);
@@ -48,12 +50,6 @@ fn run(args: ServiceArgs) -> Result<()> {
         &cfg.run.instance,
         args.iceoryx2_config.as_deref(),
     )?;
-    let bus_in = ipc.inbox::<BusSensorFrame>(Channel::BusSensor, 64)?;
-    let motor_out = ipc.outbox::<BusMotorCommand>(Channel::BusMotor)?;
-    let sample_out = ipc.outbox::<SensorSample>(Channel::Sensor)?;
-    let command_in = ipc.inbox::<ActuatorCommand>(Channel::Command, 64)?;
-    let protocol_in = ipc.inbox::<ProtocolState>(Channel::Protocol, 64)?;
-    let operator_in = ipc.inbox::<OperatorCommand>(Channel::Operator, 16)?;
     let load = cfg
         .protocol
         .experiments
@@ -75,41 +71,83 @@ fn run(args: ServiceArgs) -> Result<()> {
             cfg.safety.command_deadline_ms
         } / 1000.0,
     );
-    info!(
-        "sensor-driver: {:?}, command deadline {:?}, safe state {:?}",
-        cfg.run.timing, deadline, cfg.safety.safe_state
-    );
+    let ports = Ports {
+        sample_out: ipc.outbox::<SensorSample>(Channel::Sensor)?,
+        command_in: ipc
+            .inbox::<ActuatorCommand>(Channel::Command, 64)?
+            .with_spin(cfg.lockstep_spin()),
+        protocol_in: ipc.inbox::<ProtocolState>(Channel::Protocol, 64)?,
+        operator_in: ipc.inbox::<OperatorCommand>(Channel::Operator, 16)?,
+    };
+    let timing = Timing { deadline, lockstep };
+    if let (TimingMode::Realtime, Some(rt)) = (cfg.run.timing, cfg.realtime) {
+        request_realtime(
+            "sensor-driver",
+            RealtimeRequest {
+                sched_fifo_priority: rt.sched_fifo_priority,
+                lock_memory: rt.lock_memory,
+                cpu: rt.sensor_driver_cpu,
+            },
+        );
+    }
+    match cfg.bus.backend {
+        BusBackend::Simulator => {
+            let mut bus = SimulatorBus::open(&ipc, cfg.lockstep_spin())?;
+            info!(
+                "sensor-driver: {} bus, {:?}, command deadline {:?}, safe state {:?}",
+                bus.name(),
+                cfg.run.timing,
+                deadline,
+                cfg.safety.safe_state
+            );
+            serve(&mut bus, &mut driver, &ports, timing, &stop)?;
+        }
+    }
+    info!("sensor-driver: stopped");
+    Ok(())
+}
+
+/// The driver's channels to the other processes.
+struct Ports {
+    sample_out: Outbox<SensorSample>,
+    command_in: Inbox<ActuatorCommand>,
+    protocol_in: Inbox<ProtocolState>,
+    operator_in: Inbox<OperatorCommand>,
+}
+
+/// The command deadline and the timing mode.
+#[derive(Clone, Copy)]
+struct Timing {
+    deadline: Duration,
+    lockstep: bool,
+}
+
+/// The driver's cycle over any bus: read a frame, publish the sample, wait
+/// (bounded) for the controller's command, write the torque back.
+fn serve<B: HardwareBus>(
+    bus: &mut B,
+    driver: &mut Driver,
+    ports: &Ports,
+    timing: Timing,
+    stop: &StopFlag,
+) -> Result<()> {
     let mut armed = false;
     let mut reported_latch = false;
-    let mut last: Option<BusMotorCommand> = None;
-    let mut motor_seq = 0u64;
     while !stop.requested() {
-        let Some(frame) = bus_in.recv_timeout(Duration::from_millis(100))? else {
+        let Some(frame) = bus.read(Duration::from_millis(100))? else {
             continue;
         };
-        if let Some(m) = last.filter(|m| m.frame_seq == frame.seq) {
-            // The plant re-sent a frame we answered (start-up race): answer again.
-            motor_out.send(m)?;
-            continue;
-        }
-        while let Some(p) = protocol_in.try_recv()? {
+        while let Some(p) = ports.protocol_in.try_recv()? {
             driver.set_load_kg(p.load_kg);
         }
-        while let Some(op) = operator_in.try_recv()? {
+        while let Some(op) = ports.operator_in.try_recv()? {
             if op.kind == OPERATOR_RESET_FAULT {
                 info!("sensor-driver: operator reset of the safe state");
                 driver.reset();
                 reported_latch = false;
             }
         }
-        let s = driver.on_frame(&RawFrame {
-            seq: frame.seq,
-            stamp_ns: frame.stamp_ns,
-            encoder_counts: frame.encoder_counts,
-            cuff_wrench: frame.cuff_wrench,
-            sea_deflection_counts: frame.sea_deflection_counts,
-            status: frame.status,
-        });
+        let s = driver.on_frame(&frame);
         let sample = SensorSample {
             seq: s.seq,
             stamp_ns: s.stamp_ns,
@@ -120,19 +158,20 @@ fn run(args: ServiceArgs) -> Result<()> {
             status: s.status,
             _pad: 0,
         };
-        sample_out.send(sample)?;
+        ports.sample_out.send(sample)?;
         let started = Instant::now();
         let mut last_send = started;
         let out = loop {
             if driver.latched().is_some() {
                 // Latched: no need to wait for the controller.
-                while command_in.try_recv()?.is_some() {}
+                while ports.command_in.try_recv()?.is_some() {}
                 break driver.on_deadline().unwrap_or_else(|| driver.safe_output());
             }
-            let remaining = deadline
+            let remaining = timing
+                .deadline
                 .saturating_sub(started.elapsed())
                 .min(Duration::from_millis(20));
-            if let Some(cmd) = command_in.recv_timeout(remaining)? {
+            if let Some(cmd) = ports.command_in.recv_timeout(remaining)? {
                 if cmd.sensor_seq == frame.seq {
                     armed = true;
                     if let Some(o) = driver.on_command(cmd.sensor_seq, cmd.tau_d) {
@@ -146,19 +185,19 @@ fn run(args: ServiceArgs) -> Result<()> {
             }
             if !armed {
                 if last_send.elapsed() > RESEND_AFTER {
-                    sample_out.send(sample)?;
+                    ports.sample_out.send(sample)?;
                     last_send = Instant::now();
                 }
                 if started.elapsed() > STARTUP_PATIENCE {
                     bail!("no command from the controller within {STARTUP_PATIENCE:?} of start");
                 }
-                if !lockstep && started.elapsed() >= deadline {
+                if !timing.lockstep && started.elapsed() >= timing.deadline {
                     // Not armed yet: hold the safe torque without latching.
                     break driver.safe_output();
                 }
                 continue;
             }
-            if started.elapsed() >= deadline {
+            if started.elapsed() >= timing.deadline {
                 break driver.on_deadline().unwrap_or_else(|| driver.safe_output());
             }
         };
@@ -169,18 +208,7 @@ fn run(args: ServiceArgs) -> Result<()> {
             );
             reported_latch = true;
         }
-        let motor = BusMotorCommand {
-            seq: motor_seq,
-            stamp_ns: frame.stamp_ns,
-            frame_seq: frame.seq,
-            tau_motor_nm: out.tau_motor_nm,
-            enable: 1,
-            ..Default::default()
-        };
-        motor_seq += 1;
-        motor_out.send(motor)?;
-        last = Some(motor);
+        bus.write(frame.seq, frame.stamp_ns, out.tau_motor_nm, true)?;
     }
-    info!("sensor-driver: stopped");
     Ok(())
 }

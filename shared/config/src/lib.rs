@@ -146,9 +146,9 @@ mod subject;
 
 pub use experiments::{ExperimentSpec, ExperimentTable, ProtocolTiming};
 pub use run::{
-    ControllerSettings, LimitSettings, ProtocolMode, ProtocolSettings, ReleaseSettings,
-    RigSettings, RunConfig, RunSettings, SafeState, SafetySettings, ServiceSet, TimingMode,
-    VoluntarySettings, GRAVITY_M_S2,
+    BusBackend, BusSettings, ControllerSettings, LimitSettings, ProtocolMode, ProtocolSettings,
+    ReleaseSettings, RigSettings, RunConfig, RunSettings, SafeState, SafetySettings, ServiceSet,
+    TimingMode, VoluntarySettings, GRAVITY_M_S2,
 };
 pub use subject::{Subject, SubjectExperiment};
 

@@ -36,6 +36,16 @@ pub struct RunSettings {
     /// Directory for recordings and reports (relative to the working directory).
     #[serde(default = "default_output_dir")]
     pub output_dir: PathBuf,
+    /// In lockstep, how long (µs) a process polls for the next message,
+    /// yielding the CPU between polls, before it sleeps in the kernel; a
+    /// kernel wake-up costs tens of µs per hand-over, four per tick.
+    /// 0 never polls. Ignored in real time (which always sleeps).
+    #[serde(default = "default_lockstep_spin_us")]
+    pub lockstep_spin_us: f64,
+}
+
+fn default_lockstep_spin_us() -> f64 {
+    200.0
 }
 
 fn default_instance() -> String {
@@ -43,6 +53,50 @@ fn default_instance() -> String {
 }
 fn default_output_dir() -> PathBuf {
     PathBuf::from("out/runs")
+}
+
+/// `[realtime]`: operating-system real-time settings of the real-time path
+/// (plant simulator, sensor driver, controller), applied only in real-time
+/// timing. Each is asked for and, where the system refuses (no
+/// `CAP_SYS_NICE`, `RLIMIT_MEMLOCK`, a missing CPU), the process warns and
+/// runs on with normal scheduling.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RealtimeSettings {
+    /// Ask for `SCHED_FIFO` at this priority (1–99); none when absent.
+    #[serde(default)]
+    pub sched_fifo_priority: Option<i32>,
+    /// Lock all current and future memory (`mlockall`), so no page fault stalls a tick.
+    #[serde(default)]
+    pub lock_memory: bool,
+    /// Pin the controller to this CPU.
+    #[serde(default)]
+    pub controller_cpu: Option<usize>,
+    /// Pin the sensor driver to this CPU.
+    #[serde(default)]
+    pub sensor_driver_cpu: Option<usize>,
+    /// Pin the plant simulator to this CPU.
+    #[serde(default)]
+    pub plant_sim_cpu: Option<usize>,
+}
+
+/// Which hardware-bus backend the sensor driver talks to (`[bus] backend`).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum BusBackend {
+    /// The plant simulator's bus: iceoryx2 channels to `exo-plant-sim`.
+    #[default]
+    Simulator,
+}
+
+/// `[bus]`: the sensor driver's hardware bus. Swapping the simulator for
+/// hardware is this setting plus `services.plant_sim = false`; see
+/// ARCHITECTURE.md for where a new backend plugs in.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct BusSettings {
+    /// The backend.
+    pub backend: BusBackend,
 }
 
 /// `[services]`: which processes `exo run` starts.
@@ -268,6 +322,12 @@ pub struct RunConfig {
     pub run: RunSettings,
     /// `[services]`.
     pub services: ServiceSet,
+    /// `[bus]` (default: the simulator's).
+    #[serde(default)]
+    pub bus: BusSettings,
+    /// `[realtime]` (default: nothing asked for).
+    #[serde(default)]
+    pub realtime: Option<RealtimeSettings>,
     /// Plant model path (relative to the run file).
     pub plant_model: PathBuf,
     /// Subject file path (relative to the run file).
@@ -379,6 +439,12 @@ impl RunConfig {
     pub fn validate(&self, file: &Path) -> Result<()> {
         let c = Check::new(file);
         c.within("run.rate_hz", self.run.rate_hz, 1.0, 100_000.0)?;
+        c.within(
+            "run.lockstep_spin_us",
+            self.run.lockstep_spin_us,
+            0.0,
+            100_000.0,
+        )?;
         if let Some(t) = self.run.max_sim_time_s {
             c.positive("run.max_sim_time_s", t)?;
         }
@@ -396,6 +462,14 @@ impl RunConfig {
         }
         if let Some(rest) = self.protocol.rest_s {
             c.non_negative("protocol.rest_s", rest)?;
+        }
+        if let Some(p) = self.realtime.and_then(|r| r.sched_fifo_priority) {
+            if !(1..=99).contains(&p) {
+                return Err(c.fail(
+                    "realtime.sched_fifo_priority",
+                    format!("must be 1 to 99, got {p}"),
+                ));
+            }
         }
         if self.protocol.experiments.is_empty() {
             return Err(c.fail("protocol.experiments", "name at least one experiment"));
@@ -531,6 +605,17 @@ impl RunConfig {
         self.subject
             .as_ref()
             .expect("RunConfig::from_file loads the subject")
+    }
+
+    /// How long a lockstep process polls before sleeping (`run.lockstep_spin_us`);
+    /// zero in real time.
+    pub fn lockstep_spin(&self) -> std::time::Duration {
+        match self.run.timing {
+            TimingMode::Lockstep => {
+                std::time::Duration::from_secs_f64(self.run.lockstep_spin_us.max(0.0) * 1e-6)
+            }
+            TimingMode::Realtime => std::time::Duration::ZERO,
+        }
     }
 
     /// Exoskeleton inertia with `load_kg` at the load lever arm (kg·m²): `M_e`.

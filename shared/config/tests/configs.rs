@@ -111,6 +111,12 @@ fn impossible_values_are_named_with_the_key() {
             "f_bounds = [0.0, 0.9]\nf = 1.5",
             "controller.f",
         ),
+        (
+            "[safety]\n",
+            "[realtime]\nsched_fifo_priority = 120\n\n[safety]\n",
+            "realtime.sched_fifo_priority",
+        ),
+        ("mode = \"identification\"", "mode = \"release\"", "release"),
     ] {
         assert!(base.contains(from), "{from}");
         let f = write(&d, "run.toml", &base.replace(from, to));
@@ -129,4 +135,20 @@ fn impossible_values_are_named_with_the_key() {
         .unwrap_err()
         .to_string();
     assert!(err.contains("seed"), "missing field not named: {err}");
+}
+
+#[test]
+fn the_bus_backend_is_configuration_and_an_unknown_one_names_the_choices() {
+    let base = std::fs::read_to_string(configs_dir().join("default.toml")).unwrap();
+    let cfg = RunConfig::from_file(&configs_dir().join("default.toml")).unwrap();
+    assert_eq!(cfg.bus.backend, BusBackend::Simulator, "the default bus");
+    let d = temp_dir("bus");
+    let text = base.replace("[safety]\n", "[bus]\nbackend = \"ethercat\"\n\n[safety]\n");
+    let err = RunConfig::from_file(&write(&d, "run.toml", &text))
+        .unwrap_err()
+        .to_string();
+    assert!(
+        err.contains("run.toml") && err.contains("ethercat") && err.contains("simulator"),
+        "{err}"
+    );
 }

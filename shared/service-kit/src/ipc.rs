@@ -247,6 +247,7 @@ impl Ipc {
             subscriber,
             listener,
             fd,
+            spin: Duration::ZERO,
         })
     }
 }
@@ -283,6 +284,7 @@ pub struct Inbox<T: Debug + ZeroCopySend + Copy + 'static> {
     subscriber: Subscriber<Svc, T, ()>,
     listener: Option<Listener<Svc>>,
     fd: Option<i32>,
+    spin: Duration,
 }
 
 impl<T: Debug + ZeroCopySend + Copy + 'static> Inbox<T> {
@@ -348,10 +350,30 @@ impl<T: Debug + ZeroCopySend + Copy + 'static> Inbox<T> {
         Ok(())
     }
 
+    /// Polls for up to `spin` (yielding the CPU between polls) before
+    /// [`recv_timeout`](Self::recv_timeout) sleeps in the kernel. For the
+    /// lockstep loop, where the answer usually comes within microseconds and
+    /// a kernel wake-up costs tens of them; zero (the default) never spins.
+    pub fn with_spin(mut self, spin: Duration) -> Self {
+        self.spin = spin;
+        self
+    }
+
     /// Receives with a bounded wait: the next sample, or `None` after `timeout`.
     pub fn recv_timeout(&self, timeout: Duration) -> Result<Option<T>, IpcError> {
         if let Some(v) = self.try_recv()? {
             return Ok(Some(v));
+        }
+        if !self.spin.is_zero() {
+            let spin = self.spin.min(timeout);
+            let start = std::time::Instant::now();
+            while start.elapsed() < spin {
+                std::thread::yield_now();
+                if let Some(v) = self.try_recv()? {
+                    self.drain_wake_ups()?;
+                    return Ok(Some(v));
+                }
+            }
         }
         self.wait(timeout)?;
         self.try_recv()

@@ -99,35 +99,114 @@ pub fn sleep_until_ns(deadline_ns: u64) {
     }
 }
 
-/// Asks for real-time scheduling (SCHED_FIFO at `priority`), locks memory and
-/// pins to `cpu` where permitted; warns, and carries on, where not.
-pub fn request_realtime(priority: i32, cpu: Option<usize>) {
-    // SAFETY: plain system calls with valid arguments.
-    unsafe {
+/// What a process asks of the operating system for its real-time loop.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct RealtimeRequest {
+    /// `SCHED_FIFO` at this priority (1–99), if set.
+    pub sched_fifo_priority: Option<i32>,
+    /// `mlockall(MCL_CURRENT | MCL_FUTURE)`.
+    pub lock_memory: bool,
+    /// Pin the calling thread to this CPU, if set.
+    pub cpu: Option<usize>,
+}
+
+/// What the operating system granted; each refusal is also logged as a warning.
+#[derive(Debug, Clone, Default, PartialEq, Eq)]
+pub struct RealtimeGrant {
+    /// `SCHED_FIFO` is in effect.
+    pub sched_fifo: bool,
+    /// Memory is locked.
+    pub memory_locked: bool,
+    /// The thread is pinned.
+    pub pinned: bool,
+    /// One line per refusal, naming what was refused and why.
+    pub refusals: Vec<String>,
+}
+
+/// Asks for real-time scheduling, locked memory and CPU pinning, as far as
+/// the system permits; warns about, and carries on past, every refusal
+/// (unprivileged users usually lack `CAP_SYS_NICE`, and `RLIMIT_MEMLOCK`
+/// is often small). Call once before the loop, never per tick.
+pub fn request_realtime(who: &str, req: RealtimeRequest) -> RealtimeGrant {
+    let mut g = RealtimeGrant::default();
+    if let Some(priority) = req.sched_fifo_priority {
         let param = libc::sched_param {
             sched_priority: priority,
         };
-        if libc::sched_setscheduler(0, libc::SCHED_FIFO, &param) != 0 {
-            tracing::warn!(
+        // SAFETY: a valid sched_param for the calling process.
+        if unsafe { libc::sched_setscheduler(0, libc::SCHED_FIFO, &param) } == 0 {
+            g.sched_fifo = true;
+        } else {
+            g.refusals.push(format!(
                 "SCHED_FIFO priority {priority} not permitted ({}); running with normal scheduling",
                 std::io::Error::last_os_error()
-            );
+            ));
         }
-        if libc::mlockall(libc::MCL_CURRENT | libc::MCL_FUTURE) != 0 {
-            tracing::warn!(
+    }
+    if req.lock_memory {
+        // SAFETY: plain system call with valid flags.
+        if unsafe { libc::mlockall(libc::MCL_CURRENT | libc::MCL_FUTURE) } == 0 {
+            g.memory_locked = true;
+        } else {
+            g.refusals.push(format!(
                 "mlockall not permitted ({}); memory may page",
                 std::io::Error::last_os_error()
-            );
+            ));
         }
-        if let Some(cpu) = cpu {
-            let mut set: libc::cpu_set_t = std::mem::zeroed();
-            libc::CPU_SET(cpu, &mut set);
-            if libc::sched_setaffinity(0, std::mem::size_of::<libc::cpu_set_t>(), &set) != 0 {
-                tracing::warn!(
-                    "pinning to CPU {cpu} failed ({})",
-                    std::io::Error::last_os_error()
-                );
+    }
+    if let Some(cpu) = req.cpu {
+        let ok = cpu < libc::CPU_SETSIZE as usize && {
+            // SAFETY: a zeroed cpu_set_t is valid; CPU_SET stays within it (checked above).
+            unsafe {
+                let mut set: libc::cpu_set_t = std::mem::zeroed();
+                libc::CPU_SET(cpu, &mut set);
+                libc::sched_setaffinity(0, std::mem::size_of::<libc::cpu_set_t>(), &set) == 0
             }
+        };
+        if ok {
+            g.pinned = true;
+        } else {
+            g.refusals.push(format!(
+                "pinning to CPU {cpu} failed ({})",
+                std::io::Error::last_os_error()
+            ));
         }
+    }
+    for r in &g.refusals {
+        tracing::warn!("{who}: {r}");
+    }
+    if g.sched_fifo || g.memory_locked || g.pinned {
+        tracing::info!(
+            "{who}: real-time settings in effect: SCHED_FIFO {}, memory locked {}, pinned {}",
+            g.sched_fifo,
+            g.memory_locked,
+            g.pinned
+        );
+    }
+    g
+}
+
+#[cfg(test)]
+mod realtime_tests {
+    use super::*;
+
+    #[test]
+    fn nothing_asked_nothing_granted_or_refused() {
+        let g = request_realtime("test", RealtimeRequest::default());
+        assert_eq!(g, RealtimeGrant::default());
+    }
+
+    #[test]
+    fn an_impossible_cpu_is_refused_by_name_and_the_process_carries_on() {
+        let g = request_realtime(
+            "test",
+            RealtimeRequest {
+                cpu: Some(1 << 20),
+                ..Default::default()
+            },
+        );
+        assert!(!g.pinned);
+        assert_eq!(g.refusals.len(), 1);
+        assert!(g.refusals[0].contains("CPU 1048576"), "{:?}", g.refusals);
     }
 }
