@@ -367,6 +367,10 @@ impl<T: Debug + ZeroCopySend + Copy + 'static> Inbox<T> {
         if !self.spin.is_zero() {
             let spin = self.spin.min(timeout);
             let start = std::time::Instant::now();
+            // Yield between polls: with more processes in the loop than
+            // cores, giving the CPU away at once beats busy polling (measured:
+            // 64 polls per yield cut the lockstep rate from ~43k to ~30k
+            // ticks/s on two cores).
             while start.elapsed() < spin {
                 std::thread::yield_now();
                 if let Some(v) = self.try_recv()? {

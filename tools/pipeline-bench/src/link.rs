@@ -245,7 +245,11 @@ mod tests {
     fn payloads_cross_as_bytes_unchanged() {
         let s = SensorSample::probe(7, 123_456_789);
         let b = to_bytes(&s);
-        assert_eq!(b.len(), 64);
+        assert_eq!(
+            b.len(),
+            56,
+            "SensorSample is 56 bytes (exo-messages layout test)"
+        );
         assert_eq!(from_bytes::<SensorSample>(b).unwrap(), s);
         let f = BusSensorFrame::probe(9, 42);
         assert_eq!(from_bytes::<BusSensorFrame>(to_bytes(&f)).unwrap(), f);

@@ -59,6 +59,9 @@ pub fn service_binaries() -> Result<Vec<PathBuf>> {
         .collect()
 }
 
+/// Safety deadlines (ms) of the real-time rows (see [`bench_config`]).
+const BENCH_DEADLINE_MS: f64 = 50.0;
+
 /// The bench's run configuration, derived from the run file `base`: timing
 /// `timing` at `rate_hz` on the iceoryx2 instance `instance`, only the three
 /// loop services, and the paper's full identification protocol (every
@@ -104,6 +107,14 @@ pub fn bench_config(
             cfg.subject_file.display(),
             cfg.protocol.experiments_file.display()
         );
+    }
+    // This shared two-core VM stalls for up to ~5 ms now and then (see the
+    // max column of the bare rows), which trips the 5 ms safety deadlines and
+    // would measure the latched safe state instead of normal operation; the
+    // bench widens them (the loop is the same code either way).
+    if timing == TimingMode::Realtime {
+        cfg.safety.command_deadline_ms = cfg.safety.command_deadline_ms.max(BENCH_DEADLINE_MS);
+        cfg.safety.sample_deadline_ms = cfg.safety.sample_deadline_ms.max(BENCH_DEADLINE_MS);
     }
     cfg.protocol.mode = ProtocolMode::Identification;
     cfg.protocol.experiments = experiments;
@@ -417,7 +428,9 @@ mod tests {
         // The default's other settings are kept.
         let default = RunConfig::from_file(&base).unwrap();
         assert_eq!(back.controller, default.controller);
-        assert_eq!(back.safety, default.safety);
+        assert_eq!(back.safety.safe_state, default.safety.safe_state);
+        assert_eq!(back.safety.command_deadline_ms, BENCH_DEADLINE_MS);
+        assert_eq!(back.safety.sample_deadline_ms, BENCH_DEADLINE_MS);
         assert_eq!(back.rig, default.rig);
         assert_eq!(back.run.seed, default.run.seed);
         std::fs::remove_dir_all(&dir).unwrap();
