@@ -22,6 +22,10 @@ pub struct ServiceArgs {
     /// The iceoryx2 configuration (default: $EXO_ICEORYX2_CONFIG, else configs/iceoryx2.toml).
     #[arg(long, value_name = "FILE")]
     pub iceoryx2_config: Option<PathBuf>,
+    /// The file a service that writes one (the recorder) writes; each
+    /// service documents its default.
+    #[arg(long, value_name = "FILE")]
+    pub output: Option<PathBuf>,
     /// Fault injection for tests: see the service's documentation.
     #[arg(long, value_name = "TICK", hide = true)]
     pub inject_fault_at: Option<u64>,

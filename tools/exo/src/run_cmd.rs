@@ -22,8 +22,13 @@ pub struct RunArgs {
     pub config: PathBuf,
 }
 
-/// The processes a configuration asks for, in start order.
-pub fn services_of(cfg: &RunConfig, config: &std::path::Path) -> Result<Vec<ServiceSpec>> {
+/// The processes a configuration asks for, in start order; the recorder
+/// writes `recording` when given.
+pub fn services_of(
+    cfg: &RunConfig,
+    config: &std::path::Path,
+    recording: Option<&std::path::Path>,
+) -> Result<Vec<ServiceSpec>> {
     let s = cfg.services;
     let mut out = Vec::new();
     let table: [(bool, &'static str, &'static str, Role); 5] = [
@@ -45,10 +50,15 @@ pub fn services_of(cfg: &RunConfig, config: &std::path::Path) -> Result<Vec<Serv
     ];
     for (enabled, name, bin, role) in table {
         if enabled {
+            let mut args = config_args(config);
+            if let (Some(r), "recorder") = (recording, name) {
+                args.push("--output".into());
+                args.push(r.display().to_string());
+            }
             out.push(ServiceSpec {
                 name,
                 program: sibling_program(bin)?,
-                args: config_args(config),
+                args,
                 role,
             });
         }
@@ -106,12 +116,26 @@ impl Progress {
     }
 }
 
-/// Runs `exo run`.
-pub fn run(args: &RunArgs) -> Result<()> {
+/// Where a run's recording goes: `<run.output_dir>/<instance>-<subject>-<unix seconds>.mcap`.
+pub fn recording_path(cfg: &RunConfig) -> PathBuf {
+    let unix_s = std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .map_or(0, |d| d.as_secs());
+    cfg.run.output_dir.join(format!(
+        "{}-{}-{unix_s}.mcap",
+        cfg.run.instance,
+        cfg.subject().name
+    ))
+}
+
+/// Validates a run file, then starts and supervises its processes with
+/// progress lines; returns the recording's path when the recorder ran.
+pub fn run_config(config: &std::path::Path, logs: Logs) -> Result<Option<PathBuf>> {
     // Validate everything before any process starts.
-    let cfg = RunConfig::from_file(&args.config)?;
+    let cfg = RunConfig::from_file(config)?;
     exo_plant_sim::PlantModel::from_file(&cfg.plant_model)?;
-    let services = services_of(&cfg, &args.config)?;
+    let recording = cfg.services.recorder.then(|| recording_path(&cfg));
+    let services = services_of(&cfg, config, recording.as_deref())?;
     eprintln!(
         "exo: starting {} for {} ({:?} timing at {} Hz)",
         services
@@ -119,13 +143,22 @@ pub fn run(args: &RunArgs) -> Result<()> {
             .map(|s| s.name)
             .collect::<Vec<_>>()
             .join(", "),
-        args.config.display(),
+        config.display(),
         cfg.run.timing,
         cfg.run.rate_hz
     );
     let mut progress = Progress::start(&cfg.run.instance)?;
-    let outcome = supervise(services, Logs::Forward, || progress.poll())
-        .with_context(|| format!("run of {}", args.config.display()));
+    let outcome = supervise(services, logs, || progress.poll())
+        .with_context(|| format!("run of {}", config.display()));
     progress.poll();
-    outcome
+    outcome?;
+    if let Some(r) = &recording {
+        eprintln!("exo: recording {}", r.display());
+    }
+    Ok(recording)
+}
+
+/// Runs `exo run`.
+pub fn run(args: &RunArgs) -> Result<()> {
+    run_config(&args.config, Logs::Forward).map(|_| ())
 }

@@ -231,7 +231,7 @@ impl Bench {
         let sensor = Collector::<SensorSample>::start(&node, &instance, Channel::Sensor)?;
         let command = Collector::<ActuatorCommand>::start(&node, &instance, Channel::Command)?;
         let protocol = Collector::<ProtocolState>::start(&node, &instance, Channel::Protocol)?;
-        supervise(services_of(&cfg, &path)?, Logs::Quiet, || {})
+        supervise(services_of(&cfg, &path, None)?, Logs::Quiet, || {})
             .with_context(|| format!("trial f = {f:.3} at experiment {experiment}"))?;
         let (samples, commands, states) = (sensor.finish()?, command.finish()?, protocol.finish()?);
         let release_ns = states
