@@ -27,6 +27,7 @@
 pub mod design;
 pub mod error;
 pub mod fit;
+pub mod frf;
 pub mod ftest;
 pub mod lag_filter;
 pub mod loop_shaping;
