@@ -120,7 +120,7 @@ fn fft_matches_a_naive_dft() {
             .sum();
         assert!((fk - d).norm() < 1e-9, "bin {k}");
     }
-    assert!(fft_in_place(&mut vec![Complex64::new(0.0, 0.0); 12]).is_err());
+    assert!(fft_in_place(&mut [Complex64::new(0.0, 0.0); 12]).is_err());
 }
 
 /// A discretised first-order lag y' = (x − y)/τ driven by random input:
