@@ -334,10 +334,79 @@ pub fn welch_h1(x: &[f64], y: &[f64], rate_hz: f64, segment_len: usize) -> Resul
         .collect())
 }
 
-/// Keeps the bins of the excited band (input power at least `min_rel_power`
-/// of the strongest bin, coherence at least `min_coherence`) within
-/// `[omega_lo, omega_hi]`, and averages them into at most `n_points`
-/// log-spaced points (`H` averaged weighted by `S_xx`, coherence averaged).
+/// The groups of bin indices of [`select_band`]: the bins of the excited
+/// band (input power at least `min_rel_power` of the strongest bin,
+/// coherence at least `min_coherence`, within `[omega_lo, omega_hi]`, not the
+/// two lowest bins, which carry the Hann window's leakage of the removed
+/// segment mean), grouped into at most `n_points` log-spaced bands; empty
+/// bands are left out.
+pub fn band_groups(
+    bins: &[H1Bin],
+    min_coherence: f64,
+    min_rel_power: f64,
+    omega_lo_rad_s: f64,
+    omega_hi_rad_s: f64,
+    n_points: usize,
+) -> Vec<Vec<usize>> {
+    let peak = bins.iter().map(|b| b.s_xx).fold(0.0, f64::max);
+    let kept: Vec<usize> = (0..bins.len())
+        .skip(2)
+        .filter(|&i| {
+            let b = &bins[i];
+            b.omega_rad_s >= omega_lo_rad_s
+                && b.omega_rad_s <= omega_hi_rad_s
+                && b.s_xx >= min_rel_power * peak
+                && b.s_xx > 0.0
+                && b.coherence >= min_coherence
+        })
+        .collect();
+    let (Some(&first), Some(&last)) = (kept.first(), kept.last()) else {
+        return Vec::new();
+    };
+    if n_points == 0 {
+        return Vec::new();
+    }
+    let (lo, hi) = (
+        bins[first].omega_rad_s.ln(),
+        bins[last].omega_rad_s.ln() + 1e-9,
+    );
+    let width = (hi - lo) / n_points as f64;
+    (0..n_points)
+        .map(|g| {
+            let (a, b) = (lo + width * g as f64, lo + width * (g + 1) as f64);
+            kept.iter()
+                .copied()
+                .filter(|&i| {
+                    let l = bins[i].omega_rad_s.ln();
+                    l >= a && l < b
+                })
+                .collect::<Vec<usize>>()
+        })
+        .filter(|g| !g.is_empty())
+        .collect()
+}
+
+/// The average of `bins[group]`: `H` and the frequency weighted alike by
+/// `S_xx` (so an FRF that varies linearly across the band is unbiased at the
+/// reported frequency), coherence and `S_xx` plain means.
+pub fn average_bins(bins: &[H1Bin], group: &[usize]) -> Option<H1Bin> {
+    let g: Vec<&H1Bin> = group.iter().filter_map(|&i| bins.get(i)).collect();
+    let w: f64 = g.iter().map(|b| b.s_xx).sum();
+    if g.is_empty() || w.is_nan() || w <= 0.0 {
+        return None;
+    }
+    let n = g.len() as f64;
+    Some(H1Bin {
+        omega_rad_s: g.iter().map(|b| b.omega_rad_s * b.s_xx).sum::<f64>() / w,
+        h: g.iter().map(|b| b.h * b.s_xx).sum::<Complex64>() / w,
+        coherence: g.iter().map(|b| b.coherence).sum::<f64>() / n,
+        s_xx: w / n,
+        segments: g[0].segments,
+    })
+}
+
+/// [`band_groups`] averaged with [`average_bins`]: the excited band in at
+/// most `n_points` log-spaced points.
 pub fn select_band(
     bins: &[H1Bin],
     min_coherence: f64,
@@ -346,53 +415,15 @@ pub fn select_band(
     omega_hi_rad_s: f64,
     n_points: usize,
 ) -> Vec<H1Bin> {
-    let peak = bins.iter().map(|b| b.s_xx).fold(0.0, f64::max);
-    // The two lowest bins carry the Hann window's leakage of the removed
-    // segment mean: left out.
-    let kept: Vec<&H1Bin> = bins
-        .iter()
-        .skip(2)
-        .filter(|b| {
-            b.omega_rad_s >= omega_lo_rad_s
-                && b.omega_rad_s <= omega_hi_rad_s
-                && b.s_xx >= min_rel_power * peak
-                && b.coherence >= min_coherence
-        })
-        .collect();
-    if kept.is_empty() || n_points == 0 {
-        return Vec::new();
-    }
-    let (lo, hi) = (
-        kept[0].omega_rad_s.ln(),
-        kept[kept.len() - 1].omega_rad_s.ln() + 1e-9,
-    );
-    let width = (hi - lo) / n_points as f64;
-    let mut out = Vec::new();
-    for i in 0..n_points {
-        let (a, b) = (lo + width * i as f64, lo + width * (i + 1) as f64);
-        let group: Vec<&&H1Bin> = kept
-            .iter()
-            .filter(|k| {
-                let l = k.omega_rad_s.ln();
-                l >= a && l < b
-            })
-            .collect();
-        if group.is_empty() {
-            continue;
-        }
-        let w: f64 = group.iter().map(|g| g.s_xx).sum();
-        if w.is_nan() || w <= 0.0 {
-            continue;
-        }
-        out.push(H1Bin {
-            omega_rad_s: (group.iter().map(|g| g.omega_rad_s.ln()).sum::<f64>()
-                / group.len() as f64)
-                .exp(),
-            h: group.iter().map(|g| g.h * g.s_xx).sum::<Complex64>() / w,
-            coherence: group.iter().map(|g| g.coherence).sum::<f64>() / group.len() as f64,
-            s_xx: w / group.len() as f64,
-            segments: group[0].segments,
-        });
-    }
-    out
+    band_groups(
+        bins,
+        min_coherence,
+        min_rel_power,
+        omega_lo_rad_s,
+        omega_hi_rad_s,
+        n_points,
+    )
+    .iter()
+    .filter_map(|g| average_bins(bins, g))
+    .collect()
 }
