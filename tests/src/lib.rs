@@ -76,7 +76,11 @@ impl Scenario {
                 "\"experiments.toml\"",
                 &format!("\"{}/experiments.toml\"", cfgs.display()),
             )
-            .replace("instance = \"exo\"", &format!("instance = \"{instance}\""));
+            .replace("instance = \"exo\"", &format!("instance = \"{instance}\""))
+            .replace(
+                "output_dir = \"out/runs\"",
+                &format!("output_dir = \"{}\"", dir.display()),
+            );
         for (from, to) in replacements {
             assert!(
                 text.contains(from),

@@ -260,6 +260,12 @@ impl Identifier {
             "experiment {} period {} (ω = {:.3} rad/s)",
             p.experiment, p.period, p.omega
         );
+        if p.amplitude <= 0.0 {
+            out.push(Event::Warning(format!(
+                "{what}: no excitation (amplitude 0: voluntary motion or a release test); no FRF point"
+            )));
+            return;
+        }
         let samples = self.sensor.window(w.start_ns, end);
         if samples.len() < 16 {
             out.push(Event::Warning(format!(

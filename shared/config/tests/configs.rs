@@ -97,7 +97,7 @@ fn impossible_values_are_named_with_the_key() {
         ),
         ("arm_mass_kg = 1.5", "arm_mass_kg = -1.5", "rig.arm_mass_kg"),
         (
-            "experiments = [1]",
+            "experiments = [1, 7]",
             "experiments = [12]",
             "protocol.experiments[0]",
         ),

@@ -7,9 +7,13 @@
 //! - `exo run CONFIG`: start and supervise the processes of a run.
 //! - `exo tune SUBJECT`: the paper's tuning experiment, automated.
 
+mod analysis;
 mod args;
 mod design_cmd;
+mod fit_cmd;
 mod plot;
+mod report;
+mod report_cmd;
 mod run_cmd;
 mod stability;
 mod supervisor;
@@ -39,6 +43,12 @@ enum Command {
     /// spring-release test oscillates at low and high stiffness, take the
     /// lower, subtract 0.12; printed beside the model's prediction.
     Tune(tune_cmd::TuneArgs),
+    /// Fit recordings as the paper does: FRF points, M1/M2/M3, F-tests,
+    /// phase-shift and M2 tables, power laws and the recommended f.
+    Fit(fit_cmd::FitArgs),
+    /// A self-contained HTML report of recordings: the paper's figures
+    /// (Bode plots with fits, F-test bars, power law, time responses) and tables.
+    Report(report_cmd::ReportArgs),
 }
 
 fn main() {
@@ -47,6 +57,8 @@ fn main() {
         Command::Design(args) => design_cmd::run(&args),
         Command::Run(args) => run_cmd::run(&args),
         Command::Tune(args) => tune_cmd::run(&args),
+        Command::Fit(args) => fit_cmd::run(&args),
+        Command::Report(args) => report_cmd::run(&args),
     };
     if let Err(err) = result {
         eprintln!("exo: error: {err:#}");

@@ -20,6 +20,9 @@ use crate::supervisor::{config_args, sibling_program, supervise, Logs, Role, Ser
 pub struct RunArgs {
     /// The run configuration (e.g. configs/default.toml).
     pub config: PathBuf,
+    /// Do not fit the recording and write the report after the run.
+    #[arg(long)]
+    pub no_report: bool,
 }
 
 /// The processes a configuration asks for, in start order; the recorder
@@ -158,7 +161,40 @@ pub fn run_config(config: &std::path::Path, logs: Logs) -> Result<Option<PathBuf
     Ok(recording)
 }
 
-/// Runs `exo run`.
+/// Runs `exo run`: the processes, then (when the run was recorded) the fit
+/// and the report of the recording.
 pub fn run(args: &RunArgs) -> Result<()> {
-    run_config(&args.config, Logs::Forward).map(|_| ())
+    let Some(recording) = run_config(&args.config, Logs::Forward)? else {
+        return Ok(());
+    };
+    // Only the identification protocol excites the subject for a fit.
+    let identification = RunConfig::from_file(&args.config)?.protocol.mode
+        == exo_config::ProtocolMode::Identification;
+    if args.no_report || !identification {
+        return Ok(());
+    }
+    let fit_args = crate::fit_cmd::FitArgs {
+        recordings: vec![recording.clone()],
+        json: false,
+        csv: None,
+        level: 0.05,
+        phase_margin_deg: 10.8,
+        k_range: None,
+        recorded_frf: false,
+        arm_inertia_kg_m2: 0.1,
+        load_lever_arm_m: 0.45,
+    };
+    let (_, report) = crate::fit_cmd::fit(&fit_args)?;
+    print!("{}", crate::fit_cmd::tables(&report));
+    let stem = recording
+        .file_stem()
+        .map_or("run".into(), |s| s.to_string_lossy().into_owned());
+    let dir = recording
+        .parent()
+        .unwrap_or(std::path::Path::new("."))
+        .join(format!("{stem}-report"));
+    let page = crate::report_cmd::write_report(&fit_args, &dir)?;
+    println!("recording: {}", recording.display());
+    println!("report:    {}", page.display());
+    Ok(())
 }

@@ -1,0 +1,540 @@
+//! Post-hoc analysis as in the paper's "Modeling Results": from the FRF
+//! points of each subject and experiment, the M1/M2/M3 fits of
+//! `S_{h-e/α}` (eqs. M1–M3, the known `M_e/α` removed), `F^sub`, `F^exp` and
+//! `F^all` (eq. ft) with exact critical values, the phase-shift table of
+//! `S_h` (Table II layout: mean and standard error per experiment group, the
+//! last three frequencies excluded), the M2 parameter table (Table III
+//! layout), the power law of M2's (K, H) per subject, and the fractional
+//! order eq. f recommends.
+//!
+//! Pure: no file I/O; [`crate::fit_cmd`] reads the recordings and prints.
+
+use std::collections::BTreeMap;
+
+use anyhow::{bail, Result};
+use exo_impedance::{
+    fit_all, fit_power_law, fractional_order, paper_f_tests, Complex64, FTest, FitTarget,
+    FrfPoint as FitPoint, ImpedanceModel, ModelComparison, ModelFit, StiffnessRange,
+};
+use serde::Serialize;
+
+/// The FRF points of one subject in one experiment, with what the fit needs.
+#[derive(Debug, Clone)]
+pub struct ExperimentData {
+    /// Experiment number (Table I).
+    pub experiment: u32,
+    /// Constant amplification α of the experiment.
+    pub alpha: f64,
+    /// Load on the exoskeleton (kg).
+    pub load_kg: f64,
+    /// Exoskeleton inertia with that load, `M_e` (kg·m²).
+    pub m_e_kg_m2: f64,
+    /// One point per analysed period (or per selected broadband bin).
+    pub points: Vec<exo_messages::FrfPoint>,
+}
+
+/// One subject's data.
+#[derive(Debug, Clone)]
+pub struct SubjectData {
+    /// Subject name.
+    pub subject: String,
+    /// By experiment number.
+    pub experiments: BTreeMap<u32, ExperimentData>,
+}
+
+/// Settings of the analysis.
+#[derive(Debug, Clone, Copy)]
+pub struct AnalysisSettings {
+    /// False-rejection probability of the F-tests.
+    pub level: f64,
+    /// Guaranteed phase margin φ (degrees) for eq. f.
+    pub phase_margin_deg: f64,
+    /// Stiffness range (Nm/rad) for eq. f; the subject's fitted M2 range when `None`.
+    pub k_range_nm_per_rad: Option<[f64; 2]>,
+    /// Highest frequencies left out of the phase table (the paper: 3).
+    pub phase_table_exclude_last: usize,
+}
+
+impl Default for AnalysisSettings {
+    fn default() -> Self {
+        AnalysisSettings {
+            level: 0.05,
+            phase_margin_deg: 10.8,
+            k_range_nm_per_rad: None,
+            phase_table_exclude_last: 3,
+        }
+    }
+}
+
+/// One model's parameters (JSON keys `K`, `H`, `B`, `M`, `r2`).
+#[derive(Debug, Clone, Copy, Serialize)]
+pub struct ModelRow {
+    /// Stiffness K_h (Nm/rad).
+    #[serde(rename = "K")]
+    pub k: f64,
+    /// Hysteretic damping H_h (Nm/rad).
+    #[serde(rename = "H")]
+    pub h: f64,
+    /// Viscous damping B_h (Nm·s/rad).
+    #[serde(rename = "B")]
+    pub b: f64,
+    /// Inertia M_h (kg·m²).
+    #[serde(rename = "M")]
+    pub m: f64,
+    /// Standard errors of K, H, B, M (same units), when defined.
+    pub std_errors: Option<[f64; 4]>,
+    /// Coefficient of determination.
+    pub r2: f64,
+    /// Residual sum of squares ((Nm/rad)²).
+    pub rss: f64,
+}
+
+impl From<&ModelFit> for ModelRow {
+    fn from(f: &ModelFit) -> Self {
+        ModelRow {
+            k: f.params.k_nm_per_rad,
+            h: f.params.h_nm_per_rad,
+            b: f.params.b_nm_s_per_rad,
+            m: f.params.m_kg_m2,
+            std_errors: f
+                .std_errors
+                .map(|s| [s.k_nm_per_rad, s.h_nm_per_rad, s.b_nm_s_per_rad, s.m_kg_m2]),
+            r2: f.r2,
+            rss: f.rss,
+        }
+    }
+}
+
+/// One FRF point as reported.
+#[derive(Debug, Clone, Copy, Serialize)]
+pub struct PointRow {
+    /// Period of the protocol (1-based).
+    pub period: u32,
+    /// Frequency (rad/s).
+    pub omega: f64,
+    /// `S_h = τ_c/θ_e` (Nm/rad), `[re, im]`.
+    pub s_h: [f64; 2],
+    /// `S_{h-e/α} = τ_s/θ_e` (Nm/rad), `[re, im]`.
+    pub s_hea: [f64; 2],
+    /// Phase of `S_h` (degrees).
+    pub s_h_phase_deg: f64,
+    /// Coherence (0–1).
+    pub coherence: f64,
+    /// Relative noise of `S_h`.
+    pub noise_rel: f64,
+}
+
+/// One subject-experiment.
+#[derive(Debug, Clone, Serialize)]
+pub struct ExperimentReport {
+    /// Experiment number.
+    pub experiment: u32,
+    /// α.
+    pub alpha: f64,
+    /// Load (kg).
+    pub load_kg: f64,
+    /// `M_e` (kg·m²).
+    pub m_e_kg_m2: f64,
+    /// The points, by frequency.
+    pub points: Vec<PointRow>,
+    /// The fits, keyed `M1`, `M2`, `M3`.
+    pub models: BTreeMap<&'static str, ModelRow>,
+}
+
+/// An F-test as reported.
+#[derive(Debug, Clone, Copy, Serialize)]
+pub struct FRow {
+    /// The statistic.
+    pub statistic: f64,
+    /// Critical value at the level.
+    pub critical: f64,
+    /// Degrees of freedom (numerator, denominator).
+    pub df: [f64; 2],
+    /// `P(F > statistic)`.
+    pub p_value: f64,
+    /// `statistic > critical`.
+    pub significant: bool,
+}
+
+impl From<FTest> for FRow {
+    fn from(t: FTest) -> Self {
+        FRow {
+            statistic: t.statistic,
+            critical: t.critical,
+            df: [t.df_num, t.df_den],
+            p_value: t.p_value,
+            significant: t.significant,
+        }
+    }
+}
+
+/// `F_{M1−M3}` and `F_{M2−M3}` over one group.
+#[derive(Debug, Clone, Serialize)]
+pub struct FPair {
+    /// Which group: a subject's name, `exp N`, or `all`.
+    pub group: String,
+    /// `F_{M1−M3}`.
+    pub m1_m3: FRow,
+    /// `F_{M2−M3}`.
+    pub m2_m3: FRow,
+}
+
+/// The F-tests of eq. ft.
+#[derive(Debug, Clone, Serialize)]
+pub struct FTests {
+    /// `F^sub`, one per subject.
+    pub per_subject: Vec<FPair>,
+    /// `F^exp`, one per experiment.
+    pub per_experiment: Vec<FPair>,
+    /// `F^all`.
+    pub all: Option<FPair>,
+}
+
+/// Mean and standard error of the phase of `S_h` over one experiment group.
+#[derive(Debug, Clone, Serialize)]
+pub struct PhaseCell {
+    /// The group's experiments, e.g. `1-3`.
+    pub experiments: String,
+    /// Mean phase (degrees).
+    pub mean_deg: f64,
+    /// Standard error (degrees).
+    pub se_deg: f64,
+    /// Number of points.
+    pub n: usize,
+}
+
+/// A subject's row of the phase-shift table.
+#[derive(Debug, Clone, Serialize)]
+pub struct PhaseRow {
+    /// Subject.
+    pub subject: String,
+    /// One cell per experiment group present.
+    pub groups: Vec<PhaseCell>,
+}
+
+/// One subject's results.
+#[derive(Debug, Clone, Serialize)]
+pub struct SubjectReport {
+    /// Subject name.
+    pub subject: String,
+    /// By experiment.
+    pub experiments: Vec<ExperimentReport>,
+    /// Power-law intercept β0 of M2's (K, H), when at least two experiments.
+    pub beta0: Option<f64>,
+    /// Power-law slope β1.
+    pub beta1: Option<f64>,
+    /// R² of the power law (log scale).
+    pub r2: Option<f64>,
+    /// The fractional order eq. f recommends, or why not.
+    pub recommended_f: Option<f64>,
+    /// Why no f is recommended, if so.
+    pub recommended_f_note: Option<String>,
+}
+
+/// Everything `exo fit` reports.
+#[derive(Debug, Clone, Serialize)]
+pub struct FitReport {
+    /// Per subject.
+    pub subjects: Vec<SubjectReport>,
+    /// Eq. ft.
+    pub f_tests: FTests,
+    /// Table II layout.
+    pub phase_table: Vec<PhaseRow>,
+    /// What could not be used, and why.
+    pub warnings: Vec<String>,
+}
+
+fn to_fit_points(points: &[exo_messages::FrfPoint], coupled: bool) -> Vec<FitPoint> {
+    points
+        .iter()
+        .map(|p| {
+            if coupled {
+                FitPoint::new(p.omega, p.s_hea_re, p.s_hea_im)
+            } else {
+                FitPoint::new(p.omega, p.s_h_re, p.s_h_im)
+            }
+        })
+        .collect()
+}
+
+/// Fits one experiment's points (M1–M3 on `S_{h-e/α}`).
+pub fn fit_experiment(e: &ExperimentData) -> Result<ModelComparison> {
+    let pts = to_fit_points(&e.points, true);
+    Ok(fit_all(
+        &pts,
+        FitTarget::Coupled {
+            m_e_kg_m2: e.m_e_kg_m2,
+            alpha: e.alpha,
+        },
+    )?)
+}
+
+fn group_of(experiment: u32) -> (u32, String) {
+    let g = (experiment.saturating_sub(1)) / 3;
+    (g, format!("{}-{}", 3 * g + 1, 3 * g + 3))
+}
+
+/// Runs the whole analysis.
+pub fn analyse(data: &[SubjectData], s: &AnalysisSettings) -> Result<FitReport> {
+    if data.is_empty() {
+        bail!("nothing to analyse: no subject with FRF points");
+    }
+    let mut warnings = Vec::new();
+    let mut subjects = Vec::new();
+    let mut comparisons: BTreeMap<(String, u32), ModelComparison> = BTreeMap::new();
+    let mut phase_table = Vec::new();
+    for sd in data {
+        let mut experiments = Vec::new();
+        let (mut ks, mut hs) = (Vec::new(), Vec::new());
+        let mut phase_groups: BTreeMap<u32, (String, Vec<f64>)> = BTreeMap::new();
+        for e in sd.experiments.values() {
+            let mut pts = e.points.clone();
+            pts.sort_by(|a, b| a.omega.total_cmp(&b.omega));
+            let rows: Vec<PointRow> = pts
+                .iter()
+                .map(|p| PointRow {
+                    period: p.period,
+                    omega: p.omega,
+                    s_h: [p.s_h_re, p.s_h_im],
+                    s_hea: [p.s_hea_re, p.s_hea_im],
+                    s_h_phase_deg: Complex64::new(p.s_h_re, p.s_h_im).arg().to_degrees(),
+                    coherence: p.coherence,
+                    noise_rel: p.noise_rel,
+                })
+                .collect();
+            let keep = rows.len().saturating_sub(s.phase_table_exclude_last);
+            let (g, label) = group_of(e.experiment);
+            phase_groups
+                .entry(g)
+                .or_insert_with(|| (label, Vec::new()))
+                .1
+                .extend(rows[..keep].iter().map(|r| r.s_h_phase_deg));
+            let mut models = BTreeMap::new();
+            match fit_experiment(e) {
+                Ok(c) => {
+                    for m in ImpedanceModel::ALL {
+                        models.insert(m.name(), ModelRow::from(c.get(m)));
+                    }
+                    if c.m2.params.k_nm_per_rad > 0.0 && c.m2.params.h_nm_per_rad > 0.0 {
+                        ks.push(c.m2.params.k_nm_per_rad);
+                        hs.push(c.m2.params.h_nm_per_rad);
+                    } else {
+                        warnings.push(format!(
+                            "subject {} experiment {}: M2 gave K = {:.3}, H = {:.3}; not both positive, left out of the power law",
+                            sd.subject, e.experiment, c.m2.params.k_nm_per_rad, c.m2.params.h_nm_per_rad
+                        ));
+                    }
+                    comparisons.insert((sd.subject.clone(), e.experiment), c);
+                }
+                Err(err) => warnings.push(format!(
+                    "subject {} experiment {}: no model fit ({} points): {err}",
+                    sd.subject,
+                    e.experiment,
+                    e.points.len()
+                )),
+            }
+            experiments.push(ExperimentReport {
+                experiment: e.experiment,
+                alpha: e.alpha,
+                load_kg: e.load_kg,
+                m_e_kg_m2: e.m_e_kg_m2,
+                points: rows,
+                models,
+            });
+        }
+        phase_table.push(PhaseRow {
+            subject: sd.subject.clone(),
+            groups: phase_groups
+                .into_values()
+                .filter(|(_, v)| !v.is_empty())
+                .map(|(label, v)| {
+                    let n = v.len();
+                    let mean = v.iter().sum::<f64>() / n as f64;
+                    let se = if n > 1 {
+                        (v.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / (n - 1) as f64).sqrt()
+                            / (n as f64).sqrt()
+                    } else {
+                        0.0
+                    };
+                    PhaseCell {
+                        experiments: label,
+                        mean_deg: mean,
+                        se_deg: se,
+                        n,
+                    }
+                })
+                .collect(),
+        });
+        let mut report = SubjectReport {
+            subject: sd.subject.clone(),
+            experiments,
+            beta0: None,
+            beta1: None,
+            r2: None,
+            recommended_f: None,
+            recommended_f_note: None,
+        };
+        match fit_power_law(&ks, &hs) {
+            Ok(pl) => {
+                report.beta0 = Some(pl.law.beta0);
+                report.beta1 = Some(pl.law.beta1);
+                report.r2 = Some(pl.r2);
+                let range = s.k_range_nm_per_rad.unwrap_or([
+                    ks.iter().cloned().fold(f64::INFINITY, f64::min),
+                    ks.iter().cloned().fold(0.0, f64::max),
+                ]);
+                match StiffnessRange::new(range[0], range[1])
+                    .and_then(|r| fractional_order(pl.law, r, s.phase_margin_deg))
+                {
+                    Ok(f) => report.recommended_f = Some(f),
+                    Err(e) => report.recommended_f_note = Some(e.to_string()),
+                }
+            }
+            Err(e) => {
+                report.recommended_f_note = Some(format!("no power law: {e}"));
+            }
+        }
+        subjects.push(report);
+    }
+    let pair = |group: String, cs: &[ModelComparison]| -> Option<FPair> {
+        paper_f_tests(cs, s.level).ok().map(|t| FPair {
+            group,
+            m1_m3: t.m1_vs_m3.into(),
+            m2_m3: t.m2_vs_m3.into(),
+        })
+    };
+    let mut per_subject = Vec::new();
+    for sd in data {
+        let cs: Vec<ModelComparison> = comparisons
+            .iter()
+            .filter(|((name, _), _)| *name == sd.subject)
+            .map(|(_, c)| *c)
+            .collect();
+        match pair(sd.subject.clone(), &cs) {
+            Some(p) => per_subject.push(p),
+            None => warnings.push(format!(
+                "subject {}: no F^sub (needs M3 fits with residual degrees of freedom)",
+                sd.subject
+            )),
+        }
+    }
+    let experiments: std::collections::BTreeSet<u32> =
+        comparisons.keys().map(|(_, e)| *e).collect();
+    let per_experiment = experiments
+        .iter()
+        .filter_map(|n| {
+            let cs: Vec<ModelComparison> = comparisons
+                .iter()
+                .filter(|((_, e), _)| e == n)
+                .map(|(_, c)| *c)
+                .collect();
+            pair(format!("exp {n}"), &cs)
+        })
+        .collect();
+    let all: Vec<ModelComparison> = comparisons.values().copied().collect();
+    Ok(FitReport {
+        subjects,
+        f_tests: FTests {
+            per_subject,
+            per_experiment,
+            all: pair("all".into(), &all),
+        },
+        phase_table,
+        warnings,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use exo_impedance::DynamicStiffness;
+
+    /// Noise-free points of an M2 human `K(1 + jc) − M_h ω²` seen through
+    /// `M_e/α`, at the paper's ten frequencies from `w0`.
+    fn experiment(n: u32, k: f64, h: f64, alpha: f64, wobble: f64) -> ExperimentData {
+        let m_e = 1.01125;
+        let human = DynamicStiffness::from_array([0.11, 0.0, k, h]);
+        let points = (0..10)
+            .map(|p| {
+                let w = 2.0 * 10f64.powf(0.1 * p as f64);
+                // A small deterministic perturbation so the fits have residuals.
+                let d = Complex64::new(
+                    wobble * (1.3 * p as f64).sin(),
+                    wobble * (0.7 * p as f64).cos(),
+                );
+                let s_h = human.response(w) + d;
+                let s_hea = s_h - m_e / alpha * w * w;
+                exo_messages::FrfPoint {
+                    experiment: n,
+                    period: p + 1,
+                    omega: w,
+                    s_h_re: s_h.re,
+                    s_h_im: s_h.im,
+                    s_hea_re: s_hea.re,
+                    s_hea_im: s_hea.im,
+                    coherence: 1.0,
+                    ..Default::default()
+                }
+            })
+            .collect();
+        ExperimentData {
+            experiment: n,
+            alpha,
+            load_kg: 4.5,
+            m_e_kg_m2: m_e,
+            points,
+        }
+    }
+
+    #[test]
+    fn recovers_m2_parameters_the_power_law_and_significant_hysteresis() {
+        // H = 10^-0.3 K^1.1 across three experiments.
+        let law = |k: f64| 10f64.powf(-0.3) * k.powf(1.1);
+        let mut experiments = BTreeMap::new();
+        for (n, k, alpha) in [(1, 20.0, 1.0), (4, 45.0, 1.0), (7, 80.0, 2.0)] {
+            experiments.insert(n, experiment(n, k, law(k), alpha, 0.05));
+        }
+        let data = [SubjectData {
+            subject: "T".into(),
+            experiments,
+        }];
+        let r = analyse(&data, &AnalysisSettings::default()).unwrap();
+        let s = &r.subjects[0];
+        for e in &s.experiments {
+            let m2 = e.models["M2"];
+            let k_true =
+                [20.0, 45.0, 80.0][[1, 4, 7].iter().position(|n| *n == e.experiment).unwrap()];
+            assert!((m2.k / k_true - 1.0).abs() < 0.01, "K {} vs {k_true}", m2.k);
+            assert!((m2.h / law(k_true) - 1.0).abs() < 0.02, "H {}", m2.h);
+        }
+        assert!((s.beta0.unwrap() + 0.3).abs() < 0.02, "{:?}", s.beta0);
+        assert!((s.beta1.unwrap() - 1.1).abs() < 0.02, "{:?}", s.beta1);
+        assert!(s.recommended_f.is_some(), "{:?}", s.recommended_f_note);
+        let f = &r.f_tests.per_subject[0];
+        assert!(f.m1_m3.significant, "{:?}", f.m1_m3);
+        assert!(f.m1_m3.statistic > 10.0 * f.m2_m3.statistic.max(1e-3));
+        // Phase table: groups 1-3, 4-6, 7-9, each from the first 7 points.
+        let ph = &r.phase_table[0];
+        assert_eq!(ph.groups.len(), 3);
+        assert!(ph.groups.iter().all(|g| g.n == 7));
+        let c = law(20.0) / 20.0;
+        assert!((ph.groups[0].mean_deg - c.atan().to_degrees()).abs() < 8.0);
+    }
+
+    #[test]
+    fn too_few_points_is_a_warning_not_a_failure() {
+        let mut e = experiment(1, 30.0, 10.0, 1.0, 0.05);
+        e.points.truncate(1);
+        let data = [SubjectData {
+            subject: "T".into(),
+            experiments: BTreeMap::from([(1, e)]),
+        }];
+        let r = analyse(&data, &AnalysisSettings::default()).unwrap();
+        assert!(
+            r.warnings.iter().any(|w| w.contains("no model fit")),
+            "{:?}",
+            r.warnings
+        );
+        assert!(r.subjects[0].recommended_f.is_none());
+    }
+}

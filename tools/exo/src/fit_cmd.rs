@@ -1,0 +1,525 @@
+//! `exo fit RECORDING.mcap …`: the paper's post-hoc analysis of contract
+//! recordings, whoever wrote them. Each recording's samples, commands and
+//! protocol states go through the identifier's own code (the same that runs
+//! online), then [`crate::analysis`] makes the paper's tables.
+
+use std::collections::BTreeMap;
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
+
+use anyhow::{bail, Context, Result};
+use clap::Args;
+use exo_identifier::{Event, Identifier, IdentifierSettings};
+use exo_messages::{FrfPoint, ProtocolState};
+use exo_recording::{read_recording, Recording};
+
+use crate::analysis::{analyse, AnalysisSettings, ExperimentData, FitReport, SubjectData};
+
+/// Arguments of `exo fit`.
+#[derive(Debug, Args)]
+pub struct FitArgs {
+    /// Contract recordings (docs/recording-format.md).
+    #[arg(required = true)]
+    pub recordings: Vec<PathBuf>,
+    /// Print one JSON object instead of tables.
+    #[arg(long)]
+    pub json: bool,
+    /// Also write the tables as CSV files into this directory.
+    #[arg(long, value_name = "DIR")]
+    pub csv: Option<PathBuf>,
+    /// False-rejection probability of the F-tests.
+    #[arg(long, default_value_t = 0.05)]
+    pub level: f64,
+    /// Guaranteed phase margin (degrees) for the recommended f (eq. f).
+    #[arg(long, default_value_t = 10.8)]
+    pub phase_margin_deg: f64,
+    /// Stiffness range (Nm/rad) for eq. f, as MIN,MAX (default: each subject's fitted range).
+    #[arg(long, value_name = "MIN,MAX", value_delimiter = ',', num_args = 2)]
+    pub k_range: Option<Vec<f64>>,
+    /// Use the FRF points the online identifier recorded instead of recomputing them.
+    #[arg(long)]
+    pub recorded_frf: bool,
+    /// Exoskeleton inertia without load (kg·m²) when a recording does not say.
+    #[arg(long, default_value_t = 0.1)]
+    pub arm_inertia_kg_m2: f64,
+    /// Load lever arm (m) when a recording does not say.
+    #[arg(long, default_value_t = 0.45)]
+    pub load_lever_arm_m: f64,
+}
+
+/// What the fitter gets out of one recording.
+pub struct Loaded {
+    /// The recording.
+    pub recording: Recording,
+    /// Subject name.
+    pub subject: String,
+    /// FRF points by experiment.
+    pub points: BTreeMap<u32, Vec<FrfPoint>>,
+    /// α and load per experiment (from the protocol states).
+    pub settings: BTreeMap<u32, (f64, f64)>,
+    /// `M_e` without load and the load lever arm used.
+    pub rig: (f64, f64),
+}
+
+fn meta_f64(r: &Recording, key: &str, default: f64) -> Result<f64> {
+    match r.meta(key) {
+        None => Ok(default),
+        Some(v) => {
+            let x: f64 = v.trim().parse().with_context(|| {
+                format!("{}: metadata exo.{key} = {v:?} is not a number", r.source)
+            })?;
+            if !x.is_finite() {
+                bail!("{}: metadata exo.{key} = {v} is not finite", r.source);
+            }
+            Ok(x)
+        }
+    }
+}
+
+/// Runs a recording's streams through the identifier, in time order.
+pub fn identify(
+    r: &Recording,
+    s: IdentifierSettings,
+) -> (BTreeMap<u32, Vec<FrfPoint>>, Vec<String>) {
+    let mut id = Identifier::new(s);
+    // Merge by time stamp: protocol state, then command, then sample at equal stamps.
+    let (mut ip, mut ic) = (0, 0);
+    let mut events = Vec::new();
+    let mut warnings = Vec::new();
+    for smp in &r.sensor {
+        while ip < r.protocol.len() && r.protocol[ip].stamp_ns <= smp.stamp_ns {
+            id.on_protocol(&r.protocol[ip], &mut events);
+            ip += 1;
+        }
+        while ic < r.command.len() && r.command[ic].stamp_ns <= smp.stamp_ns {
+            id.on_command(&r.command[ic]);
+            ic += 1;
+        }
+        id.on_sample(smp, &mut events);
+    }
+    for p in &r.protocol[ip..] {
+        id.on_protocol(p, &mut events);
+    }
+    id.flush(&mut events);
+    for e in events {
+        if let Event::Warning(w) = e {
+            warnings.push(format!("{}: {w}", r.source));
+        }
+    }
+    (id.points().clone(), warnings)
+}
+
+/// Reads and identifies one recording.
+pub fn load(path: &Path, a: &FitArgs) -> Result<Loaded> {
+    let recording = read_recording(path)?;
+    let r = &recording;
+    let subject = r.meta("subject").map(str::to_string).unwrap_or_else(|| {
+        path.file_stem()
+            .map_or("unknown".into(), |s| s.to_string_lossy().into_owned())
+    });
+    let arm = meta_f64(r, "arm_inertia_kg_m2", a.arm_inertia_kg_m2)?;
+    let lever = meta_f64(r, "load_lever_arm_m", a.load_lever_arm_m)?;
+    let rate = meta_f64(r, "rate_hz", 0.0)?;
+    let rate = if rate > 0.0 {
+        rate
+    } else {
+        // Estimate from the sample stamps.
+        let n = r.sensor.len();
+        if n > 1 {
+            let span = r.sensor[n - 1]
+                .stamp_ns
+                .saturating_sub(r.sensor[0].stamp_ns) as f64
+                * 1e-9;
+            if span > 0.0 {
+                (n - 1) as f64 / span
+            } else {
+                1000.0
+            }
+        } else {
+            1000.0
+        }
+    };
+    let mut extra = Vec::new();
+    if r.protocol.is_empty() {
+        extra.push(format!(
+            "{}: topic exo/protocol is missing or empty: no analysis windows can be found",
+            r.source
+        ));
+    }
+    if r.sensor.is_empty() {
+        extra.push(format!(
+            "{}: topic exo/sensor is missing or empty",
+            r.source
+        ));
+    }
+    if r.command.is_empty() && !r.sensor.is_empty() {
+        extra.push(format!(
+            "{}: topic exo/command is missing: τ_s is used with its gravity part, and τ_s/τ_d is not estimated",
+            r.source
+        ));
+    }
+    let (points, mut warnings) = if a.recorded_frf || r.sensor.is_empty() {
+        if !r.frf.is_empty() && !a.recorded_frf {
+            extra.push(format!(
+                "{}: no samples; using the {} FRF points the online identifier recorded",
+                r.source,
+                r.frf.len()
+            ));
+        }
+        let mut m: BTreeMap<u32, Vec<FrfPoint>> = BTreeMap::new();
+        for p in &r.frf {
+            m.entry(p.experiment).or_default().push(*p);
+        }
+        (m, Vec::new())
+    } else {
+        identify(
+            r,
+            IdentifierSettings {
+                rate_hz: rate,
+                arm_inertia_kg_m2: arm,
+                load_lever_arm_m: lever,
+                max_window_s: 120.0,
+                ..IdentifierSettings::default()
+            },
+        )
+    };
+    warnings.extend(extra);
+    let mut settings = BTreeMap::new();
+    for p in &r.protocol {
+        if p.experiment > 0 {
+            settings.entry(p.experiment).or_insert((p.alpha, p.load_kg));
+        }
+    }
+    let mut loaded = Loaded {
+        recording,
+        subject,
+        points,
+        settings,
+        rig: (arm, lever),
+    };
+    loaded.recording.warnings.extend(warnings);
+    Ok(loaded)
+}
+
+/// Groups loaded recordings by subject for the analysis.
+pub fn subject_data(loaded: &[Loaded]) -> Vec<SubjectData> {
+    let mut by: BTreeMap<String, SubjectData> = BTreeMap::new();
+    for l in loaded {
+        let sd = by.entry(l.subject.clone()).or_insert_with(|| SubjectData {
+            subject: l.subject.clone(),
+            experiments: BTreeMap::new(),
+        });
+        for (n, pts) in &l.points {
+            let (alpha, load) = l.settings.get(n).copied().unwrap_or((1.0, 0.0));
+            let e = sd.experiments.entry(*n).or_insert_with(|| ExperimentData {
+                experiment: *n,
+                alpha: if alpha > 0.0 { alpha } else { 1.0 },
+                load_kg: load,
+                m_e_kg_m2: l.rig.0 + load * l.rig.1 * l.rig.1,
+                points: Vec::new(),
+            });
+            e.points.extend(pts.iter().copied());
+        }
+    }
+    by.into_values().collect()
+}
+
+/// Loads every recording and analyses them together.
+pub fn fit(a: &FitArgs) -> Result<(Vec<Loaded>, FitReport)> {
+    if !(a.level > 0.0 && a.level < 1.0) {
+        bail!("--level = {}: must lie in (0, 1)", a.level);
+    }
+    if !(a.phase_margin_deg > 0.0 && a.phase_margin_deg < 90.0) {
+        bail!(
+            "--phase-margin-deg = {}: must lie in (0, 90)",
+            a.phase_margin_deg
+        );
+    }
+    if let Some(k) = &a.k_range {
+        if !(k[0] > 0.0 && k[1] > k[0] && k[1].is_finite()) {
+            bail!("--k-range = {},{}: needs 0 < MIN < MAX", k[0], k[1]);
+        }
+    }
+    let mut loaded = Vec::new();
+    for (i, p) in a.recordings.iter().enumerate() {
+        if a.recordings.len() > 1 {
+            eprintln!(
+                "exo fit: [{}/{}] {}",
+                i + 1,
+                a.recordings.len(),
+                p.display()
+            );
+        }
+        loaded.push(load(p, a)?);
+    }
+    let data = subject_data(&loaded);
+    let mut warnings: Vec<String> = loaded
+        .iter()
+        .flat_map(|l| l.recording.warnings.iter().cloned())
+        .collect();
+    if data.iter().all(|s| s.experiments.is_empty()) {
+        bail!(
+            "no FRF point in {}:\n  {}",
+            a.recordings
+                .iter()
+                .map(|p| p.display().to_string())
+                .collect::<Vec<_>>()
+                .join(", "),
+            warnings.join("\n  ")
+        );
+    }
+    let settings = AnalysisSettings {
+        level: a.level,
+        phase_margin_deg: a.phase_margin_deg,
+        k_range_nm_per_rad: a.k_range.as_ref().map(|k| [k[0], k[1]]),
+        ..AnalysisSettings::default()
+    };
+    let mut report = analyse(&data, &settings)?;
+    warnings.append(&mut report.warnings);
+    report.warnings = warnings;
+    Ok((loaded, report))
+}
+
+/// The human-readable tables.
+pub fn tables(r: &FitReport) -> String {
+    let mut s = String::new();
+    for sub in &r.subjects {
+        let _ = writeln!(s, "Subject {}", sub.subject);
+        for e in &sub.experiments {
+            let _ = writeln!(
+                s,
+                "  experiment {} (α = {}, load {} kg, M_e = {:.4} kg·m²): {} FRF points",
+                e.experiment,
+                e.alpha,
+                e.load_kg,
+                e.m_e_kg_m2,
+                e.points.len()
+            );
+            let _ = writeln!(
+                s,
+                "    {:>9} {:>10} {:>10} {:>9} {:>9}  {:>10} {:>8}",
+                "ω rad/s", "Re S_h", "Im S_h", "∠S_h °", "γ²", "Re S_h-e/α", "Im"
+            );
+            for p in &e.points {
+                let _ = writeln!(
+                    s,
+                    "    {:>9.3} {:>10.3} {:>10.3} {:>9.2} {:>9.4}  {:>10.3} {:>8.3}",
+                    p.omega,
+                    p.s_h[0],
+                    p.s_h[1],
+                    p.s_h_phase_deg,
+                    p.coherence,
+                    p.s_hea[0],
+                    p.s_hea[1]
+                );
+            }
+            let _ = writeln!(
+                s,
+                "    {:>5} {:>10} {:>10} {:>10} {:>10} {:>8}",
+                "model", "K Nm/rad", "H Nm/rad", "B Nms/rad", "M kg·m²", "R²"
+            );
+            for (name, m) in &e.models {
+                let _ = writeln!(
+                    s,
+                    "    {:>5} {:>10.3} {:>10.3} {:>10.4} {:>10.4} {:>8.4}",
+                    name, m.k, m.h, m.b, m.m, m.r2
+                );
+            }
+        }
+        match (sub.beta0, sub.beta1, sub.r2) {
+            (Some(b0), Some(b1), Some(r2)) => {
+                let _ = writeln!(
+                    s,
+                    "  power law (M2): log10 H = {b0:.3} + {b1:.3} log10 K, R² = {r2:.3}"
+                );
+            }
+            _ => {
+                let _ = writeln!(s, "  power law: needs M2 fits of at least two experiments");
+            }
+        }
+        match (sub.recommended_f, &sub.recommended_f_note) {
+            (Some(f), _) => {
+                let _ = writeln!(s, "  recommended fractional order (eq. f): f = {f:.3}");
+            }
+            (None, Some(n)) => {
+                let _ = writeln!(s, "  recommended fractional order: none ({n})");
+            }
+            _ => {}
+        }
+    }
+    let _ = writeln!(s, "\nF-tests (eq. ft)");
+    let _ = writeln!(
+        s,
+        "  {:>10} {:>12} {:>12} {:>10} {:>12}",
+        "group", "F M1−M3", "F M2−M3", "critical", "df"
+    );
+    for g in r
+        .f_tests
+        .per_subject
+        .iter()
+        .chain(&r.f_tests.per_experiment)
+        .chain(r.f_tests.all.iter())
+    {
+        let _ = writeln!(
+            s,
+            "  {:>10} {:>12.3} {:>12.3} {:>10.3} {:>12}",
+            g.group,
+            g.m1_m3.statistic,
+            g.m2_m3.statistic,
+            g.m1_m3.critical,
+            format!("({}, {})", g.m1_m3.df[0], g.m1_m3.df[1])
+        );
+    }
+    let _ = writeln!(
+        s,
+        "\nPhase of S_h (Table II layout; last three frequencies excluded)"
+    );
+    for p in &r.phase_table {
+        let cells: Vec<String> = p
+            .groups
+            .iter()
+            .map(|g| {
+                format!(
+                    "exp {}: {:.1}° ± {:.1}° (n = {})",
+                    g.experiments, g.mean_deg, g.se_deg, g.n
+                )
+            })
+            .collect();
+        let _ = writeln!(s, "  {:>8}  {}", p.subject, cells.join("   "));
+    }
+    let _ = writeln!(s, "\nM2 parameters (Table III layout)");
+    for sub in &r.subjects {
+        let row: Vec<String> = sub
+            .experiments
+            .iter()
+            .filter_map(|e| {
+                e.models
+                    .get("M2")
+                    .map(|m| format!("{}: K {:.2} H {:.2}", e.experiment, m.k, m.h))
+            })
+            .collect();
+        let _ = writeln!(s, "  {:>8}  {}", sub.subject, row.join(" | "));
+    }
+    if !r.warnings.is_empty() {
+        let _ = writeln!(s, "\nNot used:");
+        for w in &r.warnings {
+            let _ = writeln!(s, "  - {w}");
+        }
+    }
+    s
+}
+
+fn write_csv(dir: &Path, r: &FitReport) -> Result<()> {
+    std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+    let mut frf = String::from("subject,experiment,period,omega_rad_s,s_h_re,s_h_im,s_hea_re,s_hea_im,s_h_phase_deg,coherence,noise_rel\n");
+    let mut models = String::from("subject,experiment,model,K,H,B,M,r2,rss\n");
+    for s in &r.subjects {
+        for e in &s.experiments {
+            for p in &e.points {
+                let _ = writeln!(
+                    frf,
+                    "{},{},{},{},{},{},{},{},{},{},{}",
+                    s.subject,
+                    e.experiment,
+                    p.period,
+                    p.omega,
+                    p.s_h[0],
+                    p.s_h[1],
+                    p.s_hea[0],
+                    p.s_hea[1],
+                    p.s_h_phase_deg,
+                    p.coherence,
+                    p.noise_rel
+                );
+            }
+            for (name, m) in &e.models {
+                let _ = writeln!(
+                    models,
+                    "{},{},{},{},{},{},{},{},{}",
+                    s.subject, e.experiment, name, m.k, m.h, m.b, m.m, m.r2, m.rss
+                );
+            }
+        }
+    }
+    let mut ft = String::from("group,test,statistic,critical,df_num,df_den,p_value\n");
+    for g in r
+        .f_tests
+        .per_subject
+        .iter()
+        .chain(&r.f_tests.per_experiment)
+        .chain(r.f_tests.all.iter())
+    {
+        for (name, t) in [("M1-M3", &g.m1_m3), ("M2-M3", &g.m2_m3)] {
+            let _ = writeln!(
+                ft,
+                "{},{},{},{},{},{},{}",
+                g.group, name, t.statistic, t.critical, t.df[0], t.df[1], t.p_value
+            );
+        }
+    }
+    let mut phase = String::from("subject,experiments,mean_deg,se_deg,n\n");
+    for p in &r.phase_table {
+        for g in &p.groups {
+            let _ = writeln!(
+                phase,
+                "{},{},{},{},{}",
+                p.subject, g.experiments, g.mean_deg, g.se_deg, g.n
+            );
+        }
+    }
+    let mut pl = String::from("subject,beta0,beta1,r2,recommended_f\n");
+    for s in &r.subjects {
+        let o = |v: Option<f64>| v.map_or(String::new(), |x| x.to_string());
+        let _ = writeln!(
+            pl,
+            "{},{},{},{},{}",
+            s.subject,
+            o(s.beta0),
+            o(s.beta1),
+            o(s.r2),
+            o(s.recommended_f)
+        );
+    }
+    for (name, text) in [
+        ("frf.csv", frf),
+        ("models.csv", models),
+        ("ftests.csv", ft),
+        ("phase.csv", phase),
+        ("power_law.csv", pl),
+    ] {
+        let p = dir.join(name);
+        std::fs::write(&p, text).with_context(|| format!("writing {}", p.display()))?;
+    }
+    Ok(())
+}
+
+/// Runs `exo fit`.
+pub fn run(a: &FitArgs) -> Result<()> {
+    let (_, report) = fit(a)?;
+    if let Some(dir) = &a.csv {
+        write_csv(dir, &report)?;
+    }
+    if a.json {
+        println!("{}", serde_json::to_string_pretty(&report)?);
+    } else {
+        print!("{}", tables(&report));
+    }
+    Ok(())
+}
+
+/// The protocol's analysis windows of a recording, for time plots: (experiment, period, start, end).
+pub fn analysis_windows(protocol: &[ProtocolState]) -> Vec<(u32, u32, u64, u64)> {
+    let mut out = Vec::new();
+    let mut open: Option<(u32, u32, u64)> = None;
+    for p in protocol {
+        match (p.phase == 3, open) {
+            (true, None) => open = Some((p.experiment, p.period, p.stamp_ns)),
+            (false, Some((e, n, s))) => {
+                out.push((e, n, s, p.stamp_ns));
+                open = None;
+            }
+            _ => {}
+        }
+    }
+    out
+}
