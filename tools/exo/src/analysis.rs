@@ -31,6 +31,9 @@ pub struct ExperimentData {
     pub m_e_kg_m2: f64,
     /// One point per analysed period (or per selected broadband bin).
     pub points: Vec<exo_messages::FrfPoint>,
+    /// Fit `S_h = τ_c/θ_e` itself (a rig without actuator torque, e.g. an
+    /// imported recording) instead of the paper's `S_{h-e/α}`.
+    pub human_only: bool,
 }
 
 /// One subject's data.
@@ -257,8 +260,12 @@ fn to_fit_points(points: &[exo_messages::FrfPoint], coupled: bool) -> Vec<FitPoi
         .collect()
 }
 
-/// Fits one experiment's points (M1–M3 on `S_{h-e/α}`).
+/// Fits one experiment's points (M1–M3 on `S_{h-e/α}`, or on `S_h` when
+/// the data has no actuator torque).
 pub fn fit_experiment(e: &ExperimentData) -> Result<ModelComparison> {
+    if e.human_only {
+        return Ok(fit_all(&to_fit_points(&e.points, false), FitTarget::Human)?);
+    }
     let pts = to_fit_points(&e.points, true);
     Ok(fit_all(
         &pts,
@@ -483,6 +490,7 @@ mod tests {
             load_kg: 4.5,
             m_e_kg_m2: m_e,
             points,
+            human_only: false,
         }
     }
 

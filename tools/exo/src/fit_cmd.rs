@@ -59,6 +59,8 @@ pub struct Loaded {
     pub settings: BTreeMap<u32, (f64, f64)>,
     /// `M_e` without load and the load lever arm used.
     pub rig: (f64, f64),
+    /// The recording asks for a fit of `S_h` (no actuator torque).
+    pub human_only: bool,
 }
 
 fn meta_f64(r: &Recording, key: &str, default: f64) -> Result<f64> {
@@ -152,7 +154,8 @@ pub fn load(path: &Path, a: &FitArgs) -> Result<Loaded> {
             r.source
         ));
     }
-    if r.command.is_empty() && !r.sensor.is_empty() {
+    let human_only = r.meta("fit_target") == Some("human");
+    if r.command.is_empty() && !r.sensor.is_empty() && !human_only {
         extra.push(format!(
             "{}: topic exo/command is missing: τ_s is used with its gravity part, and τ_s/τ_d is not estimated",
             r.source
@@ -196,6 +199,7 @@ pub fn load(path: &Path, a: &FitArgs) -> Result<Loaded> {
         points,
         settings,
         rig: (arm, lever),
+        human_only,
     };
     loaded.recording.warnings.extend(warnings);
     Ok(loaded)
@@ -217,6 +221,7 @@ pub fn subject_data(loaded: &[Loaded]) -> Vec<SubjectData> {
                 load_kg: load,
                 m_e_kg_m2: l.rig.0 + load * l.rig.1 * l.rig.1,
                 points: Vec::new(),
+                human_only: l.human_only,
             });
             e.points.extend(pts.iter().copied());
         }

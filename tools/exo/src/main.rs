@@ -11,6 +11,7 @@ mod analysis;
 mod args;
 mod design_cmd;
 mod fit_cmd;
+mod import_cmd;
 mod plot;
 mod report;
 mod report_cmd;
@@ -49,6 +50,9 @@ enum Command {
     /// A self-contained HTML report of recordings: the paper's figures
     /// (Bode plots with fits, F-test bars, power law, time responses) and tables.
     Report(report_cmd::ReportArgs),
+    /// Turn another rig's CSV (time, angle, torque, optional actuator torque)
+    /// into a contract recording.
+    Import(import_cmd::ImportArgs),
 }
 
 fn main() {
@@ -59,6 +63,7 @@ fn main() {
         Command::Tune(args) => tune_cmd::run(&args),
         Command::Fit(args) => fit_cmd::run(&args),
         Command::Report(args) => report_cmd::run(&args),
+        Command::Import(args) => import_cmd::run(&args),
     };
     if let Err(err) = result {
         eprintln!("exo: error: {err:#}");

@@ -1,0 +1,262 @@
+//! Recording, fitting and reporting through the real binaries: the main job
+//! (`exo run` of the default configuration), recordings written by another
+//! tool (Python) and by another lab (the real ankle recording, imported), a
+//! recorder killed mid-run, and bad input.
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+use std::time::Duration;
+
+use exo_config::Subject;
+use exo_tests::*;
+use serde_json::Value;
+
+fn fit_json(recordings: &[&Path]) -> Value {
+    let mut args = vec!["fit".to_string(), "--json".to_string()];
+    args.extend(recordings.iter().map(|p| p.display().to_string()));
+    let a: Vec<&str> = args.iter().map(String::as_str).collect();
+    let out = exo(&a);
+    assert!(out.status.success(), "exo fit failed:\n{}", stderr(&out));
+    serde_json::from_str(&stdout(&out)).unwrap_or_else(|e| panic!("{e}: {}", stdout(&out)))
+}
+
+fn model<'a>(v: &'a Value, subject: usize, experiment: u64, name: &str) -> &'a Value {
+    let exps = v["subjects"][subject]["experiments"].as_array().unwrap();
+    let e = exps
+        .iter()
+        .find(|e| e["experiment"].as_u64() == Some(experiment))
+        .unwrap_or_else(|| panic!("experiment {experiment} missing: {v}"));
+    &e["models"][name]
+}
+
+fn recording_in(stdout: &str) -> PathBuf {
+    let line = stdout
+        .lines()
+        .find(|l| l.starts_with("recording:"))
+        .unwrap_or_else(|| panic!("no recording line in\n{stdout}"));
+    PathBuf::from(line.trim_start_matches("recording:").trim())
+}
+
+#[test]
+fn the_main_job_records_fits_and_reports_the_simulated_subject() {
+    let sc = Scenario::new("mainjob", &[]);
+    let out = exo(&["run", sc.config.to_str().unwrap()]);
+    assert!(out.status.success(), "exo run failed:\n{}", stderr(&out));
+    let text = stdout(&out);
+    let rec = recording_in(&text);
+    assert!(rec.is_file(), "{}", rec.display());
+    let report = text
+        .lines()
+        .find(|l| l.starts_with("report:"))
+        .map(|l| PathBuf::from(l.trim_start_matches("report:").trim()))
+        .expect("report line");
+    let html = std::fs::read_to_string(&report).unwrap();
+    assert!(html.contains("<svg") && html.contains("M2 parameters"));
+    // The fit recovers the simulated subject's K and H (Table III, subject B)
+    // within 5 % at the default plant's noise level.
+    let b = Subject::from_file(&configs_dir().join("subjects/B.toml")).unwrap();
+    let v = fit_json(&[&rec]);
+    for n in [1u64, 7] {
+        let truth = b.get(n as u32).unwrap();
+        let m2 = model(&v, 0, n, "M2");
+        let (k, h) = (m2["K"].as_f64().unwrap(), m2["H"].as_f64().unwrap());
+        assert!(
+            (k / truth.stiffness_nm_per_rad - 1.0).abs() < 0.05,
+            "exp {n}: K {k} vs {}",
+            truth.stiffness_nm_per_rad
+        );
+        assert!(
+            (h / truth.hysteretic_damping_nm_per_rad - 1.0).abs() < 0.05,
+            "exp {n}: H {h} vs {}",
+            truth.hysteretic_damping_nm_per_rad
+        );
+        for key in ["K", "H", "B", "M", "r2"] {
+            assert!(model(&v, 0, n, "M1").get(key).is_some(), "key {key}");
+        }
+    }
+    let s = &v["subjects"][0];
+    assert_eq!(s["subject"], "B");
+    for key in ["beta0", "beta1", "r2"] {
+        assert!(s[key].as_f64().is_some(), "per-subject {key}: {s}");
+    }
+    let f = &v["f_tests"]["per_subject"][0]["m1_m3"];
+    assert!(f["statistic"].as_f64().unwrap() > f["critical"].as_f64().unwrap());
+    // The online identifier published its points into the same recording.
+    let out = exo(&["fit", "--recorded-frf", "--json", rec.to_str().unwrap()]);
+    assert!(out.status.success(), "{}", stderr(&out));
+    let v2: Value = serde_json::from_str(&stdout(&out)).unwrap();
+    let k_online = model(&v2, 0, 1, "M2")["K"].as_f64().unwrap();
+    let k_post = model(&v, 0, 1, "M2")["K"].as_f64().unwrap();
+    assert!(
+        (k_online / k_post - 1.0).abs() < 1e-9,
+        "online and post-hoc identification are the same code: {k_online} vs {k_post}"
+    );
+}
+
+fn python() -> String {
+    let out = Command::new("bash")
+        .arg(workspace_root().join("tools/python/ensure_venv.sh"))
+        .output()
+        .expect("ensure_venv.sh");
+    assert!(
+        out.status.success(),
+        "Python with mcap and mcap-ros2-support is needed: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    String::from_utf8(out.stdout).unwrap().trim().to_string()
+}
+
+fn workspace_root() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("..")
+}
+
+#[test]
+fn a_recording_written_by_an_independent_python_script_is_fitted() {
+    let dir = std::env::temp_dir().join(format!("exo-it-py-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let rec = dir.join("py.mcap");
+    let out = Command::new(python())
+        .arg(workspace_root().join("tools/python/write_recording.py"))
+        .arg(&rec)
+        .args(["--k", "40", "--c", "0.4", "--subject", "PY"])
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let v = fit_json(&[&rec]);
+    let m2 = model(&v, 0, 1, "M2");
+    assert!((m2["K"].as_f64().unwrap() - 40.0).abs() < 0.1, "{m2}");
+    assert!((m2["H"].as_f64().unwrap() - 16.0).abs() < 0.1, "{m2}");
+    assert_eq!(v["subjects"][0]["subject"], "PY");
+}
+
+#[test]
+fn the_real_ankle_recording_is_imported_fitted_and_reported() {
+    let csv =
+        workspace_root().join("../shared/data/ankle-stiffness-reklab/ankle_position_torque.csv");
+    assert!(
+        csv.is_file(),
+        "the real recording is expected at {}",
+        csv.display()
+    );
+    let dir = std::env::temp_dir().join(format!("exo-it-ankle-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let rec = dir.join("ankle.mcap");
+    let out = exo(&[
+        "import",
+        csv.to_str().unwrap(),
+        "--flip-torque",
+        "--subject",
+        "ankle",
+        "-o",
+        rec.to_str().unwrap(),
+    ]);
+    assert!(out.status.success(), "{}", stderr(&out));
+    let v = fit_json(&[&rec]);
+    let e = &v["subjects"][0]["experiments"][0];
+    let pts = e["points"].as_array().unwrap();
+    assert!(pts.len() >= 10, "broadband FRF points: {}", pts.len());
+    // The lab's note: coherence above 0.9 between ~0.5 and 12 Hz except near 4 Hz.
+    let coherent = pts
+        .iter()
+        .filter(|p| p["coherence"].as_f64().unwrap() > 0.9)
+        .count();
+    assert!(
+        coherent * 2 > pts.len(),
+        "{coherent} of {} coherent",
+        pts.len()
+    );
+    for m in ["M1", "M2", "M3"] {
+        let k = e["models"][m]["K"].as_f64().unwrap();
+        // An ankle's stiffness is of order 10–1000 Nm/rad; the sign flip makes it positive.
+        assert!(k > 10.0 && k < 1000.0, "{m}: K = {k}");
+    }
+    for g in ["m1_m3", "m2_m3"] {
+        let t = &v["f_tests"]["all"][g];
+        assert!(t["statistic"].as_f64().unwrap() >= 0.0 && t["critical"].as_f64().unwrap() > 1.0);
+    }
+    let out = exo(&[
+        "report",
+        rec.to_str().unwrap(),
+        "-o",
+        dir.join("report").to_str().unwrap(),
+    ]);
+    assert!(out.status.success(), "{}", stderr(&out));
+    let html = std::fs::read_to_string(dir.join("report/report.html")).unwrap();
+    assert!(
+        html.matches("<svg").count() >= 3,
+        "Bode, F-tests and time response"
+    );
+}
+
+#[test]
+fn a_recorder_killed_mid_run_leaves_a_readable_file_and_control_goes_on() {
+    let sc = Scenario::new("reckill", &[("periods = [1, 4, 7]", "periods = [1]")]);
+    let rec = sc.dir.join("killed.mcap");
+    let mut recorder = sc.spawn("exo-recorder", &["--output", rec.to_str().unwrap()]);
+    let samples =
+        sc.collect::<exo_messages::SensorSample>(exo_service_kit::channels::Channel::Sensor);
+    let mut plant = sc.spawn("exo-plant-sim", &[]);
+    let mut driver = sc.spawn("exo-sensor-driver", &[]);
+    let mut controller = sc.spawn("exo-controller", &[]);
+    // Let it record a few seconds of simulated time, then SIGKILL it.
+    samples.wait_for(Duration::from_secs(60), "5 s of samples", |s| {
+        s.len() > 5000
+    });
+    std::thread::sleep(Duration::from_millis(1500));
+    kill_9(&mut recorder);
+    let status = wait_exit(&mut controller, Duration::from_secs(300), "controller");
+    assert!(
+        status.success(),
+        "control was disturbed: {}",
+        sc.log("exo-controller")
+    );
+    terminate(&mut driver);
+    terminate(&mut plant);
+    let samples = samples.finish();
+    // Control ran the whole protocol without a gap.
+    assert!(samples.windows(2).all(|w| w[1].seq == w[0].seq + 1));
+    // The file has no footer; its complete chunks are read.
+    let r = exo_recording::read_recording(&rec).unwrap();
+    assert!(r.truncated);
+    assert!(r.sensor.len() > 1000, "{} samples survived", r.sensor.len());
+    assert!(r.sensor.windows(2).all(|w| w[1].seq == w[0].seq + 1));
+    assert!(r.meta("subject").is_some());
+}
+
+#[test]
+fn bad_recordings_are_named_never_a_panic() {
+    let dir = std::env::temp_dir().join(format!("exo-it-bad-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let junk = dir.join("junk.mcap");
+    std::fs::write(&junk, b"this is not a recording").unwrap();
+    let out = exo(&["fit", junk.to_str().unwrap()]);
+    assert!(!out.status.success());
+    assert!(stderr(&out).contains("junk.mcap"), "{}", stderr(&out));
+    let missing = dir.join("missing.mcap");
+    let out = exo(&["fit", missing.to_str().unwrap()]);
+    assert!(!out.status.success());
+    assert!(stderr(&out).contains("missing.mcap"), "{}", stderr(&out));
+    // A CSV with a non-number is refused naming the line and column.
+    let csv = dir.join("bad.csv");
+    std::fs::write(
+        &csv,
+        "time_s,position_rad,torque_nm\n0,0.1,1\n0.001,abc,1\n",
+    )
+    .unwrap();
+    let out = exo(&[
+        "import",
+        csv.to_str().unwrap(),
+        "-o",
+        dir.join("x.mcap").to_str().unwrap(),
+    ]);
+    assert!(!out.status.success());
+    let e = stderr(&out);
+    assert!(
+        e.contains("bad.csv") && e.contains("line 3") && e.contains("position_rad"),
+        "{e}"
+    );
+}
