@@ -5,7 +5,7 @@ Reads contract recordings (docs/recording-format.md) with `mcap` and
 `mcap-ros2-support`, and does what `exo fit` does to them: per period, the
 analysis window (protocol phase 3) of theta_e, tau_c and tau_s, trimmed to
 whole cycles, single-frequency correlation for S_h = tau_c/theta_e and
-S_h-e/alpha = tau_s/theta_e; then per (subject, experiment) the linear least
+S_h-e/alpha = (tau_s - tau_gravity)/theta_e; then per (subject, experiment) the linear least
 squares of M1, M2 and M3 on S_h-e/alpha with the known M_e/alpha removed.
 
 Usage: fit_frf.py [--me KG_M2] RECORDING.mcap [...]
@@ -27,14 +27,17 @@ ANALYSIS = 3
 def read(path):
     """Sensor columns and protocol states of one recording."""
     seq, t, th, tc, ts = [], [], [], [], []
+    grav = {}
     protocol = []
     subject = "?"
     with open(path, "rb") as f:
         reader = make_reader(f, decoder_factories=[DecoderFactory()])
         for _schema, channel, message, ros in reader.iter_decoded_messages(
-            topics=["exo/sensor", "exo/protocol"]
+            topics=["exo/sensor", "exo/protocol", "exo/command"]
         ):
-            if channel.topic == "exo/sensor":
+            if channel.topic == "exo/command":
+                grav[ros.stamp_ns] = ros.tau_gravity
+            elif channel.topic == "exo/sensor":
                 t.append(ros.stamp_ns)
                 th.append(ros.theta_e)
                 tc.append(ros.tau_c)
@@ -50,7 +53,10 @@ def read(path):
                     subject = rec.metadata.get("subject", subject)
         except Exception:  # a truncated file has no summary
             pass
-    return subject, np.array(t, dtype=np.int64), np.array(th), np.array(tc), np.array(ts), protocol
+    t = np.array(t, dtype=np.int64)
+    # tau_s without the controller's gravity compensation, as the paper and exo fit do.
+    g = np.array([grav.get(int(x), 0.0) for x in t])
+    return subject, t, np.array(th), np.array(tc), np.array(ts) - g, protocol
 
 
 def windows(protocol):

@@ -39,13 +39,15 @@ pub struct RunSettings {
     /// In lockstep, how long (µs) a process polls for the next message,
     /// yielding the CPU between polls, before it sleeps in the kernel; a
     /// kernel wake-up costs tens of µs per hand-over, four per tick.
-    /// 0 never polls. Ignored in real time (which always sleeps).
+    /// Default 0: never polls, every wait sleeps on the iceoryx2 event (no
+    /// busy loop by default); 200 makes lockstep about three times faster on
+    /// two cores (BENCHMARKS.md). Ignored in real time (which always sleeps).
     #[serde(default = "default_lockstep_spin_us")]
     pub lockstep_spin_us: f64,
 }
 
 fn default_lockstep_spin_us() -> f64 {
-    200.0
+    0.0
 }
 
 fn default_instance() -> String {

@@ -69,7 +69,7 @@ pub struct StabilityReport {
     /// least squares over the parts.
     pub growth_rate_per_s: f64,
     /// Dominant oscillation frequency (rad/s) from the zero crossings of the
-    /// window's second half; 0 if there are fewer than two.
+    /// parts above the noise floor; 0 if there are fewer than two.
     pub frequency_rad_s: f64,
     /// Whether the safe state latched during the run.
     pub safe_state: bool,
@@ -161,8 +161,15 @@ impl Detector {
                 self.min_rms_rad
             );
         }
-        // Least-squares slope of ln(RMS) over time.
-        let pts: Vec<(f64, f64)> = rms.iter().map(|(t, r)| (*t, r.max(1e-12).ln())).collect();
+        // Least-squares slope of ln(RMS) over time, over the parts that stand
+        // out of the noise floor (at least a twentieth of the first part's
+        // RMS; the first two parts always).
+        let pts: Vec<(f64, f64)> = rms
+            .iter()
+            .enumerate()
+            .take_while(|(i, (_, r))| *i < 2 || *r >= 0.05 * rms_first)
+            .map(|(_, (t, r))| (*t, r.max(1e-12).ln()))
+            .collect();
         let n = pts.len() as f64;
         let (mt, ml) = (
             pts.iter().map(|p| p.0).sum::<f64>() / n,
@@ -171,10 +178,11 @@ impl Detector {
         let sxx: f64 = pts.iter().map(|p| (p.0 - mt).powi(2)).sum();
         let sxy: f64 = pts.iter().map(|p| (p.0 - mt) * (p.1 - ml)).sum();
         let growth = if sxx > 0.0 { sxy / sxx } else { 0.0 };
-        // Zero crossings of the deviation in the second half.
-        let half = &window[window.len() / 2..];
+        // Zero crossings of the deviation over the parts used for the rate
+        // (where the oscillation, not the noise, crosses zero).
+        let used = (pts.len() * per).min(window.len());
         let mut crossings = Vec::new();
-        for w in half.windows(2) {
+        for w in window[..used].windows(2) {
             let (a, b) = (w[0].1 - equilibrium, w[1].1 - equilibrium);
             if (a < 0.0) != (b < 0.0) {
                 let frac = a / (a - b);

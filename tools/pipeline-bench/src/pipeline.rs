@@ -326,13 +326,13 @@ pub fn lockstep(
     warmup: Duration,
     measure: Duration,
     dir: &Path,
+    spin_us: f64,
 ) -> Result<LockstepResult> {
-    let instance = format!("pbls{}", std::process::id());
-    let config = dir.join("pipeline-lockstep.toml");
-    write_config(
-        &bench_config(base, &instance, TimingMode::Lockstep, rate_hz, dir)?,
-        &config,
-    )?;
+    let instance = format!("pbls{}x{}", std::process::id(), spin_us as u64);
+    let config = dir.join(format!("pipeline-lockstep-spin{}.toml", spin_us as u64));
+    let mut cfg = bench_config(base, &instance, TimingMode::Lockstep, rate_hz, dir)?;
+    cfg.run.lockstep_spin_us = spin_us;
+    write_config(&cfg, &config)?;
     let ipc = Ipc::open("bench_observer", &instance, None)?;
     let protocol_in = ipc.inbox::<ProtocolState>(Channel::Protocol, 64)?;
     let mut fleet = Fleet::new(dir);
