@@ -16,16 +16,18 @@
 
 use std::time::{Duration, Instant};
 
-use anyhow::{bail, Result};
+use anyhow::{bail, Context, Result};
 mod backends;
+mod replay;
 
 use exo_config::{BusBackend, RunConfig, TimingMode};
 use exo_messages::{ActuatorCommand, OperatorCommand, ProtocolState, SensorSample};
-use exo_sensor_driver::{Driver, HardwareBus};
+use exo_sensor_driver::{Calibration, Driver, HardwareBus};
 use exo_service_kit::channels::Channel;
 use exo_service_kit::ipc::{Inbox, Ipc, Outbox};
 
 use crate::backends::SimulatorBus;
+use crate::replay::ReplayBus;
 use exo_service_kit::{init_logging, request_realtime, RealtimeRequest, ServiceArgs, StopFlag};
 use tracing::{error, info};
 
@@ -101,6 +103,34 @@ fn run(args: ServiceArgs) -> Result<()> {
                 cfg.safety.safe_state
             );
             serve(&mut bus, &mut driver, &ports, timing, &stop)?;
+        }
+        BusBackend::Replay => {
+            let file = cfg
+                .bus
+                .replay_file
+                .clone()
+                .context("bus.replay_file is required for the replay backend")?;
+            let calibration = Calibration::new(&cfg.rig);
+            let mut bus = ReplayBus::open(
+                &file,
+                &calibration,
+                cfg.bus.replay_pace_hz.unwrap_or(5000.0),
+            )?;
+            info!(
+                "sensor-driver: replaying {} frames of {}",
+                bus.len(),
+                file.display()
+            );
+            let protocol_out = ipc.outbox::<ProtocolState>(Channel::Protocol)?;
+            let command_out = ipc.outbox::<ActuatorCommand>(Channel::Command)?;
+            replay(
+                &mut bus,
+                &mut driver,
+                &ports.sample_out,
+                &protocol_out,
+                &command_out,
+                &stop,
+            )?;
         }
     }
     info!("sensor-driver: stopped");
@@ -210,5 +240,51 @@ fn serve<B: HardwareBus>(
         }
         bus.write(frame.seq, frame.stamp_ns, out.tau_motor_nm, true)?;
     }
+    Ok(())
+}
+
+/// Plays a recording through the driver: per frame, the recorded protocol
+/// states and commands up to its time stamp, then the calibrated sample
+/// (status `REPLAY`). Ends when the recording does.
+fn replay(
+    bus: &mut ReplayBus,
+    driver: &mut Driver,
+    sample_out: &Outbox<SensorSample>,
+    protocol_out: &Outbox<ProtocolState>,
+    command_out: &Outbox<ActuatorCommand>,
+    stop: &StopFlag,
+) -> Result<()> {
+    let (mut ip, mut ic) = (0, 0);
+    while !stop.requested() {
+        let Some(frame) = bus.read(Duration::ZERO)? else {
+            break;
+        };
+        while ip < bus.protocol.len() && bus.protocol[ip].stamp_ns <= frame.stamp_ns {
+            protocol_out.send(bus.protocol[ip])?;
+            ip += 1;
+        }
+        while ic < bus.commands.len() && bus.commands[ic].stamp_ns <= frame.stamp_ns {
+            command_out.send(bus.commands[ic])?;
+            ic += 1;
+        }
+        let s = driver.on_frame(&frame);
+        sample_out.send(SensorSample {
+            seq: s.seq,
+            stamp_ns: s.stamp_ns,
+            theta_e: s.theta_e,
+            omega_e: s.omega_e,
+            tau_c: s.tau_c,
+            tau_s: s.tau_s,
+            status: s.status | exo_messages::status::REPLAY,
+            _pad: 0,
+        })?;
+    }
+    for p in &bus.protocol[ip..] {
+        protocol_out.send(*p)?;
+    }
+    // Let the subscribers take the last samples before the process (and its
+    // publishers) goes.
+    std::thread::sleep(Duration::from_millis(500));
+    info!("sensor-driver: replay finished");
     Ok(())
 }

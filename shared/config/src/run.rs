@@ -89,16 +89,25 @@ pub enum BusBackend {
     /// The plant simulator's bus: iceoryx2 channels to `exo-plant-sim`.
     #[default]
     Simulator,
+    /// A recording played back (`bus.replay_file`): re-run the identifier
+    /// and the recorder on old data; no controller, nothing actuated.
+    Replay,
 }
 
 /// `[bus]`: the sensor driver's hardware bus. Swapping the simulator for
 /// hardware is this setting plus `services.plant_sim = false`; see
 /// ARCHITECTURE.md for where a new backend plugs in.
-#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct BusSettings {
     /// The backend.
     pub backend: BusBackend,
+    /// The recording to play back (`backend = "replay"`; relative to the run file).
+    #[serde(default)]
+    pub replay_file: Option<PathBuf>,
+    /// Frames per second of wall time a replay delivers (default 5000).
+    #[serde(default)]
+    pub replay_pace_hz: Option<f64>,
 }
 
 /// `[services]`: which processes `exo run` starts.
@@ -369,6 +378,27 @@ impl RunConfig {
         cfg.plant_model = dir.join(&cfg.plant_model);
         cfg.subject_file = dir.join(&cfg.subject_file);
         cfg.protocol.experiments_file = dir.join(&cfg.protocol.experiments_file);
+        if let Some(f) = cfg.bus.replay_file.as_mut() {
+            *f = dir.join(&*f);
+        }
+        if cfg.bus.backend == BusBackend::Replay {
+            let c = Check::new(file);
+            match &cfg.bus.replay_file {
+                None => {
+                    return Err(c.fail(
+                        "bus.replay_file",
+                        "bus.backend = \"replay\" needs the recording to play back",
+                    ))
+                }
+                Some(f) if !f.is_file() => {
+                    return Err(c.fail("bus.replay_file", format!("{} does not exist", f.display())))
+                }
+                Some(_) => {}
+            }
+            if let Some(p) = cfg.bus.replay_pace_hz {
+                c.within("bus.replay_pace_hz", p, 1.0, 1e6)?;
+            }
+        }
         let mut table = ExperimentTable::from_file(&cfg.protocol.experiments_file)?;
         if let Some(rest) = cfg.protocol.rest_s {
             table.timing.rest_s = rest;

@@ -47,7 +47,12 @@ pub fn services_of(
             s.sensor_driver,
             "sensor-driver",
             "exo-sensor-driver",
-            Role::Critical,
+            // Without a controller (a replay) the driver ends the run.
+            if s.controller {
+                Role::Critical
+            } else {
+                Role::EndsRun
+            },
         ),
         (s.controller, "controller", "exo-controller", Role::EndsRun),
     ];
@@ -167,9 +172,10 @@ pub fn run(args: &RunArgs) -> Result<()> {
     let Some(recording) = run_config(&args.config, Logs::Forward)? else {
         return Ok(());
     };
-    // Only the identification protocol excites the subject for a fit.
-    let identification = RunConfig::from_file(&args.config)?.protocol.mode
-        == exo_config::ProtocolMode::Identification;
+    // Only the identification protocol excites the subject for a fit (a
+    // replay republishes whatever the recording's protocol was).
+    let cfg = RunConfig::from_file(&args.config)?;
+    let identification = cfg.protocol.mode == exo_config::ProtocolMode::Identification;
     if args.no_report || !identification {
         return Ok(());
     }
