@@ -107,21 +107,35 @@ struct State<'s> {
     schemas: HashMap<u16, String>,
     channels: HashMap<u16, ChannelInfo>,
     rejected: HashMap<u16, ()>,
+    /// Channels already checked: their topic (`Some`) or rejection (`None`).
+    checked: HashMap<u16, Option<&'static str>>,
     rec: Recording,
     problems: Problems,
 }
 
 impl State<'_> {
-    fn channel_ok(&mut self, id: u16) -> Option<String> {
+    /// The contract topic of channel `id`, checked once (schema name and
+    /// encoding), or `None` when its messages are not used.
+    fn channel_ok(&mut self, id: u16) -> Option<&'static str> {
+        if let Some(known) = self.checked.get(&id) {
+            return *known;
+        }
+        let verdict = self.check_channel(id);
+        if self.channels.contains_key(&id) {
+            self.checked.insert(id, verdict);
+        }
+        verdict
+    }
+
+    fn check_channel(&mut self, id: u16) -> Option<&'static str> {
         if self.rejected.contains_key(&id) {
             return None;
         }
         let ch = self.channels.get(&id)?.clone();
-        let expected = crate::cdr::contract()
+        let Some((topic, expected, _)) = crate::cdr::contract()
             .into_iter()
             .find(|(t, _, _)| *t == ch.topic)
-            .map(|(_, s, _)| s);
-        let Some(expected) = expected else {
+        else {
             self.rejected.insert(id, ());
             self.rec.warnings.push(format!(
                 "{}: topic {} is not part of the recording contract; ignored",
@@ -146,7 +160,7 @@ impl State<'_> {
             ));
             return None;
         }
-        Some(ch.topic)
+        Some(topic)
     }
 
     fn decode_into<T: Recordable>(&mut self, data: &[u8], log_time: u64) -> Option<T> {
@@ -184,7 +198,7 @@ impl State<'_> {
             }
             return;
         };
-        match topic.as_str() {
+        match topic {
             "exo/sensor" => {
                 if let Some(m) = self.decode_into(data, log_time) {
                     self.rec.sensor.push(m);
@@ -236,6 +250,7 @@ impl State<'_> {
                 self.schemas.insert(header.id, header.name);
             }
             Record::Channel(c) => {
+                self.checked.remove(&c.id);
                 if !self.rec.topics.contains(&c.topic) {
                     self.rec.topics.push(c.topic.clone());
                 }
@@ -332,6 +347,7 @@ pub fn read_recording_bytes(source: &str, bytes: &[u8]) -> Result<Recording, Rec
         schemas: HashMap::new(),
         channels: HashMap::new(),
         rejected: HashMap::new(),
+        checked: HashMap::new(),
         rec: Recording {
             source: source.to_string(),
             truncated: true,
