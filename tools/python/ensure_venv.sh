@@ -7,7 +7,7 @@
 set -euo pipefail
 root="$(cd "$(dirname "$0")/../.." && pwd)"
 venv="${EXO_PY_VENV:-$root/target/py-venv}"
-stamp="$venv/.exo-ready-1"
+stamp="$venv/.exo-ready-2"
 if [ ! -f "$stamp" ]; then
     mkdir -p "$(dirname "$venv")"
     # Another test may be making it: serialise with a lock file.
@@ -15,7 +15,7 @@ if [ ! -f "$stamp" ]; then
     flock 9
     if [ ! -f "$stamp" ]; then
         python3 -m venv "$venv" >&2
-        "$venv/bin/pip" install --quiet "mcap>=1.1" "mcap-ros2-support>=0.5" "numpy>=1.24" >&2
+        "$venv/bin/pip" install --quiet "mcap>=1.1" "mcap-ros2-support>=0.6" "numpy>=1.24" >&2
         touch "$stamp"
     fi
 fi

@@ -5,13 +5,17 @@ contract produces files exo reads. Writes a short synthetic identification
 run: a subject with complex stiffness K(1 + jc) and inertia M, driven by one
 sine per period; only the contract's fixed fields are written (no
 `stamp_ns` in ProtocolState), with schemas as a third party would copy them
-from the document.
+from the document, the `exo` metadata record and the configuration
+attachment. Chunking and compression are mcap's (zstd, 1 MiB chunks by
+default; --compression and --chunk-size change them).
 
 Usage: write_recording.py OUT.mcap [--subject NAME] [--k 40] [--c 0.4]
+           [--periods 6] [--compression zstd|lz4|none] [--chunk-size BYTES]
 """
 import argparse
 import math
 
+from mcap.writer import CompressionType
 from mcap_ros2.writer import Writer
 
 SENSOR = """uint64 seq
@@ -53,10 +57,27 @@ def main():
     ap.add_argument("--m", type=float, default=0.11)
     ap.add_argument("--me", type=float, default=1.01125)
     ap.add_argument("--periods", type=int, default=6)
+    ap.add_argument("--compression", choices=["zstd", "lz4", "none"], default="zstd")
+    ap.add_argument("--chunk-size", type=int, default=1024 * 1024)
     a = ap.parse_args()
     rate = 1000
+    compression = {
+        "zstd": CompressionType.ZSTD,
+        "lz4": CompressionType.LZ4,
+        "none": CompressionType.NONE,
+    }[a.compression]
+    config = f"""# written by tools/python/write_recording.py
+[run]
+rate_hz = {rate}.0
+
+[subject]
+name = "{a.subject}"
+k = {a.k}
+c = {a.c}
+m = {a.m}
+"""
     with open(a.out, "wb") as f:
-        w = Writer(f)
+        w = Writer(f, chunk_size=a.chunk_size, compression=compression)
         s_sensor = w.register_msgdef("exo_msgs/msg/SensorSample", SENSOR)
         s_command = w.register_msgdef("exo_msgs/msg/ActuatorCommand", COMMAND)
         s_protocol = w.register_msgdef("exo_msgs/msg/ProtocolState", PROTOCOL)
@@ -96,7 +117,13 @@ def main():
             "experiment": 0, "period": 0, "phase": 0, "omega": 0.0, "amplitude": 0.0,
             "alpha": 1.0, "load_kg": 4.5, "grip_kg": 0.0, "bias_nm": 0.0,
         }, log_time=t_ns, publish_time=t_ns)
-        w._writer.add_metadata("exo", {"subject": a.subject, "writer": "tools/python/write_recording.py"})
+        w.add_metadata("exo", {
+            "subject": a.subject,
+            "software_version": "tools/python/write_recording.py",
+            "config_toml": config,
+            "rate_hz": str(rate),
+        })
+        w.add_attachment(0, 0, "config.toml", "application/toml", config.encode())
         w.finish()
 
 

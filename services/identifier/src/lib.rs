@@ -2,47 +2,92 @@
 //!
 //! The online complex-stiffness estimator, as a state machine fed the
 //! run's streams in any interleaving (the process feeds it from iceoryx2,
-//! `exo fit` from a recording):
+//! `exo fit` from a recording). No IPC here.
 //!
-//! - Every sample and command goes into preallocated rings (no allocation
-//!   per sample).
-//! - The protocol's analysis phase (`ProtocolState.phase = 3`) marks a window
-//!   by time stamps: from the first tick in the phase to the first tick after
-//!   it. Once a sample at or past the window's end has arrived, the window is
-//!   analysed:
-//!   - a sine period (`omega > 0`): single-frequency correlation over whole
-//!     cycles ([`exo_impedance::frf`]) gives one [`FrfPoint`]: `S_h =
-//!     τ_c/θ_e`, `S_{h-e/α} = τ_s/θ_e`, `τ_s/τ_d`, coherence and relative
-//!     noise;
-//!   - broadband (`omega = 0`): Welch H1 with coherence over the excited
-//!     band, several points.
+//! - Every sample and command goes into preallocated rings sized at
+//!   construction from the sample rate and the longest window
+//!   ([`IdentifierSettings::max_window_s`]); [`Identifier::on_sample`],
+//!   [`Identifier::on_command`] and [`Identifier::on_protocol`] do not
+//!   allocate, except at the end of an analysis window.
+//! - The protocol's analysis phase ([`ProtocolPhase::Analysis`]) marks a
+//!   window by time stamps: from the first state in the phase to the first
+//!   state after it (the controller stamps states with the sample's stamp,
+//!   and may send them every tick or only on change). Once a sample at or
+//!   past the window's end has arrived, the window is analysed; states
+//!   arriving a little after their samples do not matter.
+//!   - A sine period (`omega > 0`): single-frequency correlation over whole
+//!     cycles ([`exo_impedance::frf::SineCorrelator`]) gives one
+//!     [`FrfPoint`]: `S_h = τ_c/θ_e`, `S_{h-e/α} = τ̃_s/θ_e` (gravity removed
+//!     from `τ_s` with the controller's `tau_gravity`), `τ_s/τ_d`, coherence
+//!     and relative noise of `S_h`.
+//!   - Broadband (`omega = 0`): Welch H1 with coherence over the excited
+//!     band, summarised in up to [`IdentifierSettings::broadband_points`]
+//!     log-spaced points.
 //!
-//!   A fault bit or the safe state in any sample of the window discards the
-//!   window with a warning.
-//! - After each point the experiment's points are refitted with M1, M2 and
-//!   M3 (`S_{h-e/α}` with the known `M_e/α` removed, as the paper fits) and
-//!   one [`ImpedanceEstimate`] per model is produced, with `F_{M1−M3}`,
-//!   `F_{M2−M3}` and the critical value; across experiments, M2's (K, H)
-//!   give the subject's power law and eq. f's recommended fractional order,
-//!   clamped to the configured bounds.
+//!   A sample with a fault bit ([`status::FAULT_MASK`]) or the safe state
+//!   ([`status::SAFE_STATE`]) anywhere in the window discards the window
+//!   (a warning, no point); samples outside analysis windows are not checked.
+//! - After each window the experiment's points are refitted with M1, M2 and
+//!   M3 ([`FitSource`]: `S_{h-e/α}` with the known `M_e/α` removed, as the
+//!   paper fits, or `S_h` directly) and one [`ImpedanceEstimate`] per model
+//!   is produced, with `F_{M1−M3}`, `F_{M2−M3}` and the critical value at
+//!   [`F_TEST_LEVEL`]. A model with too few points for a residual degree of
+//!   freedom is skipped with a warning. Across experiments, M2's `(K, H)`
+//!   give the subject's power law (eq. ch) and eq. f's recommended
+//!   fractional order, clamped to [`IdentifierSettings::f_bounds`].
 //!
-//! Heavy work happens only at window ends, never per sample.
+//! Heavy work (fits, spectra) happens only at window ends, never per sample.
 
 use std::collections::BTreeMap;
 
-use exo_impedance::frf::{average_bins, band_groups, sine_amplitude, sine_ratio, welch_h1};
+use exo_impedance::frf::{average_bins, band_groups, sine_ratio, welch_h1, SineCorrelator};
 use exo_impedance::{
-    fit_all, fit_power_law, fractional_order, paper_f_tests, Complex64, FitTarget,
-    FrfPoint as FitPoint, ImpedanceModel, ModelComparison, StiffnessRange,
+    fit_model, fit_power_law, fractional_order, paper_f_tests, Complex64, FitTarget,
+    FrfPoint as FitPoint, ImpedanceModel, ModelComparison, ModelFit, PowerLawFit, StiffnessRange,
 };
 use exo_messages::{
-    status, ActuatorCommand, FrfPoint, ImpedanceEstimate, ProtocolState, SensorSample,
+    status, ActuatorCommand, FrfPoint, ImpedanceEstimate, ProtocolPhase, ProtocolState,
+    SensorSample,
 };
+
+/// False-rejection probability of the F-tests (the paper's 5 %; the level
+/// [`ImpedanceEstimate::f_critical`] is documented at).
+pub const F_TEST_LEVEL: f64 = 0.05;
+
+/// Samples an analysis window needs at the least.
+pub const MIN_WINDOW_SAMPLES: usize = 16;
+
+/// Status bits that discard an analysis window.
+pub const REJECT_BITS: u32 = status::FAULT_MASK | status::SAFE_STATE;
+
+/// Which FRF the models are fitted to.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub enum FitSource {
+    /// `S_{h-e/α} = τ̃_s/θ_e`, with the known `M_e/α` removed before the fit
+    /// (the paper's fit, eqs. M1–M3; `M_e` from the rig settings and the
+    /// protocol's load, α from the protocol; α ≤ 0 is taken as 1).
+    #[default]
+    Coupled,
+    /// `S_h = τ_c/θ_e` directly (eqs. Sh1–Sh3): the cuff's own measurement,
+    /// needing neither `M_e` nor α (e.g. recordings without actuator torque).
+    Human,
+}
+
+/// Where eq. f's stiffness range comes from.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub enum KRangeSource {
+    /// [`IdentifierSettings::k_range_nm_per_rad`] (the controller's range).
+    #[default]
+    Settings,
+    /// The smallest and largest M2 stiffness of the experiments so far.
+    Experiments,
+}
 
 /// Settings of the identifier.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct IdentifierSettings {
-    /// Control rate (Hz): one sample per tick.
+    /// Control rate (Hz): one sample per tick. Sizes the rings; broadband
+    /// windows use the rate of their own time stamps.
     pub rate_hz: f64,
     /// Longest analysis window kept (s); longer windows keep their last part.
     pub max_window_s: f64,
@@ -52,19 +97,25 @@ pub struct IdentifierSettings {
     pub load_lever_arm_m: f64,
     /// Guaranteed phase margin for eq. f (degrees).
     pub phase_margin_deg: f64,
-    /// Stiffness range (Nm/rad) for eq. f.
+    /// Stiffness range (Nm/rad) for eq. f when [`KRangeSource::Settings`].
     pub k_range_nm_per_rad: [f64; 2],
-    /// Bounds the recommended f is clamped to.
+    /// Where eq. f's stiffness range comes from.
+    pub k_range_source: KRangeSource,
+    /// Bounds the recommended f is clamped to (within `[0, 1)`).
     pub f_bounds: [f64; 2],
-    /// Welch segment length (samples, a power of two) for broadband windows.
+    /// Which FRF the models are fitted to.
+    pub fit_source: FitSource,
+    /// Welch segment length (samples, a power of two ≥ 16) for broadband windows.
     pub welch_segment: usize,
     /// Points a broadband window is summarised into.
     pub broadband_points: usize,
-    /// Smallest coherence of a broadband bin kept.
+    /// Smallest coherence of a broadband bin kept (0–1).
     pub min_coherence: f64,
+    /// Smallest input power of a broadband bin kept, relative to the strongest bin.
+    pub min_rel_power: f64,
     /// Band (rad/s) a broadband estimate is limited to.
     pub broadband_band_rad_s: [f64; 2],
-    /// Remove a linear trend in sine windows.
+    /// Fit a linear trend with the sinusoid in sine windows (slow drift).
     pub detrend: bool,
 }
 
@@ -77,13 +128,108 @@ impl Default for IdentifierSettings {
             load_lever_arm_m: 0.45,
             phase_margin_deg: 10.8,
             k_range_nm_per_rad: [10.03, 108.33],
+            k_range_source: KRangeSource::Settings,
             f_bounds: [0.0, 0.9],
+            fit_source: FitSource::Coupled,
             welch_segment: 4096,
             broadband_points: 20,
             min_coherence: 0.6,
+            min_rel_power: 1e-3,
             broadband_band_rad_s: [1.0, 100.0],
             detrend: true,
         }
+    }
+}
+
+/// A setting the identifier cannot work with.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[error("identifier settings: {field} = {value}: {why}")]
+pub struct SettingsError {
+    /// The setting, e.g. `"rate_hz"`.
+    pub field: &'static str,
+    /// Its value.
+    pub value: f64,
+    /// What it must be.
+    pub why: &'static str,
+}
+
+impl IdentifierSettings {
+    /// Checks every setting (finite, positive where needed, ordered ranges).
+    pub fn validate(&self) -> Result<(), SettingsError> {
+        let err = |field, value, why| Err(SettingsError { field, value, why });
+        let positive = [
+            ("rate_hz", self.rate_hz),
+            ("max_window_s", self.max_window_s),
+            ("arm_inertia_kg_m2", self.arm_inertia_kg_m2),
+            ("phase_margin_deg", self.phase_margin_deg),
+            ("k_range_nm_per_rad[0]", self.k_range_nm_per_rad[0]),
+            ("broadband_band_rad_s[1]", self.broadband_band_rad_s[1]),
+        ];
+        for (field, v) in positive {
+            if !(v.is_finite() && v > 0.0) {
+                return err(field, v, "must be a finite number above zero");
+            }
+        }
+        let non_negative = [
+            ("load_lever_arm_m", self.load_lever_arm_m),
+            ("min_rel_power", self.min_rel_power),
+            ("broadband_band_rad_s[0]", self.broadband_band_rad_s[0]),
+        ];
+        for (field, v) in non_negative {
+            if !(v.is_finite() && v >= 0.0) {
+                return err(field, v, "must be a finite number, not negative");
+            }
+        }
+        if self.rate_hz * self.max_window_s > 1e8 {
+            return err(
+                "max_window_s",
+                self.max_window_s,
+                "rate_hz · max_window_s must stay below 1e8 samples",
+            );
+        }
+        if self.phase_margin_deg >= 90.0 {
+            return err(
+                "phase_margin_deg",
+                self.phase_margin_deg,
+                "must be below 90",
+            );
+        }
+        let [k_lo, k_hi] = self.k_range_nm_per_rad;
+        if !(k_hi.is_finite() && k_hi > k_lo) {
+            return err(
+                "k_range_nm_per_rad[1]",
+                k_hi,
+                "must be finite and above k_range_nm_per_rad[0]",
+            );
+        }
+        let [f_lo, f_hi] = self.f_bounds;
+        if !(f_lo.is_finite() && f_lo >= 0.0) {
+            return err("f_bounds[0]", f_lo, "must lie in [0, 1)");
+        }
+        if !(f_hi.is_finite() && f_hi >= f_lo && f_hi < 1.0) {
+            return err("f_bounds[1]", f_hi, "must lie in [f_bounds[0], 1)");
+        }
+        if !(self.min_coherence.is_finite() && (0.0..=1.0).contains(&self.min_coherence)) {
+            return err("min_coherence", self.min_coherence, "must lie in [0, 1]");
+        }
+        if self.broadband_band_rad_s[1] <= self.broadband_band_rad_s[0] {
+            return err(
+                "broadband_band_rad_s[1]",
+                self.broadband_band_rad_s[1],
+                "must be above broadband_band_rad_s[0]",
+            );
+        }
+        if !(self.welch_segment.is_power_of_two() && self.welch_segment >= 16) {
+            return err(
+                "welch_segment",
+                self.welch_segment as f64,
+                "must be a power of two, at least 16",
+            );
+        }
+        if self.broadband_points == 0 {
+            return err("broadband_points", 0.0, "must be at least 1");
+        }
+        Ok(())
     }
 }
 
@@ -92,13 +238,13 @@ impl Default for IdentifierSettings {
 pub enum Event {
     /// A new FRF point.
     Frf(FrfPoint),
-    /// A refit after a point (one per model).
+    /// A refit after a window (one per model fitted).
     Estimate(ImpedanceEstimate),
-    /// Something could not be used, and why.
+    /// Something could not be used or computed, and why.
     Warning(String),
 }
 
-/// A fixed-capacity ring of samples.
+/// A fixed-capacity ring of time-stamped values, oldest overwritten.
 #[derive(Debug, Clone)]
 struct Ring<const N: usize> {
     stamp: Vec<u64>,
@@ -119,6 +265,7 @@ impl<const N: usize> Ring<N> {
         }
     }
 
+    /// Allocation-free.
     fn push(&mut self, stamp: u64, v: [f64; N], flags: u32) {
         let cap = self.stamp.len();
         let i = (self.head + self.len) % cap;
@@ -132,18 +279,54 @@ impl<const N: usize> Ring<N> {
         }
     }
 
-    /// Entries with `start <= stamp < end`, oldest first (allocates: window ends only).
-    fn window(&self, start: u64, end: u64) -> Vec<(u64, [f64; N], u32)> {
-        let cap = self.stamp.len();
+    /// The `k`-th entry, oldest first.
+    fn get(&self, k: usize) -> (u64, [f64; N], u32) {
+        let i = (self.head + k) % self.stamp.len();
+        (self.stamp[i], self.values[i], self.flags[i])
+    }
+
+    /// Entries with `start <= stamp < end`, oldest first (no allocation).
+    fn window(&self, start: u64, end: u64) -> impl Iterator<Item = (u64, [f64; N], u32)> + '_ {
         (0..self.len)
-            .map(|k| (self.head + k) % cap)
-            .filter(|&i| self.stamp[i] >= start && self.stamp[i] < end)
-            .map(|i| (self.stamp[i], self.values[i], self.flags[i]))
-            .collect()
+            .map(|k| self.get(k))
+            .filter(move |(s, _, _)| *s >= start && *s < end)
     }
 
     fn latest(&self) -> Option<u64> {
-        (self.len > 0).then(|| self.stamp[(self.head + self.len - 1) % self.stamp.len()])
+        (self.len > 0).then(|| self.get(self.len - 1).0)
+    }
+}
+
+/// Walks the command ring alongside increasing sample stamps: the command
+/// in force at a sample is the latest one stamped at or before it (the
+/// controller stamps each command with the stamp of the sample it answers).
+struct CommandCursor<'a> {
+    ring: &'a Ring<2>,
+    next: usize,
+    current: Option<(u64, [f64; 2])>,
+}
+
+impl<'a> CommandCursor<'a> {
+    fn new(ring: &'a Ring<2>) -> Self {
+        CommandCursor {
+            ring,
+            next: 0,
+            current: None,
+        }
+    }
+
+    /// `([τ_d, τ_gravity], exact)` in force at `stamp`; `exact` when the
+    /// command answers this very sample.
+    fn at(&mut self, stamp: u64) -> Option<([f64; 2], bool)> {
+        while self.next < self.ring.len {
+            let (s, v, _) = self.ring.get(self.next);
+            if s > stamp {
+                break;
+            }
+            self.current = Some((s, v));
+            self.next += 1;
+        }
+        self.current.map(|(s, v)| (v, s == stamp))
     }
 }
 
@@ -154,6 +337,9 @@ struct Window {
     start_ns: u64,
     end_ns: Option<u64>,
 }
+
+/// Channels of the sample correlator.
+const CHANNELS: [&str; 4] = ["theta_e", "tau_c", "tau_s - tau_gravity", "tau_s"];
 
 /// The identifier.
 #[derive(Debug, Clone)]
@@ -167,28 +353,50 @@ pub struct Identifier {
     estimate_seq: u64,
     /// Points per experiment.
     points: BTreeMap<u32, Vec<FrfPoint>>,
-    /// Latest M2 (K, H) per experiment.
+    /// Latest M2 (K, H) per experiment (Nm/rad).
     m2: BTreeMap<u32, (f64, f64)>,
-    /// α and load per experiment.
+    /// α and load (kg) per experiment.
     settings_of: BTreeMap<u32, (f64, f64)>,
+    power_law: Option<PowerLawFit>,
+    recommended_f: Option<f64>,
 }
 
 impl Identifier {
-    /// An identifier with rings of `max_window_s` (allocated now, once).
+    /// An identifier with rings of `rate_hz · max_window_s` samples and
+    /// commands (allocated now, once). Trusts its settings: use
+    /// [`try_new`](Self::try_new) for settings from a file.
     pub fn new(s: IdentifierSettings) -> Self {
-        let cap = ((s.rate_hz * s.max_window_s).ceil() as usize).max(16);
+        let cap = (s.rate_hz * s.max_window_s).ceil();
+        let cap = if cap.is_finite() && cap > 16.0 {
+            cap as usize
+        } else {
+            16
+        };
         Identifier {
             s,
             sensor: Ring::new(cap),
             command: Ring::new(cap),
             window: None,
-            last_phase: 0,
+            last_phase: ProtocolPhase::Idle.as_u32(),
             frf_seq: 0,
             estimate_seq: 0,
             points: BTreeMap::new(),
             m2: BTreeMap::new(),
             settings_of: BTreeMap::new(),
+            power_law: None,
+            recommended_f: None,
         }
+    }
+
+    /// [`new`](Self::new) after [`IdentifierSettings::validate`].
+    pub fn try_new(s: IdentifierSettings) -> Result<Self, SettingsError> {
+        s.validate()?;
+        Ok(Identifier::new(s))
+    }
+
+    /// The settings.
+    pub fn settings(&self) -> &IdentifierSettings {
+        &self.s
     }
 
     /// The points so far, by experiment.
@@ -196,32 +404,58 @@ impl Identifier {
         &self.points
     }
 
-    /// A calibrated sample. Allocation-free.
+    /// The latest M2 `(K_h, H_h)` (Nm/rad) per experiment (those with both positive).
+    pub fn m2_by_experiment(&self) -> &BTreeMap<u32, (f64, f64)> {
+        &self.m2
+    }
+
+    /// The subject's power law over the experiments so far, once there is one.
+    pub fn power_law(&self) -> Option<&PowerLawFit> {
+        self.power_law.as_ref()
+    }
+
+    /// Eq. f's fractional order (clamped to the bounds), once known.
+    pub fn recommended_f(&self) -> Option<f64> {
+        self.recommended_f
+    }
+
+    /// A calibrated sample. Allocation-free, except when it completes an
+    /// analysis window (then the window is analysed and events pushed).
     pub fn on_sample(&mut self, s: &SensorSample, out: &mut Vec<Event>) {
         self.sensor
             .push(s.stamp_ns, [s.theta_e, s.tau_c, s.tau_s], s.status);
         self.try_finish(out);
     }
 
-    /// A controller command (for `τ_s/τ_d`). Allocation-free.
+    /// A controller command (`τ_d` for `τ_s/τ_d`, `τ_gravity` to remove
+    /// gravity from `τ_s`). Allocation-free.
     pub fn on_command(&mut self, c: &ActuatorCommand) {
         self.command.push(c.stamp_ns, [c.tau_d, c.tau_gravity], 0);
     }
 
-    /// A protocol state.
+    /// A protocol state (every tick or only on change). Allocation-free,
+    /// except at the end of an analysis window or for a warning.
     pub fn on_protocol(&mut self, p: &ProtocolState, out: &mut Vec<Event>) {
-        const ANALYSIS: u32 = 3;
-        if p.phase == ANALYSIS && self.last_phase != ANALYSIS {
+        let analysis = ProtocolPhase::Analysis.as_u32();
+        if p.phase == analysis && self.last_phase != analysis {
             if self.window.is_some_and(|w| w.end_ns.is_some()) {
                 // A previous window still waits for its last samples: analyse what is there.
                 self.finish(out);
             }
-            self.window = Some(Window {
-                state: *p,
-                start_ns: p.stamp_ns,
-                end_ns: None,
-            });
-        } else if p.phase != ANALYSIS && self.last_phase == ANALYSIS {
+            match p.validate() {
+                Ok(()) => {
+                    self.window = Some(Window {
+                        state: *p,
+                        start_ns: p.stamp_ns,
+                        end_ns: None,
+                    })
+                }
+                Err(e) => out.push(Event::Warning(format!(
+                    "experiment {} period {}: analysis window not analysed: {e}",
+                    p.experiment, p.period
+                ))),
+            }
+        } else if p.phase != analysis && self.last_phase == analysis {
             if let Some(w) = self.window.as_mut() {
                 w.end_ns = Some(p.stamp_ns);
             }
@@ -230,11 +464,11 @@ impl Identifier {
         self.try_finish(out);
     }
 
-    /// Analyses a delimited window once its last sample has arrived.
+    /// Analyses a delimited window once a sample at or past its end has arrived.
     fn try_finish(&mut self, out: &mut Vec<Event>) {
         let ready = matches!(
             (self.window, self.sensor.latest()),
-            (Some(Window { end_ns: Some(end), .. }), Some(latest)) if latest + 1 >= end
+            (Some(Window { end_ns: Some(end), .. }), Some(latest)) if latest >= end
         );
         if ready {
             self.finish(out);
@@ -248,6 +482,7 @@ impl Identifier {
         }
     }
 
+    /// `M_e = arm + load · lever²` (kg·m²).
     fn m_e(&self, load_kg: f64) -> f64 {
         self.s.arm_inertia_kg_m2 + load_kg * self.s.load_lever_arm_m.powi(2)
     }
@@ -266,119 +501,158 @@ impl Identifier {
             )));
             return;
         }
-        let samples = self.sensor.window(w.start_ns, end);
-        if samples.len() < 16 {
+        let (mut count, mut first, mut rejected) = (0usize, None, None);
+        for (stamp, _, flags) in self.sensor.window(w.start_ns, end) {
+            count += 1;
+            first.get_or_insert(stamp);
+            if flags & REJECT_BITS != 0 && rejected.is_none() {
+                rejected = Some((stamp, flags));
+            }
+        }
+        let Some(origin) = first.filter(|_| count >= MIN_WINDOW_SAMPLES) else {
             out.push(Event::Warning(format!(
-                "{what}: only {} samples in the analysis window; no FRF point",
-                samples.len()
+                "{what}: only {count} samples in the analysis window; no FRF point"
             )));
             return;
-        }
-        let bad = status::FAULT_MASK | status::SAFE_STATE;
-        if let Some((stamp, _, f)) = samples.iter().find(|(_, _, f)| f & bad != 0) {
-            out.push(Event::Warning(format!(
-                "{what}: sample at {stamp} ns has status {f:#x} (fault or safe state); window discarded"
-            )));
-            return;
-        }
-        let t0 = samples[0].0;
-        let t: Vec<f64> = samples.iter().map(|x| (x.0 - t0) as f64 * 1e-9).collect();
-        let col = |i: usize| -> Vec<f64> { samples.iter().map(|x| x.1[i]).collect() };
-        let (th, tc, mut ts) = (col(0), col(1), col(2));
-        let commands = self.command.window(w.start_ns, end);
-        // τ̃_s = τ_s − τ_gravity (the paper removes gravity from τ_s): the
-        // command answering each sample carries the controller's gravity
-        // compensation. The bias is constant over the window (the mean goes).
-        let ts_raw = ts.clone();
-        let mut k = 0;
-        let mut matched = 0;
-        for (i, (stamp, _, _)) in samples.iter().enumerate() {
-            while k < commands.len() && commands[k].0 < *stamp {
-                k += 1;
-            }
-            if k < commands.len() && commands[k].0 == *stamp {
-                ts[i] -= commands[k].1[1];
-                matched += 1;
-            }
-        }
-        if matched > 0 && matched < samples.len() * 9 / 10 {
-            out.push(Event::Warning(format!(
-                "{what}: only {matched} of {} samples have their command; S_h-e/α uses τ_s with gravity where it is missing",
-                samples.len()
-            )));
-        }
-        let new_points: Vec<FrfPoint> = if p.omega > 0.0 {
-            match self.sine_point(&t, &th, &tc, &ts, &ts_raw, &commands, t0, &p) {
-                Ok(pt) => vec![pt],
-                Err(e) => {
-                    out.push(Event::Warning(format!("{what}: {e}")));
-                    return;
-                }
-            }
-        } else {
-            match self.broadband_points(&th, &tc, &ts, &ts_raw, &commands, samples.len(), &p) {
-                Ok(v) if !v.is_empty() => v,
-                Ok(_) => {
-                    out.push(Event::Warning(format!(
-                        "{what}: broadband window has no coherent excited band"
-                    )));
-                    return;
-                }
-                Err(e) => {
-                    out.push(Event::Warning(format!("{what}: {e}")));
-                    return;
-                }
-            }
         };
+        if let Some((stamp, flags)) = rejected {
+            out.push(Event::Warning(format!(
+                "{what}: sample at {stamp} ns has status {flags:#x} (fault or safe state); window discarded"
+            )));
+            return;
+        }
+        // More than ten sample periods missing at the start.
+        let slack_ns = (10.0e9 / self.s.rate_hz).min(1e12) as u64;
+        if origin > w.start_ns.saturating_add(slack_ns) {
+            out.push(Event::Warning(format!(
+                "{what}: the window's first {:.3} s are missing (longer than max_window_s or lost); the rest is analysed",
+                (origin - w.start_ns) as f64 * 1e-9
+            )));
+        }
+        let new_points = if p.omega > 0.0 {
+            self.sine_point(&p, origin, end, &what, out)
+                .map(|pt| vec![pt])
+        } else {
+            self.broadband_points(&p, origin, end, &what, out)
+        };
+        let Some(new_points) = new_points else { return };
         self.settings_of.insert(p.experiment, (p.alpha, p.load_kg));
         for mut pt in new_points {
             pt.seq = self.frf_seq;
-            self.frf_seq += 1;
             pt.stamp_ns = end;
+            if let Err(e) = pt.validate() {
+                out.push(Event::Warning(format!(
+                    "{what}: FRF point at {:.3} rad/s not published: {e}",
+                    pt.omega
+                )));
+                continue;
+            }
+            self.frf_seq += 1;
             out.push(Event::Frf(pt));
             self.points.entry(p.experiment).or_default().push(pt);
         }
         self.refit(p.experiment, p.period, end, out);
     }
 
-    #[allow(clippy::too_many_arguments)]
+    /// Warns about samples without their own command.
+    fn command_coverage(what: &str, exact: usize, count: usize, out: &mut Vec<Event>) {
+        if exact == 0 {
+            out.push(Event::Warning(format!(
+                "{what}: no command answers the window's samples: S_h-e/α uses τ_s with its gravity part, and τ_s/τ_d is not estimated"
+            )));
+        } else if exact < count * 9 / 10 {
+            out.push(Event::Warning(format!(
+                "{what}: only {exact} of {count} samples have their command; the latest earlier command's gravity is used for the others"
+            )));
+        }
+    }
+
+    /// One point from single-frequency correlation over whole cycles from
+    /// `origin` (ns) to `end` (ns, exclusive). No heap allocation but for
+    /// warnings (the correlators live on the stack).
     fn sine_point(
         &self,
-        t: &[f64],
-        th: &[f64],
-        tc: &[f64],
-        ts: &[f64],
-        ts_raw: &[f64],
-        commands: &[(u64, [f64; 2], u32)],
-        t0: u64,
         p: &ProtocolState,
-    ) -> Result<FrfPoint, exo_impedance::ScienceError> {
-        let w = p.omega;
-        let d = self.s.detrend;
-        let a_th = sine_amplitude(t, th, w, d)?;
-        let a_tc = sine_amplitude(t, tc, w, d)?;
-        let a_ts = sine_amplitude(t, ts, w, d)?;
-        let s_h = sine_ratio(&a_th, &a_tc)?;
-        let s_hea = sine_ratio(&a_th, &a_ts)?;
-        let sea = if commands.len() >= 16 {
-            let tt: Vec<f64> = commands
-                .iter()
-                .map(|c| (c.0 as f64 - t0 as f64) * 1e-9)
-                .collect();
-            let td: Vec<f64> = commands.iter().map(|c| c.1[0]).collect();
-            sine_amplitude(t, ts_raw, w, d)
-                .and_then(|a_raw| {
-                    sine_amplitude(&tt, &td, w, d).and_then(|a_td| sine_ratio(&a_td, &a_raw))
-                })
-                .map(|r| r.ratio)
-                .unwrap_or(Complex64::new(0.0, 0.0))
+        origin: u64,
+        end: u64,
+        what: &str,
+        out: &mut Vec<Event>,
+    ) -> Option<FrfPoint> {
+        let warn = |out: &mut Vec<Event>, e: &dyn std::fmt::Display| {
+            out.push(Event::Warning(format!("{what}: {e}; no FRF point")));
+        };
+        let secs = |stamp: u64| (stamp - origin) as f64 * 1e-9;
+        let correlators = SineCorrelator::<4>::new(p.omega, 0.0, self.s.detrend)
+            .and_then(|s| SineCorrelator::<1>::new(p.omega, 0.0, self.s.detrend).map(|c| (s, c)));
+        let (mut sine, mut sine_command) = match correlators {
+            Ok((s, c)) => (s.with_names(CHANNELS), c.with_names(["tau_d"])),
+            Err(e) => {
+                warn(out, &e);
+                return None;
+            }
+        };
+        let mut cursor = CommandCursor::new(&self.command);
+        let (mut count, mut exact) = (0, 0);
+        for (stamp, [theta, tau_c, tau_s], _) in self.sensor.window(origin, end) {
+            let gravity = match cursor.at(stamp) {
+                Some(([_, g], hit)) => {
+                    exact += usize::from(hit);
+                    g
+                }
+                None => 0.0,
+            };
+            if let Err(e) = sine.push(secs(stamp), &[theta, tau_c, tau_s - gravity, tau_s]) {
+                warn(out, &format_args!("sample at {stamp} ns: {e}"));
+                return None;
+            }
+            count += 1;
+        }
+        Self::command_coverage(what, exact, count, out);
+        let t_end = secs(end);
+        let [a_theta, a_tau_c, a_tau_s, a_tau_s_raw] = match sine.finish(Some(t_end)) {
+            Ok(a) => a,
+            Err(e) => {
+                warn(out, &e);
+                return None;
+            }
+        };
+        let (s_h, s_hea) = match (
+            sine_ratio(&a_theta, &a_tau_c),
+            sine_ratio(&a_theta, &a_tau_s),
+        ) {
+            (Ok(a), Ok(b)) => (a, b),
+            (Err(e), _) | (_, Err(e)) => {
+                warn(out, &e);
+                return None;
+            }
+        };
+        let mut commands_ok = true;
+        for (stamp, [tau_d, _], _) in self.command.window(origin, end) {
+            if sine_command.push(secs(stamp), &[tau_d]).is_err() {
+                commands_ok = false;
+                break;
+            }
+        }
+        let sea = if exact > 0 && commands_ok {
+            match sine_command
+                .finish(Some(t_end))
+                .and_then(|[a_tau_d]| sine_ratio(&a_tau_d, &a_tau_s_raw))
+            {
+                Ok(r) => r.ratio,
+                Err(e) => {
+                    out.push(Event::Warning(format!(
+                        "{what}: τ_s/τ_d not estimated: {e}"
+                    )));
+                    Complex64::new(0.0, 0.0)
+                }
+            }
         } else {
             Complex64::new(0.0, 0.0)
         };
-        Ok(FrfPoint {
+        Some(FrfPoint {
             experiment: p.experiment,
             period: p.period,
-            omega: w,
+            omega: p.omega,
             s_h_re: s_h.ratio.re,
             s_h_im: s_h.ratio.im,
             s_hea_re: s_hea.ratio.re,
@@ -391,57 +665,85 @@ impl Identifier {
         })
     }
 
-    #[allow(clippy::too_many_arguments)]
+    /// Points from Welch H1 over the excited band (allocates: window ends only).
     fn broadband_points(
         &self,
-        th: &[f64],
-        tc: &[f64],
-        ts: &[f64],
-        ts_raw: &[f64],
-        commands: &[(u64, [f64; 2], u32)],
-        n: usize,
         p: &ProtocolState,
-    ) -> Result<Vec<FrfPoint>, exo_impedance::ScienceError> {
+        origin: u64,
+        end: u64,
+        what: &str,
+        out: &mut Vec<Event>,
+    ) -> Option<Vec<FrfPoint>> {
+        let n = self.sensor.window(origin, end).count();
+        let (mut th, mut tc, mut ts, mut ts_raw, mut td) = (
+            Vec::with_capacity(n),
+            Vec::with_capacity(n),
+            Vec::with_capacity(n),
+            Vec::with_capacity(n),
+            Vec::with_capacity(n),
+        );
+        let mut cursor = CommandCursor::new(&self.command);
+        let (mut exact, mut last) = (0, origin);
+        for (stamp, [theta, tau_c, tau_s], _) in self.sensor.window(origin, end) {
+            let (tau_d, gravity) = match cursor.at(stamp) {
+                Some(([d, g], hit)) => {
+                    exact += usize::from(hit);
+                    (d, g)
+                }
+                None => (0.0, 0.0),
+            };
+            th.push(theta);
+            tc.push(tau_c);
+            ts.push(tau_s - gravity);
+            ts_raw.push(tau_s);
+            td.push(tau_d);
+            last = stamp;
+        }
+        Self::command_coverage(what, exact, n, out);
+        // The rate of the window's own stamps (a recording may not say its rate).
+        let span_s = (last - origin) as f64 * 1e-9;
+        let rate = if n > 1 && span_s > 0.0 {
+            (n - 1) as f64 / span_s
+        } else {
+            self.s.rate_hz
+        };
         let seg = self.s.welch_segment.min(n.next_power_of_two() / 2).max(16);
-        let rate = self.s.rate_hz;
         let [lo, hi] = self.s.broadband_band_rad_s;
-        let h_c = welch_h1(th, tc, rate, seg)?;
-        let h_s = welch_h1(th, ts, rate, seg)?;
-        let sea = if commands.len() >= seg {
-            let td: Vec<f64> = commands.iter().map(|c| c.1[0]).collect();
-            let m = td.len().min(ts_raw.len());
-            Some(welch_h1(&td[..m], &ts_raw[..m], rate, seg)?)
+        let spectra = welch_h1(&th, &tc, rate, seg)
+            .and_then(|c| welch_h1(&th, &ts, rate, seg).map(|s| (c, s)));
+        let (h_c, h_s) = match spectra {
+            Ok(v) => v,
+            Err(e) => {
+                out.push(Event::Warning(format!("{what}: {e}; no FRF point")));
+                return None;
+            }
+        };
+        // τ_s/τ_d only when (nearly) every sample has its own command.
+        let sea = if exact >= n * 9 / 10 && exact > 0 {
+            welch_h1(&td, &ts_raw, rate, seg).ok()
         } else {
             None
         };
         let groups = band_groups(
             &h_c,
             self.s.min_coherence,
-            1e-3,
+            self.s.min_rel_power,
             lo,
             hi,
             self.s.broadband_points,
         );
-        // τ_s/θ_e and τ_s/τ_d averaged over the same bins as τ_c/θ_e.
-        let picked: Vec<(exo_impedance::frf::H1Bin, Complex64, Complex64)> = groups
+        let zero = Complex64::new(0.0, 0.0);
+        let points: Vec<FrfPoint> = groups
             .iter()
             .filter_map(|g| {
-                let c = average_bins(&h_c, g)?;
-                let s_hea = average_bins(&h_s, g).map_or(Complex64::new(0.0, 0.0), |b| b.h);
+                let b = average_bins(&h_c, g)?;
+                // τ_s/θ_e and τ_s/τ_d averaged over the same bins as τ_c/θ_e.
+                let s_hea = average_bins(&h_s, g).map_or(zero, |b| b.h);
                 let sea = sea
                     .as_deref()
                     .and_then(|s| average_bins(s, g))
-                    .map_or(Complex64::new(0.0, 0.0), |b| b.h);
-                Some((c, s_hea, sea))
-            })
-            .collect();
-        Ok(picked
-            .iter()
-            .map(|(b, s_hea, sea)| {
-                // Normalised random error of H1 (Bendat & Piersol): √((1 − γ²)/(2 γ² n_d)).
-                let g2 = b.coherence.max(1e-6);
-                let noise = ((1.0 - g2) / (2.0 * g2 * b.segments.max(1) as f64)).sqrt();
-                FrfPoint {
+                    .map_or(zero, |b| b.h);
+                Some(FrfPoint {
                     experiment: p.experiment,
                     period: p.period,
                     omega: b.omega_rad_s,
@@ -452,13 +754,24 @@ impl Identifier {
                     sea_re: sea.re,
                     sea_im: sea.im,
                     coherence: b.coherence,
-                    noise_rel: noise,
+                    // Per-bin error at the group's mean coherence: averaging
+                    // neighbouring bins is not credited (conservative).
+                    noise_rel: b.noise_rel(),
                     ..Default::default()
-                }
+                })
             })
-            .collect())
+            .collect();
+        if points.is_empty() {
+            out.push(Event::Warning(format!(
+                "{what}: broadband window has no coherent excited band (coherence ≥ {}, input power ≥ {} of its peak, {lo}–{hi} rad/s)",
+                self.s.min_coherence, self.s.min_rel_power
+            )));
+            return None;
+        }
+        Some(points)
     }
 
+    /// Refits M1–M3 to the experiment's points, then the power law and eq. f.
     fn refit(&mut self, experiment: u32, period: u32, stamp_ns: u64, out: &mut Vec<Event>) {
         let Some(points) = self.points.get(&experiment) else {
             return;
@@ -468,57 +781,88 @@ impl Identifier {
             .get(&experiment)
             .copied()
             .unwrap_or((1.0, 0.0));
-        let pts: Vec<FitPoint> = points
-            .iter()
-            .map(|p| FitPoint::new(p.omega, p.s_hea_re, p.s_hea_im))
-            .collect();
-        let target = FitTarget::Coupled {
-            m_e_kg_m2: self.m_e(load),
-            alpha: if alpha > 0.0 { alpha } else { 1.0 },
-        };
-        if pts.len() < 3 {
-            return; // M3 has four parameters: two complex points are too few for a comparison.
-        }
-        let comparison: ModelComparison = match fit_all(&pts, target) {
-            Ok(c) => c,
-            Err(e) => {
-                out.push(Event::Warning(format!(
-                    "experiment {experiment}: no model fit with {} points: {e}",
-                    pts.len()
-                )));
-                return;
-            }
-        };
-        let (f13, f23, fcrit) = match paper_f_tests(&[comparison], 0.05) {
-            Ok(t) => (
-                t.m1_vs_m3.statistic,
-                t.m2_vs_m3.statistic,
-                t.m1_vs_m3.critical,
+        let (pts, target): (Vec<FitPoint>, FitTarget) = match self.s.fit_source {
+            FitSource::Coupled => (
+                points
+                    .iter()
+                    .map(|p| FitPoint::new(p.omega, p.s_hea_re, p.s_hea_im))
+                    .collect(),
+                FitTarget::Coupled {
+                    m_e_kg_m2: self.m_e(load),
+                    alpha: if alpha > 0.0 { alpha } else { 1.0 },
+                },
             ),
-            Err(_) => (0.0, 0.0, 0.0),
+            FitSource::Human => (
+                points
+                    .iter()
+                    .map(|p| FitPoint::new(p.omega, p.s_h_re, p.s_h_im))
+                    .collect(),
+                FitTarget::Human,
+            ),
         };
-        let m2 = comparison.m2.params;
-        if m2.k_nm_per_rad > 0.0 && m2.h_nm_per_rad > 0.0 {
-            self.m2
-                .insert(experiment, (m2.k_nm_per_rad, m2.h_nm_per_rad));
+        let n = pts.len();
+        let head = format!("experiment {experiment} after {n} FRF point(s)");
+        let mut fits: [Option<ModelFit>; 3] = [None; 3];
+        let mut skipped = Vec::new();
+        for (slot, model) in fits.iter_mut().zip(ImpedanceModel::ALL) {
+            // One residual degree of freedom (standard errors): 2n − p ≥ 1.
+            let needed = model.n_params() / 2 + 1;
+            if n < needed {
+                skipped.push(format!(
+                    "{} ({} parameters) needs {needed} points",
+                    model.name(),
+                    model.n_params()
+                ));
+                continue;
+            }
+            match fit_model(model, &pts, target) {
+                Ok(f) => *slot = Some(f),
+                Err(e) => out.push(Event::Warning(format!(
+                    "{head}: {} not fitted: {e}",
+                    model.name()
+                ))),
+            }
         }
-        let (mut beta0, mut beta1, mut pl_r2, mut f_rec) = (0.0, 0.0, 0.0, 0.0);
-        if self.m2.len() >= 2 {
-            let (ks, hs): (Vec<f64>, Vec<f64>) = self.m2.values().copied().unzip();
-            if let Ok(pl) = fit_power_law(&ks, &hs) {
-                beta0 = pl.law.beta0;
-                beta1 = pl.law.beta1;
-                pl_r2 = pl.r2;
-                let [k_lo, k_hi] = self.s.k_range_nm_per_rad;
-                if let Ok(f) = StiffnessRange::new(k_lo, k_hi)
-                    .and_then(|r| fractional_order(pl.law, r, self.s.phase_margin_deg))
-                {
-                    f_rec = f.clamp(self.s.f_bounds[0], self.s.f_bounds[1]);
+        if !skipped.is_empty() {
+            out.push(Event::Warning(format!(
+                "{head}: not fitted yet: {} (two real equations per point, one left for the residual)",
+                skipped.join(", ")
+            )));
+        }
+        let (f13, f23, fcrit) = match fits {
+            [Some(m1), Some(m2), Some(m3)] => {
+                match paper_f_tests(&[ModelComparison { m1, m2, m3 }], F_TEST_LEVEL) {
+                    Ok(t) => (
+                        t.m1_vs_m3.statistic,
+                        t.m2_vs_m3.statistic,
+                        t.m1_vs_m3.critical,
+                    ),
+                    Err(e) => {
+                        out.push(Event::Warning(format!("{head}: no F-tests: {e}")));
+                        (0.0, 0.0, 0.0)
+                    }
                 }
             }
+            _ => (0.0, 0.0, 0.0),
+        };
+        if let Some(m2) = fits[1] {
+            let (k, h) = (m2.params.k_nm_per_rad, m2.params.h_nm_per_rad);
+            if k > 0.0 && h > 0.0 {
+                self.m2.insert(experiment, (k, h));
+            } else {
+                self.m2.remove(&experiment);
+                out.push(Event::Warning(format!(
+                    "{head}: M2 gives K = {k:.3}, H = {h:.3} Nm/rad; not used for the power law"
+                )));
+            }
         }
-        for model in ImpedanceModel::ALL {
-            let fit = comparison.get(model);
+        self.update_power_law(out);
+        let (beta0, beta1, pl_r2) = self
+            .power_law
+            .map_or((0.0, 0.0, 0.0), |pl| (pl.law.beta0, pl.law.beta1, pl.r2));
+        let f_rec = self.recommended_f.unwrap_or(0.0);
+        for (fit, model) in fits.iter().zip(ImpedanceModel::ALL) {
+            let Some(fit) = fit else { continue };
             let par = fit.params;
             let se = fit.std_errors.unwrap_or_default();
             let (k, h) = (par.k_nm_per_rad, par.h_nm_per_rad);
@@ -534,7 +878,7 @@ impl Identifier {
                 stamp_ns,
                 experiment,
                 period,
-                n_points: pts.len() as u32,
+                n_points: n as u32,
                 model: match model {
                     ImpedanceModel::M1 => 1,
                     ImpedanceModel::M2 => 2,
@@ -559,15 +903,54 @@ impl Identifier {
                 power_law_r2: pl_r2,
                 recommended_f: f_rec,
             };
-            self.estimate_seq += 1;
-            if e.first_non_finite().is_none() {
-                out.push(Event::Estimate(e));
-            } else {
-                out.push(Event::Warning(format!(
-                    "experiment {experiment}: {} estimate not finite; not published",
+            match e.validate() {
+                Ok(()) => {
+                    self.estimate_seq += 1;
+                    out.push(Event::Estimate(e));
+                }
+                Err(err) => out.push(Event::Warning(format!(
+                    "{head}: {} estimate not published: {err}",
                     model.name()
-                )));
+                ))),
             }
+        }
+    }
+
+    /// The power law over the experiments' M2 `(K, H)` (two or more with
+    /// distinct K) and eq. f's fractional order from it.
+    fn update_power_law(&mut self, out: &mut Vec<Event>) {
+        self.power_law = None;
+        self.recommended_f = None;
+        if self.m2.len() < 2 {
+            return;
+        }
+        let (ks, hs): (Vec<f64>, Vec<f64>) = self.m2.values().copied().unzip();
+        let pl = match fit_power_law(&ks, &hs) {
+            Ok(pl) => pl,
+            Err(e) => {
+                out.push(Event::Warning(format!(
+                    "power law over {} experiments not fitted: {e}",
+                    ks.len()
+                )));
+                return;
+            }
+        };
+        self.power_law = Some(pl);
+        let [k_lo, k_hi] = match self.s.k_range_source {
+            KRangeSource::Settings => self.s.k_range_nm_per_rad,
+            KRangeSource::Experiments => [
+                ks.iter().copied().fold(f64::INFINITY, f64::min),
+                ks.iter().copied().fold(f64::NEG_INFINITY, f64::max),
+            ],
+        };
+        match StiffnessRange::new(k_lo, k_hi)
+            .and_then(|r| fractional_order(pl.law, r, self.s.phase_margin_deg))
+        {
+            Ok(f) => self.recommended_f = Some(f.clamp(self.s.f_bounds[0], self.s.f_bounds[1])),
+            Err(e) => out.push(Event::Warning(format!(
+                "power law β0 = {:.3}, β1 = {:.3}: no recommended f: {e}",
+                pl.law.beta0, pl.law.beta1
+            ))),
         }
     }
 }

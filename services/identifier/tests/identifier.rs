@@ -1,31 +1,135 @@
-//! The identifier on synthetic streams from a known human: FRF points, M2
-//! refits, F-tests, the power law and eq. f's recommendation; faults and
-//! broadband windows.
+//! The identifier on synthetic streams from a known human, with protocol
+//! states as the controller sends them (every period: 5 s bias ramp-in,
+//! 5 s settling, 5 s analysis, 5 s ramp-out, rest): FRF points, M1–M3
+//! refits, F-tests, the power law and eq. f's recommendation; faults,
+//! missing commands, late protocol states and broadband windows.
 
-use exo_identifier::{Event, Identifier, IdentifierSettings};
-use exo_impedance::{fractional_order, Complex64, DynamicStiffness, PowerLaw, StiffnessRange};
-use exo_messages::{status, ActuatorCommand, ProtocolState, SensorSample};
+use std::collections::VecDeque;
 
+use exo_identifier::{
+    Event, FitSource, Identifier, IdentifierSettings, KRangeSource, F_TEST_LEVEL,
+};
+use exo_impedance::{
+    f_critical, fractional_order, Complex64, DynamicStiffness, PowerLaw, StiffnessRange,
+};
+use exo_messages::{
+    status, ActuatorCommand, FrfPoint, ImpedanceEstimate, ProtocolPhase, ProtocolState,
+    SensorSample,
+};
+
+/// `M_e` of the default settings with the 4.5 kg load: 0.1 + 4.5 · 0.45² kg·m².
 const M_E: f64 = 0.1 + 4.5 * 0.45 * 0.45;
+const LOAD_KG: f64 = 4.5;
 const RATE: f64 = 1000.0;
+/// Excitation amplitude of θ_e (rad).
+const AMP_RAD: f64 = 0.02;
+/// Gravity of arm and load about the joint, `τ_g = 20 sin θ` (Nm): its
+/// slope at the posture, 20 cos 0.8 ≈ 13.9 Nm/rad, is what S_h-e/α would
+/// gain if gravity stayed in τ_s.
+const GRAVITY_NM: f64 = 20.0;
+const POSTURE_RAD: f64 = 0.8;
+/// The paper's frequencies, 2 · 10^(0.1 k) rad/s, k = 0…9.
+fn paper_omega(period: u32) -> f64 {
+    2.0 * 10f64.powf(0.1 * (period - 1) as f64)
+}
 
-struct Stream {
+/// The SEA's torque tracking in the synthetic plant, `τ_s/τ_d = 1/(1 + 0.01 jω)`.
+fn sea(omega: f64) -> Complex64 {
+    1.0 / Complex64::new(1.0, 0.01 * omega)
+}
+
+/// How a sink receives protocol states.
+#[derive(Clone, Copy, PartialEq)]
+enum Delivery {
+    /// Every tick, before the tick's sample (as the brief's controller).
+    EveryTick,
+    /// Only when (experiment, period, phase) changes, `delay` ticks after
+    /// the tick's sample.
+    OnChange { delay: u64 },
+}
+
+struct Sink {
     id: Identifier,
     events: Vec<Event>,
+    delivery: Delivery,
+    queue: VecDeque<(u64, ProtocolState)>,
+    last_key: Option<(u32, u32, u32)>,
+    commands: bool,
+}
+
+impl Sink {
+    fn frf(&self) -> Vec<FrfPoint> {
+        self.events
+            .iter()
+            .filter_map(|e| match e {
+                Event::Frf(p) => Some(*p),
+                _ => None,
+            })
+            .collect()
+    }
+    fn estimates(&self) -> Vec<ImpedanceEstimate> {
+        self.events
+            .iter()
+            .filter_map(|e| match e {
+                Event::Estimate(e) => Some(*e),
+                _ => None,
+            })
+            .collect()
+    }
+    fn warnings(&self) -> Vec<&str> {
+        self.events
+            .iter()
+            .filter_map(|e| match e {
+                Event::Warning(w) => Some(w.as_str()),
+                _ => None,
+            })
+            .collect()
+    }
+    fn last_estimate(&self, model: u32) -> ImpedanceEstimate {
+        *self
+            .estimates()
+            .iter()
+            .rev()
+            .find(|e| e.model == model)
+            .unwrap()
+    }
+}
+
+/// A synthetic run fed to several identifiers at once.
+struct Stream {
+    sinks: Vec<Sink>,
     tick: u64,
-    seq: u64,
     noise: u64,
+}
+
+/// What a period's analysis window gets wrong on purpose.
+#[derive(Clone, Copy, Default)]
+struct Faults {
+    /// `(phase, tick within the phase, status bits)` of one sample.
+    status: Option<(ProtocolPhase, usize, u32)>,
+    /// Tick within the analysis phase whose τ_c is NaN.
+    nan_at: Option<usize>,
 }
 
 impl Stream {
     fn new() -> Self {
         Stream {
-            id: Identifier::new(IdentifierSettings::default()),
-            events: Vec::new(),
+            sinks: Vec::new(),
             tick: 0,
-            seq: 0,
             noise: 0x1234_5678_9abc_def1,
         }
+    }
+
+    fn with(mut self, s: IdentifierSettings, delivery: Delivery, commands: bool) -> Self {
+        self.sinks.push(Sink {
+            id: Identifier::try_new(s).unwrap(),
+            events: Vec::new(),
+            delivery,
+            queue: VecDeque::new(),
+            last_key: None,
+            commands,
+        });
+        self
     }
 
     fn gauss(&mut self) -> f64 {
@@ -39,196 +143,518 @@ impl Stream {
         (-2.0 * a.ln()).sqrt() * (std::f64::consts::TAU * b).cos()
     }
 
-    fn protocol(&mut self, experiment: u32, period: u32, phase: u32, omega: f64, alpha: f64) {
-        let p = ProtocolState {
+    /// One tick: protocol state `p`, then command and sample (per sink's delivery).
+    fn tick(&mut self, p: ProtocolState, c: ActuatorCommand, s: SensorSample) {
+        let tick = self.tick;
+        for sink in &mut self.sinks {
+            let key = (p.experiment, p.period, p.phase);
+            match sink.delivery {
+                Delivery::EveryTick => sink.id.on_protocol(&p, &mut sink.events),
+                Delivery::OnChange { delay } => {
+                    if sink.last_key != Some(key) {
+                        sink.queue.push_back((tick + delay, p));
+                    }
+                }
+            }
+            sink.last_key = Some(key);
+            if sink.commands {
+                sink.id.on_command(&c);
+            }
+            sink.id.on_sample(&s, &mut sink.events);
+            while sink.queue.front().is_some_and(|(at, _)| *at <= tick) {
+                let (_, q) = sink.queue.pop_front().unwrap();
+                sink.id.on_protocol(&q, &mut sink.events);
+            }
+        }
+        self.tick += 1;
+    }
+
+    fn state(
+        &self,
+        experiment: u32,
+        period: u32,
+        phase: ProtocolPhase,
+        omega: f64,
+        alpha: f64,
+    ) -> ProtocolState {
+        ProtocolState {
             experiment,
             period,
-            phase,
+            phase: phase.as_u32(),
             omega,
             amplitude: 2.0,
             alpha,
-            load_kg: 4.5,
+            load_kg: LOAD_KG,
+            bias_nm: 4.0,
             stamp_ns: self.tick * 1_000_000,
             ..Default::default()
-        };
-        self.id.on_protocol(&p, &mut self.events);
+        }
     }
-}
 
-/// Feeds one sine period (2 s settling, 5 s analysis, 1 s rest) of a human
-/// `human` seen through `M_e/α`.
-#[allow(clippy::too_many_arguments)]
-fn period(
-    st: &mut Stream,
-    experiment: u32,
-    n: u32,
-    omega: f64,
-    human: DynamicStiffness,
-    alpha: f64,
-    noise: f64,
-    fault_at: Option<usize>,
-) {
-    let s_h = human.response(omega);
-    let s_hea = s_h - M_E / alpha * omega * omega;
-    let amp = 0.02;
-    for (phase, dur) in [(2u32, 2.0), (3, 5.0), (5, 1.0)] {
-        st.protocol(experiment, n, phase, omega, alpha);
-        for k in 0..(dur * RATE) as usize {
-            let t = st.tick as f64 / RATE;
-            let x = Complex64::from_polar(amp, omega * t);
-            let theta = 0.8 + x.im;
-            let tau_g = 16.0 * (theta - 0.8) + 12.0;
-            let tau_c = (s_h * x).im + noise * st.gauss();
-            let tau_s = (s_hea * x).im + tau_g + 4.0 + noise * st.gauss();
-            let stamp = st.tick * 1_000_000;
-            let status = if phase == 3 && fault_at == Some(k) {
-                status::FT_FAULT
-            } else {
-                0
-            };
-            st.id.on_command(&ActuatorCommand {
-                seq: st.seq,
-                stamp_ns: stamp,
-                sensor_seq: st.seq,
-                tau_d: tau_s,
-                tau_gravity: tau_g,
-                tau_bias: 4.0,
-                ..Default::default()
-            });
-            st.id.on_sample(
-                &SensorSample {
-                    seq: st.seq,
+    /// One protocol period of a human `s_h(ω)` seen through `M_e/α`.
+    #[allow(clippy::too_many_arguments)]
+    fn period(
+        &mut self,
+        experiment: u32,
+        n: u32,
+        omega: f64,
+        s_h: Complex64,
+        alpha: f64,
+        noise_nm: f64,
+        faults: Faults,
+    ) {
+        let s_hea = s_h - M_E / alpha * omega * omega;
+        let schedule = [
+            (ProtocolPhase::RampIn, 5.0),
+            (ProtocolPhase::Settling, 5.0),
+            (ProtocolPhase::Analysis, 5.0),
+            (ProtocolPhase::RampOut, 5.0),
+            (ProtocolPhase::Rest, 2.0),
+        ];
+        let mut excitation_start = 0;
+        for (phase, dur_s) in schedule {
+            if phase == ProtocolPhase::Settling {
+                excitation_start = self.tick;
+            }
+            for k in 0..(dur_s * RATE) as usize {
+                let p = self.state(experiment, n, phase, omega, alpha);
+                // The bias ramps the posture by up to 0.05 rad (raised cosine).
+                let ramp = match phase {
+                    ProtocolPhase::RampIn => {
+                        0.5 - 0.5 * (std::f64::consts::PI * k as f64 / (dur_s * RATE)).cos()
+                    }
+                    ProtocolPhase::RampOut => {
+                        0.5 + 0.5 * (std::f64::consts::PI * k as f64 / (dur_s * RATE)).cos()
+                    }
+                    ProtocolPhase::Settling | ProtocolPhase::Analysis => 1.0,
+                    _ => 0.0,
+                };
+                let excited = matches!(phase, ProtocolPhase::Settling | ProtocolPhase::Analysis);
+                let t = (self.tick - excitation_start) as f64 / RATE;
+                let x = if excited {
+                    Complex64::from_polar(AMP_RAD, omega * t)
+                } else {
+                    Complex64::new(0.0, 0.0)
+                };
+                let theta = POSTURE_RAD + 0.05 * ramp + x.im;
+                let tau_g = GRAVITY_NM * theta.sin();
+                let bias = 4.0 * ramp;
+                let tau_c = (s_h * x).im + noise_nm * self.gauss();
+                let tau_s = (s_hea * x).im + tau_g + bias + noise_nm * self.gauss();
+                // The command the SEA tracked: τ_s = G(jω) τ_d at ω, with
+                // gravity's slope about the posture in the tracked torque.
+                let slope = GRAVITY_NM * (POSTURE_RAD + 0.05 * ramp).cos();
+                let tau_d = (s_hea * x).im
+                    + tau_g
+                    + bias
+                    + ((1.0 / sea(omega) - 1.0) * (s_hea + slope) * x).im;
+                let mut st = 0;
+                if let Some((fp, fk, bits)) = faults.status {
+                    if fp == phase && fk == k {
+                        st = bits;
+                    }
+                }
+                let tau_c = if phase == ProtocolPhase::Analysis && faults.nan_at == Some(k) {
+                    f64::NAN
+                } else {
+                    tau_c
+                };
+                let stamp = self.tick * 1_000_000;
+                let c = ActuatorCommand {
+                    seq: self.tick,
+                    stamp_ns: stamp,
+                    sensor_seq: self.tick,
+                    tau_d,
+                    tau_gravity: tau_g,
+                    tau_bias: bias,
+                    ..Default::default()
+                };
+                let s = SensorSample {
+                    seq: self.tick,
                     stamp_ns: stamp,
                     theta_e: theta,
                     tau_c,
                     tau_s,
-                    status,
+                    status: st,
                     ..Default::default()
-                },
-                &mut st.events,
+                };
+                self.tick(p, c, s);
+            }
+        }
+    }
+
+    /// Ten periods at the paper's frequencies of an M2 human.
+    fn experiment(&mut self, number: u32, k: f64, h: f64, alpha: f64, noise_nm: f64) {
+        let human = DynamicStiffness::from_array([0.11, 0.0, k, h]);
+        for p in 1..=10u32 {
+            let omega = paper_omega(p);
+            self.period(
+                number,
+                p,
+                omega,
+                human.response(omega),
+                alpha,
+                noise_nm,
+                Faults::default(),
             );
-            st.tick += 1;
-            st.seq += 1;
         }
     }
 }
 
-fn experiment(st: &mut Stream, number: u32, k: f64, h: f64, alpha: f64, noise: f64) {
-    let human = DynamicStiffness::from_array([0.11, 0.0, k, h]);
-    for p in 1..=10u32 {
-        let omega = 2.0 * 10f64.powf(0.1 * (p - 1) as f64);
-        period(st, number, p, omega, human, alpha, noise, None);
-    }
+fn brief_human() -> DynamicStiffness {
+    DynamicStiffness::from_array([0.11, 0.0, 40.0, 10.0])
 }
 
 #[test]
-fn ten_periods_give_ten_points_and_m2_recovers_k_and_h() {
-    let mut st = Stream::new();
-    experiment(&mut st, 1, 30.0, 12.0, 1.0, 0.01);
-    let frf: Vec<_> = st
-        .events
-        .iter()
-        .filter_map(|e| match e {
-            Event::Frf(p) => Some(*p),
-            _ => None,
-        })
-        .collect();
-    assert_eq!(
-        frf.len(),
-        10,
-        "{:?}",
-        st.events
-            .iter()
-            .filter(|e| matches!(e, Event::Warning(_)))
-            .collect::<Vec<_>>()
-    );
-    let human = DynamicStiffness::from_array([0.11, 0.0, 30.0, 12.0]);
-    for p in &frf {
+fn ten_periods_give_ten_points_and_the_m2_fit_recovers_k_and_h() {
+    let noise = 0.02;
+    let alpha = 2.0;
+    let human = brief_human();
+    let mut st = Stream::new()
+        .with(IdentifierSettings::default(), Delivery::EveryTick, true)
+        .with(
+            IdentifierSettings {
+                fit_source: FitSource::Human,
+                ..IdentifierSettings::default()
+            },
+            Delivery::EveryTick,
+            true,
+        );
+    st.experiment(1, 40.0, 10.0, alpha, noise);
+    let coupled = &st.sinks[0];
+    let frf = coupled.frf();
+    assert_eq!(frf.len(), 10, "{:?}", coupled.warnings());
+    for (i, p) in frf.iter().enumerate() {
+        assert_eq!((p.experiment, p.period, p.seq), (1, i as u32 + 1, i as u64));
+        assert!((p.omega - paper_omega(p.period)).abs() < 1e-12);
+        assert_eq!(p.validate(), Ok(()));
         let truth = human.response(p.omega);
         let got = Complex64::new(p.s_h_re, p.s_h_im);
+        // The reported standard error, checked against the truth; 0.02 Nm
+        // of noise on ≥ 3000 samples of a ≥ 0.7 Nm response is < 0.5 %.
+        assert!(p.noise_rel > 0.0 && p.noise_rel < 5e-3, "{}", p.noise_rel);
         assert!(
-            (got - truth).norm() < 0.01 * truth.norm(),
-            "{} vs {truth}",
-            got
+            (got - truth).norm() < 4.0 * p.noise_rel * truth.norm(),
+            "ω {}: {got} vs {truth}, noise_rel {}",
+            p.omega,
+            p.noise_rel
         );
-        assert!(p.coherence > 0.99);
-        assert!(p.noise_rel > 0.0 && p.noise_rel < 0.01);
+        assert!(p.coherence > 0.99, "{}", p.coherence);
+        // S_h-e/α has the same noise on τ_s, so the same absolute error
+        // scale; gravity (13.9 Nm/rad if left in) must be gone.
+        let hea = Complex64::new(p.s_hea_re, p.s_hea_im);
+        let truth_hea = truth - M_E / alpha * p.omega * p.omega;
+        assert!(
+            (hea - truth_hea).norm() < 4.0 * p.noise_rel * truth.norm(),
+            "ω {}: S_h-e/α {hea} vs {truth_hea}",
+            p.omega
+        );
+        // τ_s/τ_d: noise only on τ_s, |τ_d| ≥ 0.4 Nm at these frequencies:
+        // standard error below σ·√(4·2.6/3000)/0.4 ≈ 3e-3.
+        let g = Complex64::new(p.sea_re, p.sea_im);
+        assert!(
+            (g - sea(p.omega)).norm() < 0.015,
+            "ω {}: τ_s/τ_d {g}",
+            p.omega
+        );
     }
-    let last_m2 = st
-        .events
-        .iter()
-        .rev()
-        .find_map(|e| match e {
-            Event::Estimate(e) if e.model == 2 => Some(*e),
-            _ => None,
-        })
-        .unwrap();
-    assert_eq!(last_m2.n_points, 10);
-    assert!((last_m2.k_h / 30.0 - 1.0).abs() < 0.01, "K {}", last_m2.k_h);
-    assert!((last_m2.h_h / 12.0 - 1.0).abs() < 0.02, "H {}", last_m2.h_h);
-    assert!((last_m2.m_h - 0.11).abs() < 0.01, "M {}", last_m2.m_h);
+    // Refits: after one point nothing, after two M1 and M2, from three all.
+    let est = coupled.estimates();
+    let models_after = |n: u32| -> Vec<u32> {
+        est.iter()
+            .filter(|e| e.n_points == n)
+            .map(|e| e.model)
+            .collect()
+    };
+    assert!(models_after(1).is_empty());
+    assert_eq!(models_after(2), vec![1, 2]);
+    assert_eq!(models_after(3), vec![1, 2, 3]);
+    assert_eq!(models_after(10), vec![1, 2, 3]);
+    let w = coupled.warnings();
     assert!(
-        last_m2.f_m1_m3 > last_m2.f_critical,
-        "F(M1−M3) {} vs critical {}",
-        last_m2.f_m1_m3,
-        last_m2.f_critical
+        w.iter()
+            .any(|w| w.contains("after 1 FRF point") && w.contains("M1") && w.contains("M3")),
+        "{w:?}"
     );
-    assert_eq!(
-        last_m2.recommended_f, 0.0,
-        "one experiment: no power law yet"
+    assert!(
+        w.iter()
+            .any(|w| w.contains("after 2 FRF point")
+                && w.contains("M3 (4 parameters) needs 3 points"))
     );
+    assert_eq!(w.len(), 2, "{w:?}");
+    assert!(est.iter().all(|e| e.validate().is_ok()));
+    assert!(est.windows(2).all(|w| w[1].seq == w[0].seq + 1));
+    for sink in &st.sinks {
+        let m2 = sink.last_estimate(2);
+        assert_eq!((m2.n_points, m2.period), (10, 10));
+        // Within four of its own standard errors, which are small.
+        assert!(
+            (m2.k_h - 40.0).abs() < 4.0 * m2.k_h_se && m2.k_h_se < 0.2,
+            "K {} ± {}",
+            m2.k_h,
+            m2.k_h_se
+        );
+        assert!(
+            (m2.h_h - 10.0).abs() < 4.0 * m2.h_h_se && m2.h_h_se < 0.2,
+            "H {} ± {}",
+            m2.h_h,
+            m2.h_h_se
+        );
+        assert!(
+            (m2.m_h - 0.11).abs() < 4.0 * m2.m_h_se,
+            "M {} ± {}",
+            m2.m_h,
+            m2.m_h_se
+        );
+        assert!((m2.c_h - 0.25).abs() < 0.01);
+        // Hysteretic data: M1 (viscous only) is rejected against M3, M2 is not.
+        let crit = f_critical(1.0, 16.0, F_TEST_LEVEL).unwrap();
+        assert!((m2.f_critical - crit).abs() < 1e-9);
+        assert!(
+            m2.f_m1_m3 > m2.f_critical,
+            "F(M1−M3) {} vs {}",
+            m2.f_m1_m3,
+            m2.f_critical
+        );
+        assert!(
+            m2.f_m2_m3 < m2.f_critical,
+            "F(M2−M3) {} vs {}",
+            m2.f_m2_m3,
+            m2.f_critical
+        );
+        assert_eq!(m2.recommended_f, 0.0, "one experiment: no power law yet");
+        assert!(sink.id.power_law().is_none() && sink.id.recommended_f().is_none());
+    }
+    // S_h fitted directly agrees with the paper's S_h-e/α fit.
+    let (a, b) = (st.sinks[0].last_estimate(2), st.sinks[1].last_estimate(2));
+    assert!((a.k_h - b.k_h).abs() < 4.0 * (a.k_h_se + b.k_h_se));
+    assert!((a.h_h - b.h_h).abs() < 4.0 * (a.h_h_se + b.h_h_se));
 }
 
 #[test]
 fn three_experiments_give_the_power_law_and_eq_f() {
     let law = PowerLaw::new(-0.3, 1.1).unwrap();
-    let mut st = Stream::new();
+    let bounded = IdentifierSettings {
+        k_range_source: KRangeSource::Experiments,
+        f_bounds: [0.0, 0.2],
+        ..IdentifierSettings::default()
+    };
+    let mut st = Stream::new()
+        .with(IdentifierSettings::default(), Delivery::EveryTick, true)
+        .with(bounded, Delivery::EveryTick, true);
     for (n, k, alpha) in [(1, 20.0, 1.0), (4, 45.0, 2.0), (7, 80.0, 4.0)] {
-        experiment(
-            &mut st,
-            n,
-            k,
-            law.hysteretic_damping(k).unwrap(),
-            alpha,
-            0.005,
-        );
+        st.experiment(n, k, law.hysteretic_damping(k).unwrap(), alpha, 0.005);
     }
-    let last = st
-        .events
-        .iter()
-        .rev()
-        .find_map(|e| match e {
-            Event::Estimate(e) if e.model == 2 => Some(*e),
-            _ => None,
-        })
-        .unwrap();
-    assert!((last.beta0 + 0.3).abs() < 0.02, "β0 {}", last.beta0);
-    assert!((last.beta1 - 1.1).abs() < 0.02, "β1 {}", last.beta1);
+    let sink = &st.sinks[0];
+    let last = sink.last_estimate(2);
+    assert_eq!(last.experiment, 7);
+    assert!((last.beta0 + 0.3).abs() < 0.01, "β0 {}", last.beta0);
+    assert!((last.beta1 - 1.1).abs() < 0.01, "β1 {}", last.beta1);
+    assert!(last.power_law_r2 > 0.999);
+    let pl = sink.id.power_law().unwrap();
+    assert_eq!(
+        (pl.law.beta0, pl.law.beta1, pl.n),
+        (last.beta0, last.beta1, 3)
+    );
+    // Eq. f with the controller's range and the default phase margin,
+    // exactly what exo_impedance's loop shaping computes.
     let fitted = PowerLaw::new(last.beta0, last.beta1).unwrap();
     let f = fractional_order(fitted, StiffnessRange::new(10.03, 108.33).unwrap(), 10.8).unwrap();
-    assert!((last.recommended_f - f.clamp(0.0, 0.9)).abs() < 1e-12);
-    assert!(last.recommended_f > 0.0);
+    assert_eq!(last.recommended_f, f.clamp(0.0, 0.9));
+    assert!(last.recommended_f > 0.0 && last.recommended_f <= 0.9);
+    assert_eq!(sink.id.recommended_f(), Some(last.recommended_f));
+    // Every model's estimate carries the same power law and f.
+    for m in [1, 3] {
+        let e = sink.last_estimate(m);
+        assert_eq!((e.beta0, e.recommended_f), (last.beta0, last.recommended_f));
+    }
+    // The power law appears with the second experiment's first M2 fit.
+    let est = sink.estimates();
+    let first_with_law = est.iter().find(|e| e.beta1 != 0.0).unwrap();
+    assert_eq!((first_with_law.experiment, first_with_law.n_points), (4, 2));
+    // The range from the experiments' K and bounds [0, 0.2]: clamped.
+    let b = st.sinks[1].last_estimate(2);
+    let ks: Vec<f64> = st.sinks[1]
+        .id
+        .m2_by_experiment()
+        .values()
+        .map(|kh| kh.0)
+        .collect();
+    let (k_lo, k_hi) = (
+        ks.iter().copied().fold(f64::INFINITY, f64::min),
+        ks.iter().copied().fold(0.0, f64::max),
+    );
+    assert!((k_lo - 20.0).abs() < 0.2 && (k_hi - 80.0).abs() < 0.8);
+    let law_b = PowerLaw::new(b.beta0, b.beta1).unwrap();
+    let f_b = fractional_order(law_b, StiffnessRange::new(k_lo, k_hi).unwrap(), 10.8).unwrap();
+    assert!(f_b > 0.2, "unclamped f {f_b} should exceed the bound");
+    assert_eq!(b.recommended_f, 0.2);
 }
 
 #[test]
-fn a_fault_discards_only_its_window() {
-    let mut st = Stream::new();
-    let human = DynamicStiffness::from_array([0.11, 0.0, 30.0, 12.0]);
-    period(&mut st, 1, 1, 2.0, human, 1.0, 0.0, None);
-    period(&mut st, 1, 2, 2.5, human, 1.0, 0.0, Some(1234));
-    period(&mut st, 1, 3, 3.2, human, 1.0, 0.0, None);
-    let frf: Vec<u32> = st
-        .events
-        .iter()
-        .filter_map(|e| match e {
-            Event::Frf(p) => Some(p.period),
-            _ => None,
-        })
-        .collect();
-    assert_eq!(frf, vec![1, 3]);
-    assert!(st.events.iter().any(
-        |e| matches!(e, Event::Warning(w) if w.contains("period 2") && w.contains("discarded"))
-    ));
+fn a_faulted_or_safe_state_sample_discards_only_its_window() {
+    let human = brief_human();
+    let mut st = Stream::new().with(IdentifierSettings::default(), Delivery::EveryTick, true);
+    let fault = |phase, k, bits| Faults {
+        status: Some((phase, k, bits)),
+        nan_at: None,
+    };
+    let plan = [
+        Faults::default(),
+        fault(ProtocolPhase::Analysis, 1234, status::FT_FAULT),
+        // A fault while settling is outside the analysis window.
+        fault(ProtocolPhase::Settling, 100, status::ENCODER_FAULT),
+        fault(ProtocolPhase::Analysis, 0, status::SAFE_STATE),
+        // STALE and SATURATED are not rejections.
+        fault(ProtocolPhase::Analysis, 10, status::STALE),
+        Faults {
+            status: None,
+            nan_at: Some(2500),
+        },
+    ];
+    for (i, f) in plan.into_iter().enumerate() {
+        let n = i as u32 + 1;
+        let omega = paper_omega(n);
+        st.period(1, n, omega, human.response(omega), 1.0, 0.0, f);
+    }
+    let sink = &st.sinks[0];
+    let periods: Vec<u32> = sink.frf().iter().map(|p| p.period).collect();
+    assert_eq!(periods, vec![1, 3, 5]);
+    let w = sink.warnings();
+    assert!(
+        w.iter()
+            .any(|w| w.contains("period 2") && w.contains("0x2") && w.contains("discarded")),
+        "{w:?}"
+    );
+    assert!(
+        w.iter()
+            .any(|w| w.contains("period 4") && w.contains("0x10") && w.contains("discarded")),
+        "{w:?}"
+    );
+    assert!(
+        w.iter()
+            .any(|w| w.contains("period 6") && w.contains("tau_c") && w.contains("no FRF point")),
+        "{w:?}"
+    );
+    // Points keep consecutive sequence numbers.
+    let seqs: Vec<u64> = sink.frf().iter().map(|p| p.seq).collect();
+    assert_eq!(seqs, vec![0, 1, 2]);
+}
+
+#[test]
+fn without_commands_gravity_stays_in_tau_s_and_a_warning_says_so() {
+    let human = brief_human();
+    let mut st = Stream::new().with(IdentifierSettings::default(), Delivery::EveryTick, false);
+    let omega = 5.0;
+    st.period(
+        1,
+        1,
+        omega,
+        human.response(omega),
+        1.0,
+        0.0,
+        Faults::default(),
+    );
+    let sink = &st.sinks[0];
+    let p = sink.frf()[0];
+    assert!(sink.warnings().iter().any(|w| w.contains("no command")));
+    assert_eq!((p.sea_re, p.sea_im), (0.0, 0.0));
+    // τ_s keeps 20 sin θ: S_h-e/α gains its slope about the posture,
+    // 20 cos(0.85) (posture + the ramped 0.05 rad), to first order in the
+    // 0.02 rad excitation (the cubic term of sin changes it by A²/8 = 5e-5).
+    let truth_hea = human.response(omega) - M_E * omega * omega;
+    let gain = Complex64::new(p.s_hea_re, p.s_hea_im) - truth_hea;
+    let slope = GRAVITY_NM * (POSTURE_RAD + 0.05).cos();
+    assert!((gain - slope).norm() < 1e-3 * slope, "{gain} vs {slope}");
+}
+
+#[test]
+fn protocol_states_on_change_only_and_late_give_the_same_points() {
+    let human = brief_human();
+    let mut st = Stream::new()
+        .with(IdentifierSettings::default(), Delivery::EveryTick, true)
+        .with(
+            IdentifierSettings::default(),
+            Delivery::OnChange { delay: 0 },
+            true,
+        )
+        .with(
+            IdentifierSettings::default(),
+            Delivery::OnChange { delay: 7 },
+            true,
+        );
+    for n in 1..=3 {
+        let omega = paper_omega(n);
+        st.period(
+            2,
+            n,
+            omega,
+            human.response(omega),
+            1.0,
+            0.01,
+            Faults::default(),
+        );
+    }
+    let reference = st.sinks[0].frf();
+    assert_eq!(reference.len(), 3);
+    for sink in &st.sinks[1..] {
+        assert_eq!(sink.frf(), reference);
+        assert_eq!(sink.estimates(), st.sinks[0].estimates());
+    }
+}
+
+#[test]
+fn bad_settings_are_refused_naming_the_field() {
+    let bad = [
+        (
+            "rate_hz",
+            IdentifierSettings {
+                rate_hz: f64::NAN,
+                ..Default::default()
+            },
+        ),
+        (
+            "f_bounds[1]",
+            IdentifierSettings {
+                f_bounds: [0.0, 1.0],
+                ..Default::default()
+            },
+        ),
+        (
+            "k_range_nm_per_rad[1]",
+            IdentifierSettings {
+                k_range_nm_per_rad: [50.0, 10.0],
+                ..Default::default()
+            },
+        ),
+        (
+            "welch_segment",
+            IdentifierSettings {
+                welch_segment: 1000,
+                ..Default::default()
+            },
+        ),
+        (
+            "phase_margin_deg",
+            IdentifierSettings {
+                phase_margin_deg: 95.0,
+                ..Default::default()
+            },
+        ),
+        (
+            "max_window_s",
+            IdentifierSettings {
+                max_window_s: 1e9,
+                ..Default::default()
+            },
+        ),
+    ];
+    for (field, s) in bad {
+        let e = Identifier::try_new(s).unwrap_err();
+        assert_eq!(e.field, field, "{e}");
+        assert!(e.to_string().contains(field));
+    }
+    assert!(Identifier::try_new(IdentifierSettings::default()).is_ok());
 }
 
 #[test]
@@ -239,7 +665,7 @@ fn a_broadband_window_gives_several_points() {
     // central differences (exact to (ωh)²/6 < 0.1 % up to 60 rad/s).
     let (k, b, m) = (30.0, 0.4, 0.11);
     let human = DynamicStiffness::from_array([m, b, k, 0.0]);
-    let mut st = Stream::new();
+    let mut st = Stream::new().with(IdentifierSettings::default(), Delivery::EveryTick, true);
     let n = 60_000;
     let a = (-60.0 / RATE).exp();
     let (mut f1, mut f2) = (0.0, 0.0);
@@ -249,8 +675,15 @@ fn a_broadband_window_gives_several_points() {
         f2 = a * f2 + (1.0 - a) * f1;
         theta.push(0.05 * f2);
     }
-    st.protocol(2, 1, 2, 0.0, 1.0);
-    st.protocol(2, 1, 3, 0.0, 1.0);
+    let settle = st.state(2, 1, ProtocolPhase::Settling, 0.0, 1.0);
+    st.tick(
+        settle,
+        ActuatorCommand::default(),
+        SensorSample {
+            stamp_ns: 0,
+            ..Default::default()
+        },
+    );
     for j in 1..=n {
         let (x0, x1, x2) = (theta[j - 1], theta[j], theta[j + 1]);
         let v = (x2 - x0) * RATE / 2.0;
@@ -258,42 +691,49 @@ fn a_broadband_window_gives_several_points() {
         let tau_c = k * x1 + b * v + m * acc;
         let tau_s = tau_c + M_E * acc;
         let stamp = st.tick * 1_000_000;
-        st.id.on_command(&ActuatorCommand {
-            stamp_ns: stamp,
-            tau_d: tau_s,
-            ..Default::default()
-        });
-        st.id.on_sample(
-            &SensorSample {
-                seq: st.seq,
+        let p = st.state(2, 1, ProtocolPhase::Analysis, 0.0, 1.0);
+        st.tick(
+            p,
+            ActuatorCommand {
+                stamp_ns: stamp,
+                tau_d: tau_s,
+                ..Default::default()
+            },
+            SensorSample {
+                seq: st.tick,
                 stamp_ns: stamp,
                 theta_e: 0.8 + x1,
                 tau_c,
                 tau_s,
                 ..Default::default()
             },
-            &mut st.events,
         );
-        st.tick += 1;
-        st.seq += 1;
     }
-    st.protocol(2, 1, 5, 0.0, 1.0);
-    st.id.on_sample(
-        &SensorSample {
-            stamp_ns: st.tick * 1_000_000,
+    let p = st.state(2, 1, ProtocolPhase::RampOut, 0.0, 1.0);
+    let stamp = st.tick * 1_000_000;
+    st.tick(
+        p,
+        ActuatorCommand {
+            stamp_ns: stamp,
             ..Default::default()
         },
-        &mut st.events,
+        SensorSample {
+            stamp_ns: stamp,
+            ..Default::default()
+        },
     );
-    let pts: Vec<_> = st
-        .events
+    let sink = &st.sinks[0];
+    let pts = sink.frf();
+    assert!(
+        pts.len() >= 10 && pts.len() <= 20,
+        "{} points; {:?}",
+        pts.len(),
+        sink.warnings()
+    );
+    assert!(pts.windows(2).all(|w| w[1].omega > w[0].omega));
+    assert!(pts
         .iter()
-        .filter_map(|e| match e {
-            Event::Frf(p) => Some(*p),
-            _ => None,
-        })
-        .collect();
-    assert!(pts.len() >= 10, "{} points; {:?}", pts.len(), st.events);
+        .all(|p| p.period == 1 && p.experiment == 2 && p.validate().is_ok()));
     for p in &pts {
         let truth = human.response(p.omega);
         let got = Complex64::new(p.s_h_re, p.s_h_im);
@@ -321,5 +761,11 @@ fn a_broadband_window_gives_several_points() {
                 p.omega
             );
         }
+        // τ_d = τ_s exactly here.
+        assert!((Complex64::new(p.sea_re, p.sea_im) - 1.0).norm() < 1e-9);
     }
+    // Broadband points are refitted like sine points.
+    let m1 = sink.last_estimate(1);
+    assert_eq!(m1.n_points as usize, pts.len());
+    assert!((m1.k_h / k - 1.0).abs() < 0.05, "K {}", m1.k_h);
 }

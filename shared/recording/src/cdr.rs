@@ -1,6 +1,4 @@
-//! CDR (OMG XCDR1, little endian, as ROS 2 serialises) of the exo messages,
-//! and their ros2msg schemas, generated from one field list per message so
-//! the two cannot disagree.
+//! CDR (OMG XCDR1, little endian, as ROS 2 serialises) of the exo messages.
 //!
 //! Layout: a 4-byte encapsulation header `00 01 00 00` (CDR_LE), then the
 //! fields in order, each aligned to its own size (1, 2, 4 or 8 bytes)
@@ -8,32 +6,51 @@
 //! prefix. So `ProtocolState`'s three `uint32`s are followed by 4 bytes of
 //! padding before its first `float64`. The `_pad` fields of the Rust structs
 //! are not part of the schemas.
-
-use exo_messages::{
-    ActuatorCommand, BusMotorCommand, BusSensorFrame, FrfPoint, ImpedanceEstimate, OperatorCommand,
-    ProtocolState, SensorSample,
-};
+//!
+//! The field list of every message (and so its schema text and its
+//! encoding) is declared once, in [`crate::schema`], through
+//! [`Recordable`]. Decoding never panics: short or malformed payloads give a
+//! [`CdrError`] naming the field and byte offsets. Decoding does **not**
+//! reject NaN or ±∞: the reader ([`crate::reader`]) drops such messages with
+//! a warning naming file, topic and field (`Message::first_non_finite` is
+//! the validate step), and the writer records what it is given.
 
 /// The CDR encapsulation header: little-endian plain CDR, no options.
 pub const ENCAPSULATION_LE: [u8; 4] = [0x00, 0x01, 0x00, 0x00];
-const ENCAPSULATION_BE: [u8; 4] = [0x00, 0x00, 0x00, 0x00];
 
 /// Why a CDR payload could not be decoded.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum CdrError {
     /// Shorter than its fields.
-    #[error("payload ends at byte {len} inside field `{field}` (needs bytes up to {needed})")]
+    #[error(
+        "payload of {len} bytes ends inside field `{field}` (bytes {offset}..{needed} of the payload)"
+    )]
     Truncated {
         /// The field being read.
         field: &'static str,
+        /// Byte offset (in the payload, header included) where the field starts, after alignment.
+        offset: usize,
         /// Payload length (bytes).
         len: usize,
-        /// Bytes needed.
+        /// Bytes the field needs the payload to have.
         needed: usize,
     },
     /// Not a little-endian CDR encapsulation.
     #[error("encapsulation header {0:02x?} is not little-endian CDR (00 01 00 00)")]
     Encapsulation([u8; 4]),
+}
+
+/// A decoded field value, for generic use (comparisons, exports).
+#[derive(Debug, Clone, PartialEq)]
+pub enum FieldValue {
+    /// `uint32` or `uint64`.
+    Uint(u64),
+    /// `int64`.
+    Int(i64),
+    /// `float64`.
+    Float(f64),
+    /// A fixed `float64` array.
+    Floats(Vec<f64>),
 }
 
 /// A scalar or fixed array that CDR can carry.
@@ -44,6 +61,8 @@ pub trait CdrField: Sized + Copy {
     fn put(&self, w: &mut CdrWriter);
     /// Reads the value, aligned.
     fn get(r: &mut CdrReader<'_>, field: &'static str) -> Result<Self, CdrError>;
+    /// The value, for generic use.
+    fn value(&self) -> FieldValue;
 }
 
 /// Builds a CDR payload (header included) into a reusable buffer.
@@ -61,7 +80,7 @@ impl CdrWriter {
     }
 
     fn align(&mut self, n: usize) {
-        let body = self.buf.len() - 4;
+        let body = self.buf.len() - ENCAPSULATION_LE.len();
         let pad = (n - body % n) % n;
         self.buf.extend(std::iter::repeat_n(0u8, pad));
     }
@@ -85,19 +104,19 @@ pub struct CdrReader<'a> {
 }
 
 impl<'a> CdrReader<'a> {
-    /// Checks the encapsulation header.
+    /// Checks the encapsulation header (`00 01`, options ignored).
     pub fn new(data: &'a [u8]) -> Result<Self, CdrError> {
-        if data.len() < 4 {
+        let Some(head) = data.get(..4) else {
             return Err(CdrError::Truncated {
                 field: "encapsulation header",
+                offset: 0,
                 len: data.len(),
                 needed: 4,
             });
-        }
-        let head = [data[0], data[1], data[2], data[3]];
+        };
+        let head = [head[0], head[1], head[2], head[3]];
+        // Big-endian CDR (00 00) is legal, but no ROS 2 tool on a PC writes it.
         if head[..2] != ENCAPSULATION_LE[..2] {
-            // Big-endian CDR is legal but no ROS 2 tool on a PC writes it.
-            let _ = ENCAPSULATION_BE;
             return Err(CdrError::Encapsulation(head));
         }
         Ok(CdrReader { data, pos: 4 })
@@ -109,11 +128,12 @@ impl<'a> CdrReader<'a> {
     }
 
     fn bytes<const N: usize>(&mut self, field: &'static str) -> Result<[u8; N], CdrError> {
-        let body = self.pos - 4;
+        let body = self.pos - ENCAPSULATION_LE.len();
         let start = self.pos + (N - body % N) % N;
         let end = start + N;
         let slice = self.data.get(start..end).ok_or(CdrError::Truncated {
             field,
+            offset: start,
             len: self.data.len(),
             needed: end,
         })?;
@@ -125,7 +145,7 @@ impl<'a> CdrReader<'a> {
 }
 
 macro_rules! scalar {
-    ($t:ty, $ros:literal, $n:literal) => {
+    ($t:ty, $ros:literal, $n:literal, $variant:ident, $as:ty) => {
         impl CdrField for $t {
             const ROS_TYPE: &'static str = $ros;
             fn put(&self, w: &mut CdrWriter) {
@@ -134,13 +154,16 @@ macro_rules! scalar {
             fn get(r: &mut CdrReader<'_>, field: &'static str) -> Result<Self, CdrError> {
                 Ok(<$t>::from_le_bytes(r.bytes::<$n>(field)?))
             }
+            fn value(&self) -> FieldValue {
+                FieldValue::$variant(<$as>::from(*self))
+            }
         }
     };
 }
-scalar!(u32, "uint32", 4);
-scalar!(u64, "uint64", 8);
-scalar!(i64, "int64", 8);
-scalar!(f64, "float64", 8);
+scalar!(u32, "uint32", 4, Uint, u64);
+scalar!(u64, "uint64", 8, Uint, u64);
+scalar!(i64, "int64", 8, Int, i64);
+scalar!(f64, "float64", 8, Float, f64);
 
 impl CdrField for [f64; 6] {
     const ROS_TYPE: &'static str = "float64[6]";
@@ -156,66 +179,100 @@ impl CdrField for [f64; 6] {
         }
         Ok(out)
     }
+    fn value(&self) -> FieldValue {
+        FieldValue::Floats(self.to_vec())
+    }
 }
 
-/// A message of the recording contract.
+/// A message of the recording contract (implemented for every exo message
+/// in [`crate::schema`], the one table of the contract).
 pub trait Recordable: exo_messages::Message {
     /// Its topic, e.g. `exo/sensor`.
     const TOPIC: &'static str;
     /// Its ros2msg schema name, e.g. `exo_msgs/msg/SensorSample`.
     const SCHEMA_NAME: &'static str;
-    /// How many leading fields a recording must carry; later ones were added
-    /// to the contract and default when a writer leaves them out.
+    /// How many leading fields a recording must carry (the contract's fixed
+    /// part); later ones were added to the contract and are 0 when a writer
+    /// leaves them out.
     const REQUIRED_FIELDS: usize;
     /// `(name, ros2msg type)` of every field, in order.
     fn fields() -> Vec<(&'static str, &'static str)>;
-    /// The ros2msg schema text.
+    /// The ros2msg schema text: one `type name` line per field.
     fn schema() -> String {
-        let mut s = String::new();
-        for (name, ty) in Self::fields() {
-            s.push_str(ty);
-            s.push(' ');
-            s.push_str(name);
-            s.push('\n');
-        }
-        s
+        crate::schema::schema_text(&Self::fields())
     }
+    /// `(name, value)` of every field, in schema order.
+    fn field_values(&self) -> Vec<(&'static str, FieldValue)>;
     /// The message's time stamp (ns): the log time of the recording.
     fn stamp_ns(&self) -> u64;
-    /// Appends the CDR payload (header included) to a cleared `buf`.
+    /// Appends the CDR payload (header included) to `buf` after clearing it
+    /// (its capacity is reused) and returns it.
     fn encode_into(&self, buf: Vec<u8>) -> Vec<u8>;
-    /// Decodes a CDR payload; fields beyond [`REQUIRED_FIELDS`](Self::REQUIRED_FIELDS)
-    /// that the payload lacks are zero, and a zero `stamp_ns` is replaced by `log_time_ns`.
+    /// Decodes the first `n_fields` fields of a CDR payload (clamped to
+    /// between [`REQUIRED_FIELDS`](Self::REQUIRED_FIELDS) and all of them);
+    /// the others are 0, and a zero `stamp_ns` is replaced by `log_time_ns`.
+    /// Bytes after the last decoded field are ignored (fields a newer
+    /// writer added).
+    fn decode_fields(data: &[u8], n_fields: usize, log_time_ns: u64) -> Result<Self, CdrError>;
+    /// Decodes a CDR payload without knowing the writer's schema: fields
+    /// beyond [`REQUIRED_FIELDS`](Self::REQUIRED_FIELDS) are read while the
+    /// payload has bytes left.
     fn decode(data: &[u8], log_time_ns: u64) -> Result<Self, CdrError>;
 }
 
+/// Implements [`Recordable`] from the topic, schema name, number of
+/// required fields and the field list (in CDR order, `_pad` left out).
 macro_rules! recordable {
     ($ty:ident, $topic:literal, $schema:literal, required = $req:literal, [$($field:ident),+ $(,)?]) => {
-        impl Recordable for $ty {
+        impl $crate::cdr::Recordable for $ty {
             const TOPIC: &'static str = $topic;
             const SCHEMA_NAME: &'static str = $schema;
             const REQUIRED_FIELDS: usize = $req;
             fn fields() -> Vec<(&'static str, &'static str)> {
-                fn ty_of<T: CdrField>(_: impl Fn(&$ty) -> T) -> &'static str {
+                fn ty_of<T: $crate::cdr::CdrField>(_: impl Fn(&$ty) -> T) -> &'static str {
                     T::ROS_TYPE
                 }
                 vec![$((stringify!($field), ty_of(|m: &$ty| m.$field))),+]
+            }
+            fn field_values(&self) -> Vec<(&'static str, $crate::cdr::FieldValue)> {
+                vec![$((stringify!($field), $crate::cdr::CdrField::value(&self.$field))),+]
             }
             fn stamp_ns(&self) -> u64 {
                 self.stamp_ns
             }
             fn encode_into(&self, buf: Vec<u8>) -> Vec<u8> {
-                let mut w = CdrWriter::start(buf);
-                $(self.$field.put(&mut w);)+
+                let mut w = $crate::cdr::CdrWriter::start(buf);
+                $($crate::cdr::CdrField::put(&self.$field, &mut w);)+
                 w.finish()
             }
-            fn decode(data: &[u8], log_time_ns: u64) -> Result<Self, CdrError> {
-                let mut r = CdrReader::new(data)?;
+            fn decode_fields(
+                data: &[u8],
+                n_fields: usize,
+                log_time_ns: u64,
+            ) -> Result<Self, $crate::cdr::CdrError> {
+                let n = n_fields.max($req);
+                let mut r = $crate::cdr::CdrReader::new(data)?;
+                let mut m = $ty::default();
+                let mut index = 0usize;
+                $(
+                    if index < n {
+                        m.$field = $crate::cdr::CdrField::get(&mut r, stringify!($field))?;
+                    }
+                    index += 1;
+                )+
+                let _ = index;
+                if m.stamp_ns == 0 {
+                    m.stamp_ns = log_time_ns;
+                }
+                Ok(m)
+            }
+            fn decode(data: &[u8], log_time_ns: u64) -> Result<Self, $crate::cdr::CdrError> {
+                let mut r = $crate::cdr::CdrReader::new(data)?;
                 let mut m = $ty::default();
                 let mut index = 0usize;
                 $(
                     if !(index >= $req && r.at_end()) {
-                        m.$field = CdrField::get(&mut r, stringify!($field))?;
+                        m.$field = $crate::cdr::CdrField::get(&mut r, stringify!($field))?;
                     }
                     index += 1;
                 )+
@@ -228,122 +285,4 @@ macro_rules! recordable {
         }
     };
 }
-
-recordable!(
-    SensorSample,
-    "exo/sensor",
-    "exo_msgs/msg/SensorSample",
-    required = 7,
-    [seq, stamp_ns, theta_e, omega_e, tau_c, tau_s, status]
-);
-recordable!(
-    ActuatorCommand,
-    "exo/command",
-    "exo_msgs/msg/ActuatorCommand",
-    required = 9,
-    [
-        seq,
-        stamp_ns,
-        sensor_seq,
-        tau_d,
-        tau_gravity,
-        tau_amplification,
-        tau_bias,
-        tau_excitation,
-        mode
-    ]
-);
-recordable!(
-    ProtocolState,
-    "exo/protocol",
-    "exo_msgs/msg/ProtocolState",
-    required = 9,
-    [experiment, period, phase, omega, amplitude, alpha, load_kg, grip_kg, bias_nm, stamp_ns]
-);
-recordable!(
-    FrfPoint,
-    "exo/identifier/frf",
-    "exo_msgs/msg/FrfPoint",
-    required = 13,
-    [
-        seq, stamp_ns, experiment, period, omega, s_h_re, s_h_im, s_hea_re, s_hea_im, sea_re,
-        sea_im, coherence, noise_rel
-    ]
-);
-recordable!(
-    ImpedanceEstimate,
-    "exo/identifier/estimate",
-    "exo_msgs/msg/ImpedanceEstimate",
-    required = 24,
-    [
-        seq,
-        stamp_ns,
-        experiment,
-        period,
-        n_points,
-        model,
-        k_h,
-        k_h_se,
-        h_h,
-        h_h_se,
-        b_h,
-        b_h_se,
-        m_h,
-        m_h_se,
-        c_h,
-        c_h_se,
-        r2,
-        f_m1_m3,
-        f_m2_m3,
-        f_critical,
-        beta0,
-        beta1,
-        power_law_r2,
-        recommended_f
-    ]
-);
-recordable!(
-    OperatorCommand,
-    "exo/operator",
-    "exo_msgs/msg/OperatorCommand",
-    required = 4,
-    [seq, stamp_ns, kind, value]
-);
-recordable!(
-    BusSensorFrame,
-    "exo/bus/sensor",
-    "exo_msgs/msg/BusSensorFrame",
-    required = 6,
-    [
-        seq,
-        stamp_ns,
-        encoder_counts,
-        cuff_wrench,
-        sea_deflection_counts,
-        status
-    ]
-);
-recordable!(
-    BusMotorCommand,
-    "exo/bus/motor",
-    "exo_msgs/msg/BusMotorCommand",
-    required = 5,
-    [seq, stamp_ns, frame_seq, tau_motor_nm, enable]
-);
-
-/// `(topic, schema name, schema text)` of every contract topic.
-pub fn contract() -> Vec<(&'static str, &'static str, String)> {
-    fn row<T: Recordable>() -> (&'static str, &'static str, String) {
-        (T::TOPIC, T::SCHEMA_NAME, T::schema())
-    }
-    vec![
-        row::<SensorSample>(),
-        row::<ActuatorCommand>(),
-        row::<ProtocolState>(),
-        row::<FrfPoint>(),
-        row::<ImpedanceEstimate>(),
-        row::<OperatorCommand>(),
-        row::<BusSensorFrame>(),
-        row::<BusMotorCommand>(),
-    ]
-}
+pub(crate) use recordable;

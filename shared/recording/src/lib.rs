@@ -1,22 +1,40 @@
 //! # exo-recording
 //!
-//! The recording contract of exo (`docs/recording-format.md`): ros2msg
-//! schemas and CDR encoding of the exo messages ([`cdr`]), MCAP writing
-//! ([`writer`]) and lenient reading of recordings whoever wrote them
-//! ([`reader`]). Foxglove, the ROS 2 tools and Python (`mcap` with
-//! `mcap-ros2-support`) read what this writes with nothing of ours installed.
+//! The recording contract of exo (`docs/recording-format.md`): the one
+//! table of topics, schema names and fields ([`schema`]), CDR encoding of
+//! the exo messages ([`cdr`]), chunked zstd MCAP writing ([`writer`]) and
+//! lenient reading of recordings whoever wrote them ([`reader`]). Foxglove,
+//! the ROS 2 tools and Python (`mcap` with `mcap-ros2-support`) read what
+//! this writes with nothing of ours installed, and files they write are
+//! read here.
+//!
+//! ```no_run
+//! # fn main() -> Result<(), exo_recording::RecordingError> {
+//! use exo_recording::{read_recording, RecordingWriter};
+//! let path = std::path::Path::new("run.mcap");
+//! let mut w = RecordingWriter::create(path)?;
+//! w.write(&exo_messages::SensorSample { seq: 1, stamp_ns: 1_000_000, ..Default::default() })?;
+//! w.finish()?;
+//! let r = read_recording(path)?;
+//! assert_eq!(r.sensor.len(), 1);
+//! # Ok(()) }
+//! ```
 
 #![warn(missing_docs)]
 
 pub mod cdr;
 pub mod reader;
+pub mod schema;
 pub mod writer;
 
 use std::path::Path;
 
-pub use cdr::{contract, CdrError, Recordable};
+pub use cdr::{CdrError, FieldValue, Recordable};
 pub use reader::{read_recording, read_recording_bytes, Recording};
-pub use writer::{RecordingWriter, DEFAULT_CHUNK_BYTES, SOFTWARE};
+pub use schema::{contract, TopicSchema};
+pub use writer::{
+    RecordingWriter, CONFIG_ATTACHMENT, DEFAULT_CHUNK_BYTES, DROPS_METADATA, RUN_METADATA, SOFTWARE,
+};
 
 /// Errors reading or writing a recording, naming the file.
 #[derive(Debug, thiserror::Error)]
@@ -42,6 +60,56 @@ pub enum RecordingError {
     NotMcap {
         /// The file.
         file: String,
+    },
+    /// A contract topic's channel names another schema.
+    #[error(
+        "{file}: topic {topic} has schema `{found}`, the recording contract requires `{expected}`"
+    )]
+    WrongSchema {
+        /// The file.
+        file: String,
+        /// The topic.
+        topic: String,
+        /// The contract's schema name.
+        expected: String,
+        /// The file's schema name.
+        found: String,
+    },
+    /// A contract topic's schema has the right name but not the contract's fields.
+    #[error("{file}: topic {topic} (schema `{schema}`): {detail}")]
+    IncompatibleSchema {
+        /// The file.
+        file: String,
+        /// The topic.
+        topic: String,
+        /// The schema name.
+        schema: String,
+        /// Which field does not match.
+        detail: String,
+    },
+    /// A contract topic's channel or schema uses another encoding.
+    #[error(
+        "{file}: topic {topic} has {what} `{found}`, the recording contract requires `{expected}`"
+    )]
+    WrongEncoding {
+        /// The file.
+        file: String,
+        /// The topic.
+        topic: String,
+        /// `message encoding` or `schema encoding`.
+        what: &'static str,
+        /// The contract's encoding.
+        expected: &'static str,
+        /// The file's encoding.
+        found: String,
+    },
+    /// A writer was asked for something the contract does not allow.
+    #[error("{file}: {message}")]
+    Invalid {
+        /// The file.
+        file: String,
+        /// What was wrong.
+        message: String,
     },
 }
 

@@ -1,7 +1,30 @@
 //! Reading contract recordings, whoever wrote them, leniently: every
 //! complete record is used, a file cut short (a recorder killed by SIGKILL)
-//! yields what its complete chunks hold plus a warning, and nothing panics
-//! on any input (fuzzed: `fuzz/fuzz_targets/read_recording.rs`).
+//! yields what its complete chunks hold plus a warning `truncated after N
+//! messages`, and nothing panics on any input (fuzzed:
+//! `fuzz/fuzz_targets/read_recording.rs`).
+//!
+//! What is an error and what a warning:
+//! - **Errors** ([`RecordingError`]): the file cannot be read or is not MCAP;
+//!   a contract topic's channel has another schema name
+//!   ([`RecordingError::WrongSchema`]), schema or message encoding
+//!   ([`RecordingError::WrongEncoding`]), or a schema text whose fields are
+//!   not the contract's ([`RecordingError::IncompatibleSchema`]).
+//! - **Warnings** ([`Recording::warnings`], each naming the file): the file
+//!   ends early, or a record's length runs past the end (reading stops
+//!   there); a record whose inner lengths or fields are damaged, or a chunk
+//!   that fails to decompress or fails its CRC (skipped, reading goes on);
+//!   topics outside the contract (ignored); messages that do not decode or
+//!   carry NaN/±∞ in a float field (dropped and counted per topic); fields
+//!   of a writer's schema beyond the contract (ignored).
+//! - Missing topics are neither: [`Recording::topics`] lists the contract
+//!   topics present and the caller decides what it needs.
+//!
+//! Records are framed here, not by `mcap`'s `LinearReader`, and each
+//! record's inner lengths are checked before `mcap::parse_record` sees it:
+//! a damaged length never allocates more than the file holds. Each
+//! channel is checked once, at its channel record; its messages then go
+//! straight to their decoder.
 
 use std::borrow::Cow;
 use std::collections::{BTreeMap, HashMap};
@@ -11,10 +34,10 @@ use exo_messages::{
     ActuatorCommand, BusMotorCommand, BusSensorFrame, FrfPoint, ImpedanceEstimate, OperatorCommand,
     ProtocolState, SensorSample,
 };
-use mcap::read::{LinearReader, Options};
-use mcap::records::Record;
+use mcap::records::{op, ChunkHeader, Record};
 
 use crate::cdr::Recordable;
+use crate::schema::{self, MESSAGE_ENCODING, SCHEMA_ENCODING};
 use crate::RecordingError;
 
 /// Largest uncompressed chunk accepted (bytes).
@@ -50,11 +73,13 @@ pub struct Recording {
     pub metadata: BTreeMap<String, BTreeMap<String, String>>,
     /// Attachments: name and bytes.
     pub attachments: Vec<(String, Vec<u8>)>,
-    /// Contract topics with a channel in the file (with or without messages).
+    /// Contract topics with a channel in the file (with or without messages), in file order.
     pub topics: Vec<String>,
-    /// Whether the file ended early (no footer / a record cut short).
+    /// Other topics in the file (ignored), in file order.
+    pub other_topics: Vec<String>,
+    /// Whether the file ended early (no footer, or a record cut short or damaged).
     pub truncated: bool,
-    /// What could not be used, naming the file and topic.
+    /// What could not be used, each naming the file.
     pub warnings: Vec<String>,
 }
 
@@ -62,7 +87,7 @@ impl Recording {
     /// The `exo` metadata value `key`, if present.
     pub fn meta(&self, key: &str) -> Option<&str> {
         self.metadata
-            .get("exo")
+            .get(crate::writer::RUN_METADATA)
             .and_then(|m| m.get(key))
             .map(String::as_str)
     }
@@ -70,6 +95,35 @@ impl Recording {
     /// Whether the file has a channel for `topic`.
     pub fn has_topic(&self, topic: &str) -> bool {
         self.topics.iter().any(|t| t == topic)
+    }
+
+    /// Contract topics without a channel in the file.
+    pub fn missing_topics(&self) -> Vec<&'static str> {
+        schema::contract()
+            .into_iter()
+            .map(|t| t.topic)
+            .filter(|t| !self.has_topic(t))
+            .collect()
+    }
+
+    /// The attachment `name`, if present.
+    pub fn attachment(&self, name: &str) -> Option<&[u8]> {
+        self.attachments
+            .iter()
+            .find(|(n, _)| n == name)
+            .map(|(_, d)| d.as_slice())
+    }
+
+    /// Decoded messages on all contract topics.
+    pub fn message_count(&self) -> usize {
+        self.sensor.len()
+            + self.command.len()
+            + self.protocol.len()
+            + self.frf.len()
+            + self.estimate.len()
+            + self.operator.len()
+            + self.bus_sensor.len()
+            + self.bus_motor.len()
     }
 }
 
@@ -79,11 +133,76 @@ pub fn read_recording(path: &Path) -> Result<Recording, RecordingError> {
     read_recording_bytes(&path.display().to_string(), &bytes)
 }
 
-#[derive(Debug, Clone)]
-struct ChannelInfo {
-    topic: String,
-    schema_id: u16,
+/// Where a contract message goes.
+trait Stored: Recordable {
+    fn slot(rec: &mut Recording) -> &mut Vec<Self>;
+}
+
+macro_rules! stored {
+    ($($ty:ty => $field:ident),+ $(,)?) => {
+        $(impl Stored for $ty {
+            fn slot(rec: &mut Recording) -> &mut Vec<Self> {
+                &mut rec.$field
+            }
+        })+
+
+        /// The decoder of a contract topic.
+        fn decoder_for(topic: &str) -> Option<Decoder> {
+            $(if topic == <$ty as Recordable>::TOPIC {
+                return Some(decode_push::<$ty>);
+            })+
+            None
+        }
+    };
+}
+
+stored!(
+    SensorSample => sensor,
+    ActuatorCommand => command,
+    ProtocolState => protocol,
+    FrfPoint => frf,
+    ImpedanceEstimate => estimate,
+    OperatorCommand => operator,
+    BusSensorFrame => bus_sensor,
+    BusMotorCommand => bus_motor,
+);
+
+/// Decodes one message (`Some(n)`: the first `n` fields; `None`: no schema
+/// text, decode by the payload's length) and stores it or reports it.
+type Decoder = fn(&mut State<'_>, &[u8], Option<usize>, u64);
+
+fn decode_push<T: Stored>(st: &mut State<'_>, data: &[u8], n_fields: Option<usize>, log_time: u64) {
+    let decoded = match n_fields {
+        Some(n) => T::decode_fields(data, n, log_time),
+        None => T::decode(data, log_time),
+    };
+    match decoded {
+        Ok(m) => match m.first_non_finite() {
+            None => T::slot(&mut st.rec).push(m),
+            Some((field, v)) => st.problems.add(
+                st.source,
+                T::TOPIC,
+                format!("message at log time {log_time} ns has {field} = {v}; dropped"),
+            ),
+        },
+        Err(e) => st.problems.add(
+            st.source,
+            T::TOPIC,
+            format!("message at log time {log_time} ns does not decode: {e}; dropped"),
+        ),
+    }
+}
+
+#[derive(Clone, Copy)]
+enum ChannelUse {
+    Decode(Decoder, Option<usize>),
+    Ignore,
+}
+
+struct SchemaInfo {
+    name: String,
     encoding: String,
+    text: String,
 }
 
 #[derive(Default)]
@@ -104,238 +223,417 @@ impl Problems {
 
 struct State<'s> {
     source: &'s str,
-    schemas: HashMap<u16, String>,
-    channels: HashMap<u16, ChannelInfo>,
-    rejected: HashMap<u16, ()>,
-    /// Channels already checked: their topic (`Some`) or rejection (`None`).
-    checked: HashMap<u16, Option<&'static str>>,
+    schemas: HashMap<u16, SchemaInfo>,
+    channels: HashMap<u16, ChannelUse>,
     rec: Recording,
     problems: Problems,
+    chunks: usize,
 }
 
 impl State<'_> {
-    /// The contract topic of channel `id`, checked once (schema name and
-    /// encoding), or `None` when its messages are not used.
-    fn channel_ok(&mut self, id: u16) -> Option<&'static str> {
-        if let Some(known) = self.checked.get(&id) {
-            return *known;
-        }
-        let verdict = self.check_channel(id);
-        if self.channels.contains_key(&id) {
-            self.checked.insert(id, verdict);
-        }
-        verdict
+    fn warn(&mut self, what: String) {
+        self.rec.warnings.push(format!("{}: {what}", self.source));
     }
 
-    fn check_channel(&mut self, id: u16) -> Option<&'static str> {
-        if self.rejected.contains_key(&id) {
-            return None;
-        }
-        let ch = self.channels.get(&id)?.clone();
-        let Some((topic, expected, _)) = crate::cdr::contract()
-            .into_iter()
-            .find(|(t, _, _)| *t == ch.topic)
-        else {
-            self.rejected.insert(id, ());
-            self.rec.warnings.push(format!(
-                "{}: topic {} is not part of the recording contract; ignored",
-                self.source, ch.topic
-            ));
-            return None;
-        };
-        let schema = self.schemas.get(&ch.schema_id).cloned().unwrap_or_default();
-        if schema != expected {
-            self.rejected.insert(id, ());
-            self.rec.warnings.push(format!(
-                "{}: topic {} has schema `{schema}`, expected `{expected}`; its messages are not used",
-                self.source, ch.topic
-            ));
-            return None;
-        }
-        if ch.encoding != "cdr" {
-            self.rejected.insert(id, ());
-            self.rec.warnings.push(format!(
-                "{}: topic {} has message encoding `{}`, expected `cdr`; its messages are not used",
-                self.source, ch.topic, ch.encoding
-            ));
-            return None;
-        }
-        Some(topic)
-    }
-
-    fn decode_into<T: Recordable>(&mut self, data: &[u8], log_time: u64) -> Option<T> {
-        match T::decode(data, log_time) {
-            Ok(m) => match m.first_non_finite() {
-                None => Some(m),
-                Some((field, v)) => {
-                    self.problems.add(
-                        self.source,
-                        T::TOPIC,
-                        format!("message at log time {log_time} ns has {field} = {v}; dropped"),
-                    );
-                    None
-                }
-            },
-            Err(e) => {
-                self.problems.add(
-                    self.source,
-                    T::TOPIC,
-                    format!("message at log time {log_time} ns does not decode: {e}; dropped"),
-                );
-                None
+    /// Decides how a channel's messages are used; contract violations are errors.
+    fn channel(&mut self, c: &mcap::records::Channel) -> Result<ChannelUse, RecordingError> {
+        let file = self.source.to_string();
+        let Some(row) = schema::find(&c.topic) else {
+            if !self.rec.other_topics.contains(&c.topic) {
+                self.rec.other_topics.push(c.topic.clone());
+                self.warn(format!(
+                    "topic {} is not part of the recording contract; ignored",
+                    c.topic
+                ));
             }
+            return Ok(ChannelUse::Ignore);
+        };
+        let Some(decoder) = decoder_for(row.topic) else {
+            return Ok(ChannelUse::Ignore);
+        };
+        if !self.rec.topics.iter().any(|t| t == row.topic) {
+            self.rec.topics.push(row.topic.to_string());
         }
+        let Some(s) = self.schemas.get(&c.schema_id) else {
+            return Err(RecordingError::WrongSchema {
+                file,
+                topic: c.topic.clone(),
+                expected: row.schema_name.to_string(),
+                found: if c.schema_id == 0 {
+                    "(no schema)".to_string()
+                } else {
+                    format!("(schema id {} not defined before the channel)", c.schema_id)
+                },
+            });
+        };
+        if s.name != row.schema_name {
+            return Err(RecordingError::WrongSchema {
+                file,
+                topic: c.topic.clone(),
+                expected: row.schema_name.to_string(),
+                found: s.name.clone(),
+            });
+        }
+        if s.encoding != SCHEMA_ENCODING {
+            return Err(RecordingError::WrongEncoding {
+                file,
+                topic: c.topic.clone(),
+                what: "schema encoding",
+                expected: SCHEMA_ENCODING,
+                found: s.encoding.clone(),
+            });
+        }
+        if c.message_encoding != MESSAGE_ENCODING {
+            return Err(RecordingError::WrongEncoding {
+                file,
+                topic: c.topic.clone(),
+                what: "message encoding",
+                expected: MESSAGE_ENCODING,
+                found: c.message_encoding.clone(),
+            });
+        }
+        if s.text.trim().is_empty() {
+            self.warn(format!(
+                "topic {}: schema `{}` has no text; decoded with the contract's fields",
+                c.topic, s.name
+            ));
+            return Ok(ChannelUse::Decode(decoder, None));
+        }
+        let m = schema::match_fields(&row, &s.text).map_err(|detail| {
+            RecordingError::IncompatibleSchema {
+                file: file.clone(),
+                topic: c.topic.clone(),
+                schema: s.name.clone(),
+                detail,
+            }
+        })?;
+        if !m.ignored.is_empty() {
+            let ignored = m.ignored.join(", ");
+            self.warn(format!(
+                "topic {}: fields of the file's schema that the contract does not have there are ignored: {ignored}",
+                c.topic
+            ));
+        }
+        Ok(ChannelUse::Decode(decoder, Some(m.n_fields)))
     }
 
     fn message(&mut self, channel_id: u16, log_time: u64, data: &[u8]) {
-        let Some(topic) = self.channel_ok(channel_id) else {
-            if !self.channels.contains_key(&channel_id) {
-                self.problems.add(
-                    self.source,
-                    "(unknown channel)",
-                    format!("message on channel {channel_id} before its channel record; dropped"),
-                );
-            }
-            return;
-        };
-        match topic {
-            "exo/sensor" => {
-                if let Some(m) = self.decode_into(data, log_time) {
-                    self.rec.sensor.push(m);
-                }
-            }
-            "exo/command" => {
-                if let Some(m) = self.decode_into(data, log_time) {
-                    self.rec.command.push(m);
-                }
-            }
-            "exo/protocol" => {
-                if let Some(m) = self.decode_into(data, log_time) {
-                    self.rec.protocol.push(m);
-                }
-            }
-            "exo/identifier/frf" => {
-                if let Some(m) = self.decode_into(data, log_time) {
-                    self.rec.frf.push(m);
-                }
-            }
-            "exo/identifier/estimate" => {
-                if let Some(m) = self.decode_into(data, log_time) {
-                    self.rec.estimate.push(m);
-                }
-            }
-            "exo/operator" => {
-                if let Some(m) = self.decode_into(data, log_time) {
-                    self.rec.operator.push(m);
-                }
-            }
-            "exo/bus/sensor" => {
-                if let Some(m) = self.decode_into(data, log_time) {
-                    self.rec.bus_sensor.push(m);
-                }
-            }
-            "exo/bus/motor" => {
-                if let Some(m) = self.decode_into(data, log_time) {
-                    self.rec.bus_motor.push(m);
-                }
-            }
-            _ => {}
+        match self.channels.get(&channel_id).copied() {
+            Some(ChannelUse::Decode(decode, n)) => decode(self, data, n, log_time),
+            Some(ChannelUse::Ignore) => {}
+            None => self.problems.add(
+                self.source,
+                "(unknown channel)",
+                format!("message on channel {channel_id} before its channel record; dropped"),
+            ),
         }
     }
 
-    /// Handles one record; `Err` ends the reading (what came before stays).
-    fn record(&mut self, r: Record<'_>) -> Result<(), String> {
-        match r {
-            Record::Schema { header, .. } => {
-                self.schemas.insert(header.id, header.name);
+    /// Handles one framed record (`opcode`, `body`) of the data or summary
+    /// section, or of a chunk: `Ok(true)` after the footer (the end), `Err`
+    /// when the file breaks the contract; a damaged record is skipped with
+    /// a warning.
+    fn record(&mut self, opcode: u8, body: &[u8], in_chunk: bool) -> Result<bool, RecordingError> {
+        let wanted = match opcode {
+            op::SCHEMA | op::CHANNEL | op::MESSAGE => true,
+            op::CHUNK | op::METADATA | op::ATTACHMENT | op::FOOTER => !in_chunk,
+            // Header, indexes, statistics, data end, unknown opcodes (which
+            // MCAP readers must skip): nothing the contract needs.
+            _ => false,
+        };
+        if !wanted {
+            return Ok(false);
+        }
+        if !lengths_fit(opcode, body) {
+            self.problems.add(
+                self.source,
+                "(damaged records)",
+                format!(
+                    "a record (opcode {opcode:#04x}, {} bytes) has lengths past its end; skipped",
+                    body.len()
+                ),
+            );
+            return Ok(false);
+        }
+        let r = match mcap::parse_record(opcode, body) {
+            Ok(r) => r,
+            Err(e) => {
+                self.problems.add(
+                    self.source,
+                    "(damaged records)",
+                    format!(
+                        "a record (opcode {opcode:#04x}, {} bytes) does not parse ({e}); skipped",
+                        body.len()
+                    ),
+                );
+                return Ok(false);
             }
-            Record::Channel(c) => {
-                self.checked.remove(&c.id);
-                if !self.rec.topics.contains(&c.topic) {
-                    self.rec.topics.push(c.topic.clone());
-                }
-                self.channels.insert(
-                    c.id,
-                    ChannelInfo {
-                        topic: c.topic,
-                        schema_id: c.schema_id,
-                        encoding: c.message_encoding,
+        };
+        match r {
+            Record::Schema { header, data } => {
+                self.schemas.insert(
+                    header.id,
+                    SchemaInfo {
+                        name: header.name,
+                        encoding: header.encoding,
+                        text: String::from_utf8_lossy(&data).into_owned(),
                     },
                 );
             }
+            // The summary section repeats every channel: decide once.
+            Record::Channel(c) if !self.channels.contains_key(&c.id) => {
+                let used = self.channel(&c)?;
+                self.channels.insert(c.id, used);
+            }
+            Record::Channel(_) => {}
             Record::Message { header, data } => {
                 self.message(header.channel_id, header.log_time, &data);
             }
             Record::Chunk { header, data } => {
-                // A damaged header can claim any size; mcap would allocate it.
-                let plausible = (data.len() as u64)
-                    .saturating_mul(MAX_COMPRESSION_RATIO)
-                    .saturating_add(1 << 20)
-                    .min(MAX_CHUNK_BYTES);
-                if header.uncompressed_size > plausible {
-                    return Err(format!(
-                        "a chunk claims {} uncompressed bytes from {} compressed",
-                        header.uncompressed_size,
-                        data.len()
-                    ));
-                }
-                // Decompress here, into a buffer of the claimed (checked) size,
-                // and read the records with a length limit of that buffer.
-                let body: Cow<'_, [u8]> = match header.compression.as_str() {
-                    "" => data,
-                    "zstd" => Cow::Owned(
-                        zstd::bulk::decompress(&data, header.uncompressed_size as usize)
-                            .map_err(|e| format!("zstd chunk: {e}"))?,
-                    ),
-                    "lz4" => {
-                        let mut out = Vec::with_capacity(header.uncompressed_size as usize);
-                        let mut dec =
-                            lz4::Decoder::new(&data[..]).map_err(|e| format!("lz4 chunk: {e}"))?;
-                        std::io::Read::read_to_end(
-                            &mut std::io::Read::take(&mut dec, header.uncompressed_size),
-                            &mut out,
-                        )
-                        .map_err(|e| format!("lz4 chunk: {e}"))?;
-                        Cow::Owned(out)
+                self.chunks += 1;
+                match chunk_body(&header, &data) {
+                    Ok(body) => {
+                        let mut inner = Framing::new(&body, 0);
+                        loop {
+                            match inner.next() {
+                                Frame::Record(o, b) => {
+                                    self.record(o, b, true)?;
+                                }
+                                Frame::End => break,
+                                Frame::Cut(e) => {
+                                    self.warn(format!(
+                                        "chunk {}: {e}; the rest of the chunk is skipped",
+                                        self.chunks
+                                    ));
+                                    break;
+                                }
+                            }
+                        }
                     }
-                    other => return Err(format!("chunk compression `{other}` is not supported")),
-                };
-                if body.len() as u64 != header.uncompressed_size {
-                    return Err(format!(
-                        "a chunk decompresses to {} bytes, its header says {}",
-                        body.len(),
-                        header.uncompressed_size
-                    ));
-                }
-                for inner in LinearReader::sans_magic(&body) {
-                    let inner = inner.map_err(|e| format!("inside a chunk: {e}"))?;
-                    self.record(inner)?;
+                    Err(e) => self.warn(format!(
+                        "chunk {} is damaged ({e}); its messages are skipped",
+                        self.chunks
+                    )),
                 }
             }
             Record::Metadata(m) => {
                 self.rec.metadata.insert(m.name, m.metadata);
             }
             Record::Attachment { header, data, .. } => {
-                let bytes = match data {
-                    Cow::Borrowed(b) => b.to_vec(),
-                    Cow::Owned(b) => b,
-                };
-                self.rec.attachments.push((header.name, bytes));
+                self.rec.attachments.push((header.name, data.into_owned()));
             }
-            Record::Footer(_) => self.rec.truncated = false,
+            Record::Footer(_) => {
+                self.rec.truncated = false;
+                return Ok(true);
+            }
             _ => {}
         }
-        Ok(())
+        Ok(false)
     }
+}
+
+/// Splits bytes into MCAP records (opcode, 8-byte length, body) without
+/// parsing them.
+struct Framing<'a> {
+    buf: &'a [u8],
+    pos: usize,
+}
+
+enum Frame<'a> {
+    Record(u8, &'a [u8]),
+    End,
+    Cut(String),
+}
+
+impl<'a> Framing<'a> {
+    fn new(buf: &'a [u8], pos: usize) -> Self {
+        Framing { buf, pos }
+    }
+
+    fn next(&mut self) -> Frame<'a> {
+        let rest = self.buf.get(self.pos..).unwrap_or_default();
+        let Some((&opcode, after)) = rest.split_first() else {
+            return Frame::End;
+        };
+        let Some(len) = after.get(..8).map(|l| {
+            let mut a = [0u8; 8];
+            a.copy_from_slice(l);
+            u64::from_le_bytes(a)
+        }) else {
+            return Frame::Cut(format!(
+                "a record header cut off after {} of 9 bytes at byte {}",
+                rest.len(),
+                self.pos
+            ));
+        };
+        let available = rest.len() - 9;
+        match usize::try_from(len).ok().filter(|l| *l <= available) {
+            Some(l) => {
+                let body = &rest[9..9 + l];
+                self.pos += 9 + l;
+                Frame::Record(opcode, body)
+            }
+            None => Frame::Cut(format!(
+                "a record (opcode {opcode:#04x}) at byte {} claims {len} bytes, {available} follow",
+                self.pos
+            )),
+        }
+    }
+}
+
+/// Walks a record body checking that every length stays inside it.
+struct Walk<'a> {
+    b: &'a [u8],
+    pos: usize,
+}
+
+impl Walk<'_> {
+    fn skip(&mut self, n: u64) -> bool {
+        match usize::try_from(n) {
+            Ok(n) if self.b.len() - self.pos >= n => {
+                self.pos += n;
+                true
+            }
+            _ => false,
+        }
+    }
+
+    fn int<const N: usize>(&mut self) -> Option<u64> {
+        let s = self.b.get(self.pos..self.pos + N)?;
+        self.pos += N;
+        let mut a = [0u8; 8];
+        a[..N].copy_from_slice(s);
+        Some(u64::from_le_bytes(a))
+    }
+
+    /// A `u32`-length-prefixed string or byte array.
+    fn string(&mut self) -> bool {
+        self.int::<4>().is_some_and(|n| self.skip(n))
+    }
+
+    /// A `u64`-length-prefixed byte array.
+    fn bytes64(&mut self) -> bool {
+        self.int::<8>().is_some_and(|n| self.skip(n))
+    }
+
+    /// A string map: `u32` byte length, then key and value strings filling it.
+    fn map(&mut self) -> bool {
+        let Some(n) = self.int::<4>() else {
+            return false;
+        };
+        let end = self.pos as u64 + n;
+        if end > self.b.len() as u64 {
+            return false;
+        }
+        while (self.pos as u64) < end {
+            if !(self.string() && self.string()) {
+                return false;
+            }
+        }
+        self.pos as u64 == end
+    }
+}
+
+/// Whether every length inside a record's body stays inside it (for the
+/// records read here): mcap's parser would otherwise reserve what a damaged
+/// string length claims, up to 4 GiB, or slice out of bounds (found by
+/// fuzzing).
+fn lengths_fit(opcode: u8, body: &[u8]) -> bool {
+    let mut w = Walk { b: body, pos: 0 };
+    match opcode {
+        op::SCHEMA => w.skip(2) && w.string() && w.string() && w.string(),
+        op::CHANNEL => w.skip(4) && w.string() && w.string() && w.map(),
+        op::MESSAGE => w.skip(22),
+        op::CHUNK => w.skip(28) && w.string() && w.bytes64(),
+        op::METADATA => w.string() && w.map(),
+        op::ATTACHMENT => w.skip(16) && w.string() && w.string() && w.bytes64() && w.skip(4),
+        op::FOOTER => w.skip(20),
+        _ => false,
+    }
+}
+
+/// The decompressed records of a chunk, checked against its header's
+/// size and CRC.
+fn chunk_body<'d>(header: &ChunkHeader, data: &Cow<'d, [u8]>) -> Result<Cow<'d, [u8]>, String> {
+    // A damaged header can claim any size: refuse before allocating it.
+    let plausible = (data.len() as u64)
+        .saturating_mul(MAX_COMPRESSION_RATIO)
+        .saturating_add(1 << 20)
+        .min(MAX_CHUNK_BYTES);
+    if header.uncompressed_size > plausible {
+        return Err(format!(
+            "it claims {} uncompressed bytes from {} compressed",
+            header.uncompressed_size,
+            data.len()
+        ));
+    }
+    let size = usize::try_from(header.uncompressed_size).map_err(|e| e.to_string())?;
+    let body: Cow<'d, [u8]> = match header.compression.as_str() {
+        "" => data.clone(),
+        "zstd" => Cow::Owned(zstd::bulk::decompress(data, size).map_err(|e| format!("zstd: {e}"))?),
+        "lz4" => {
+            let mut out = Vec::with_capacity(size);
+            let mut dec = lz4::Decoder::new(&data[..]).map_err(|e| format!("lz4: {e}"))?;
+            std::io::Read::read_to_end(
+                &mut std::io::Read::take(&mut dec, header.uncompressed_size),
+                &mut out,
+            )
+            .map_err(|e| format!("lz4: {e}"))?;
+            Cow::Owned(out)
+        }
+        other => return Err(format!("compression `{other}` is not supported")),
+    };
+    if body.len() != size {
+        return Err(format!(
+            "it decompresses to {} bytes, its header says {size}",
+            body.len()
+        ));
+    }
+    if header.uncompressed_crc != 0 {
+        let crc = crc32(&body);
+        if crc != header.uncompressed_crc {
+            return Err(format!(
+                "CRC {crc:08x} of its records, its header says {:08x}",
+                header.uncompressed_crc
+            ));
+        }
+    }
+    Ok(body)
+}
+
+/// CRC-32 (IEEE 802.3, as zlib and MCAP use).
+fn crc32(data: &[u8]) -> u32 {
+    const TABLE: [u32; 256] = {
+        let mut t = [0u32; 256];
+        let mut i = 0;
+        while i < 256 {
+            let mut c = i as u32;
+            let mut k = 0;
+            while k < 8 {
+                c = if c & 1 != 0 {
+                    0xEDB8_8320 ^ (c >> 1)
+                } else {
+                    c >> 1
+                };
+                k += 1;
+            }
+            t[i] = c;
+            i += 1;
+        }
+        t
+    };
+    let mut c = !0u32;
+    for &b in data {
+        c = TABLE[((c ^ u32::from(b)) & 0xFF) as usize] ^ (c >> 8);
+    }
+    !c
 }
 
 /// Reads a recording from memory. `source` names it in warnings and errors.
 ///
-/// Errors only when nothing can be read (not an MCAP file at all); every
-/// other problem is a warning in [`Recording::warnings`]: a file cut short,
-/// a corrupt chunk (reading stops there), a topic with the wrong schema or
-/// encoding (skipped), a message that does not decode or carries NaN/inf
-/// (dropped, counted per topic).
+/// Errors when the bytes are not MCAP or a contract topic breaks the
+/// contract (schema name, encodings, fields); every other problem is a
+/// warning in [`Recording::warnings`] (see the module documentation).
 pub fn read_recording_bytes(source: &str, bytes: &[u8]) -> Result<Recording, RecordingError> {
     if bytes.len() < mcap::MAGIC.len() || bytes[..mcap::MAGIC.len()] != mcap::MAGIC[..] {
         return Err(RecordingError::NotMcap {
@@ -346,59 +644,61 @@ pub fn read_recording_bytes(source: &str, bytes: &[u8]) -> Result<Recording, Rec
         source,
         schemas: HashMap::new(),
         channels: HashMap::new(),
-        rejected: HashMap::new(),
-        checked: HashMap::new(),
         rec: Recording {
             source: source.to_string(),
             truncated: true,
             ..Default::default()
         },
         problems: Problems::default(),
+        chunks: 0,
     };
-    let reader = LinearReader::new_with_options(bytes, Options::IgnoreEndMagic.into())
-        .map_err(|e| RecordingError::mcap(Path::new(source), e))?;
-    let mut stopped: Option<String> = None;
-    for r in reader {
-        match r {
-            Ok(r) => {
-                if let Err(e) = st.record(r) {
-                    stopped = Some(e);
+    let mut framing = Framing::new(bytes, mcap::MAGIC.len());
+    let mut damage: Option<String> = None;
+    loop {
+        match framing.next() {
+            Frame::Record(opcode, body) => {
+                if st.record(opcode, body, false)? {
                     break;
                 }
             }
-            Err(e) => {
-                stopped = Some(e.to_string());
+            Frame::End => break,
+            Frame::Cut(e) => {
+                damage = Some(e);
                 break;
             }
         }
     }
-    let n_messages = st.rec.sensor.len()
-        + st.rec.command.len()
-        + st.rec.protocol.len()
-        + st.rec.frf.len()
-        + st.rec.estimate.len()
-        + st.rec.operator.len()
-        + st.rec.bus_sensor.len()
-        + st.rec.bus_motor.len();
-    if let Some(e) = stopped {
+    let n = st.rec.message_count();
+    if let Some(e) = damage {
         st.rec.truncated = true;
-        st.rec.warnings.push(format!(
-            "{source}: reading stopped at a damaged or cut-off record ({e}); the {n_messages} messages before it are used"
+        st.warn(format!(
+            "truncated after {n} messages: reading stopped at a damaged or cut-off record ({e}); the messages before it are used"
         ));
     } else if st.rec.truncated {
-        st.rec.warnings.push(format!(
-            "{source}: the file ends without its footer (recorder stopped early?); the {n_messages} messages of its complete chunks are used"
+        st.warn(format!(
+            "truncated after {n} messages: the file ends without its footer (recorder killed?); the messages of its complete chunks are used"
         ));
     }
-    for (topic, n) in &st.problems.count {
-        if *n > DETAILED_PER_TOPIC {
+    for (topic, count) in &st.problems.count {
+        if *count > DETAILED_PER_TOPIC {
             st.problems.warnings.push(format!(
-                "{source}: {topic}: {} more messages dropped like those above",
-                n - DETAILED_PER_TOPIC
+                "{source}: {topic}: {} more messages dropped like those above ({count} in all)",
+                count - DETAILED_PER_TOPIC
             ));
         }
     }
     let mut rec = st.rec;
     rec.warnings.extend(st.problems.warnings);
     Ok(rec)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn crc32_is_the_ieee_one() {
+        assert_eq!(crc32(b"123456789"), 0xCBF4_3926);
+        assert_eq!(crc32(b""), 0);
+    }
 }

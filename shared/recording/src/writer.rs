@@ -1,5 +1,10 @@
 //! Writing contract recordings: chunked, zstd-compressed MCAP with ros2msg
 //! schemas and CDR messages, `log_time = publish_time = stamp_ns`.
+//!
+//! Messages are recorded as given, NaN included (a recording is the
+//! evidence of what was on the bus); readers drop non-finite messages with
+//! a warning ([`crate::reader`]). Nothing here panics: every failure is a
+//! [`RecordingError`] naming the file.
 
 use std::collections::BTreeMap;
 use std::fs::File;
@@ -14,43 +19,71 @@ use mcap::records::MessageHeader;
 use mcap::{Attachment, WriteOptions, Writer};
 
 use crate::cdr::Recordable;
+use crate::schema::{MESSAGE_ENCODING, PROFILE, SCHEMA_ENCODING};
 use crate::RecordingError;
 
-/// Uncompressed bytes per chunk. At 1 kHz the sensor and command topics
-/// make about 150 kB/s of CDR, so a chunk closes about every 0.4 s: a
-/// recorder killed by SIGKILL loses at most the open chunk.
+/// Name of the metadata record describing the run (`subject`, …).
+pub const RUN_METADATA: &str = "exo";
+/// Name of the metadata record with per-topic sequence-gap counts.
+pub const DROPS_METADATA: &str = "exo.drops";
+/// Name of the attachment holding the run's configuration.
+pub const CONFIG_ATTACHMENT: &str = "config.toml";
+
+/// Uncompressed bytes after which a chunk is closed (compressed and written
+/// out). Only closed chunks are readable after a SIGKILL, so this bounds the
+/// loss: at 1 kHz `exo/sensor` + `exo/command` make 190 kB/s of MCAP
+/// records (87 + 103 bytes a tick: a chunk every 0.35 s), and with the two
+/// bus topics 380 kB/s (a chunk every 0.17 s; a writer killed at any moment
+/// lost at most 0.17 s, measured in `tests/files.rs`). A recorder also
+/// calls [`RecordingWriter::flush`] once a second, so sparse topics lose at
+/// most a second. Larger chunks compress only slightly better.
 pub const DEFAULT_CHUNK_BYTES: u64 = 64 * 1024;
 
 /// The software that wrote a recording (metadata `exo.software_version`).
 pub const SOFTWARE: &str = concat!("exo ", env!("CARGO_PKG_VERSION"));
 
 /// Writes one contract recording.
+///
+/// Schemas and channels are registered once, on a topic's first message
+/// (or all at once with [`register_contract`](Self::register_contract)).
 pub struct RecordingWriter<W: Write + Seek> {
     mcap: Writer<W>,
     file: PathBuf,
     channels: BTreeMap<&'static str, u16>,
     sequence: u32,
+    messages: u64,
     scratch: Vec<u8>,
 }
 
 impl RecordingWriter<BufWriter<File>> {
-    /// Creates `path` (its directory too) and starts a recording there.
+    /// Creates `path` (its directory too) and starts a recording there with
+    /// [`DEFAULT_CHUNK_BYTES`].
     pub fn create(path: &Path) -> Result<Self, RecordingError> {
+        Self::create_with_chunk_bytes(path, DEFAULT_CHUNK_BYTES)
+    }
+
+    /// Like [`create`](Self::create) with chunks closed after `chunk_bytes`
+    /// uncompressed bytes (at least 1024).
+    pub fn create_with_chunk_bytes(path: &Path, chunk_bytes: u64) -> Result<Self, RecordingError> {
         if let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty()) {
             std::fs::create_dir_all(dir).map_err(|e| RecordingError::io(path, e))?;
         }
         let f = File::create(path).map_err(|e| RecordingError::io(path, e))?;
-        Self::new(BufWriter::new(f), path, DEFAULT_CHUNK_BYTES)
+        Self::new(BufWriter::new(f), path, chunk_bytes)
     }
 }
 
 impl<W: Write + Seek> RecordingWriter<W> {
-    /// Starts a recording on `w`; `file` names it in errors.
+    /// Starts a recording on `w`; `file` names it in errors; chunks close
+    /// after `chunk_bytes` uncompressed bytes (at least 1024).
     pub fn new(w: W, file: &Path, chunk_bytes: u64) -> Result<Self, RecordingError> {
         let mcap = WriteOptions::new()
             .compression(Some(mcap::Compression::Zstd))
+            // Compress in the caller's thread: chunks are small, and a
+            // recorder should not start worker threads beside the control loop.
+            .compression_threads(0)
             .chunk_size(Some(chunk_bytes.max(1024)))
-            .profile("ros2")
+            .profile(PROFILE)
             .library(SOFTWARE)
             .create(w)
             .map_err(|e| RecordingError::mcap(file, e))?;
@@ -59,8 +92,19 @@ impl<W: Write + Seek> RecordingWriter<W> {
             file: file.to_path_buf(),
             channels: BTreeMap::new(),
             sequence: 0,
+            messages: 0,
             scratch: Vec::with_capacity(256),
         })
+    }
+
+    /// The file (or name) given at creation.
+    pub fn file(&self) -> &Path {
+        &self.file
+    }
+
+    /// Messages written so far.
+    pub fn messages_written(&self) -> u64 {
+        self.messages
     }
 
     fn channel<T: Recordable>(&mut self) -> Result<u16, RecordingError> {
@@ -69,11 +113,11 @@ impl<W: Write + Seek> RecordingWriter<W> {
         }
         let schema = self
             .mcap
-            .add_schema(T::SCHEMA_NAME, "ros2msg", T::schema().as_bytes())
+            .add_schema(T::SCHEMA_NAME, SCHEMA_ENCODING, T::schema().as_bytes())
             .map_err(|e| RecordingError::mcap(&self.file, e))?;
         let id = self
             .mcap
-            .add_channel(schema, T::TOPIC, "cdr", &BTreeMap::new())
+            .add_channel(schema, T::TOPIC, MESSAGE_ENCODING, &BTreeMap::new())
             .map_err(|e| RecordingError::mcap(&self.file, e))?;
         self.channels.insert(T::TOPIC, id);
         Ok(id)
@@ -110,10 +154,42 @@ impl<W: Write + Seek> RecordingWriter<W> {
         );
         self.scratch = data;
         self.sequence = self.sequence.wrapping_add(1);
-        r.map_err(|e| RecordingError::mcap(&self.file, e))
+        r.map_err(|e| RecordingError::mcap(&self.file, e))?;
+        self.messages += 1;
+        Ok(())
     }
 
-    /// Writes a metadata record `name` (e.g. `exo`, `exo.drops`).
+    /// Writes the run's description: the `exo` metadata record (`metadata`,
+    /// which must name a non-empty `subject`, plus `software_version` =
+    /// [`SOFTWARE`] unless given and `config_toml` = the configuration
+    /// text) and the configuration as the attachment `config.toml`
+    /// (`application/toml`).
+    pub fn write_run_info(
+        &mut self,
+        metadata: &BTreeMap<String, String>,
+        config_toml: &str,
+    ) -> Result<(), RecordingError> {
+        if metadata.get("subject").is_none_or(|s| s.trim().is_empty()) {
+            return Err(RecordingError::Invalid {
+                file: self.file.display().to_string(),
+                message: "the `exo` metadata record needs a non-empty `subject`".to_string(),
+            });
+        }
+        let mut m = metadata.clone();
+        m.entry("software_version".to_string())
+            .or_insert_with(|| SOFTWARE.to_string());
+        m.insert("config_toml".to_string(), config_toml.to_string());
+        self.write_metadata(RUN_METADATA, &m)?;
+        self.attach(
+            CONFIG_ATTACHMENT,
+            "application/toml",
+            config_toml.as_bytes(),
+            0,
+        )
+    }
+
+    /// Writes a metadata record `name` (e.g. `exo`, or `exo.drops` with
+    /// per-topic counts of sequence gaps at the end of a run).
     pub fn write_metadata(
         &mut self,
         name: &str,
@@ -154,7 +230,7 @@ impl<W: Write + Seek> RecordingWriter<W> {
             .map_err(|e| RecordingError::mcap(&self.file, e))
     }
 
-    /// Writes the summary and footer.
+    /// Closes the last chunk, writes the summary and footer and flushes.
     pub fn finish(mut self) -> Result<(), RecordingError> {
         self.mcap
             .finish()
