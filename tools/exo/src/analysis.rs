@@ -193,6 +193,16 @@ pub struct FTests {
     pub all: Option<FPair>,
 }
 
+impl FTests {
+    /// Every group: per subject, per experiment, then all.
+    pub fn all_groups(&self) -> impl Iterator<Item = &FPair> {
+        self.per_subject
+            .iter()
+            .chain(&self.per_experiment)
+            .chain(self.all.iter())
+    }
+}
+
 /// Mean and standard error of the phase of `S_h` over one experiment group.
 #[derive(Debug, Clone, Serialize)]
 pub struct PhaseCell {

@@ -362,13 +362,7 @@ pub fn tables(r: &FitReport) -> String {
         "  {:>10} {:>12} {:>12} {:>10} {:>12}",
         "group", "F M1−M3", "F M2−M3", "critical", "df"
     );
-    for g in r
-        .f_tests
-        .per_subject
-        .iter()
-        .chain(&r.f_tests.per_experiment)
-        .chain(r.f_tests.all.iter())
-    {
+    for g in r.f_tests.all_groups() {
         let _ = writeln!(
             s,
             "  {:>10} {:>12.3} {:>12.3} {:>10.3} {:>12}",
@@ -451,13 +445,7 @@ fn write_csv(dir: &Path, r: &FitReport) -> Result<()> {
         }
     }
     let mut ft = String::from("group,test,statistic,critical,df_num,df_den,p_value\n");
-    for g in r
-        .f_tests
-        .per_subject
-        .iter()
-        .chain(&r.f_tests.per_experiment)
-        .chain(r.f_tests.all.iter())
-    {
+    for g in r.f_tests.all_groups() {
         for (name, t) in [("M1-M3", &g.m1_m3), ("M2-M3", &g.m2_m3)] {
             let _ = writeln!(
                 ft,

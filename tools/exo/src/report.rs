@@ -174,9 +174,7 @@ pub fn bode_svg(s: &SubjectReport) -> Result<String> {
 /// F-test bars on a log scale (Fig. 4): `F_{M1−M3}` and `F_{M2−M3}` per
 /// group, with each group's critical value drawn as a black tick.
 pub fn ftest_svg(r: &FitReport) -> Result<String> {
-    let mut groups: Vec<&crate::analysis::FPair> = r.f_tests.per_subject.iter().collect();
-    groups.extend(r.f_tests.per_experiment.iter());
-    groups.extend(r.f_tests.all.iter());
+    let groups: Vec<&crate::analysis::FPair> = r.f_tests.all_groups().collect();
     let mut svg = String::new();
     {
         let root = SVGBackend::with_string(&mut svg, (900, 360)).into_drawing_area();
@@ -460,13 +458,7 @@ pub fn html(
     } else {
         let _ = write!(w, "{}", ftest_svg(r)?);
         let _ = write!(w, "<table><tr><th>group</th><th>F M1−M3</th><th>F M2−M3</th><th>critical</th><th>df</th></tr>");
-        for g in r
-            .f_tests
-            .per_subject
-            .iter()
-            .chain(&r.f_tests.per_experiment)
-            .chain(r.f_tests.all.iter())
-        {
+        for g in r.f_tests.all_groups() {
             let _ = write!(
                 w,
                 "<tr><td>{}</td><td>{:.2}</td><td>{:.2}</td><td>{:.2}</td><td>({}, {})</td></tr>",
