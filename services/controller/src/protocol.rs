@@ -148,10 +148,18 @@ impl Protocol {
         } else {
             (Phase::Rest, 0.0)
         };
-        let excitation = match phase {
-            Phase::Settling | Phase::Analysis => amplitude * (omega * (tau - sine_start)).sin(),
+        // The sine fades in over the first half of the settling window and
+        // out over the ramp-out (raised cosine): an abrupt start or stop
+        // excites the arm's natural mode, which a lightly damped subject
+        // carries for many seconds into the analysis window and the next
+        // period. The analysis window always sees the full amplitude.
+        let envelope = match phase {
+            Phase::Settling => smooth_step((tau - sine_start) / (0.5 * t.settling_s)),
+            Phase::Analysis => 1.0,
+            Phase::RampOut => 1.0 - smooth_step((tau - ramp_out_start) / t.ramp_out_s),
             _ => 0.0,
         };
+        let excitation = envelope * amplitude * (omega * (tau - sine_start)).sin();
         ProtocolPoint {
             experiment: e.number,
             period: *period,
@@ -240,9 +248,28 @@ mod tests {
         let t = table();
         let p = Protocol::new(&t, &[4], Some(&[3]));
         let w = 3.0 * 10f64.powf(0.2);
+        // Full amplitude from half-way through settling to the end of the analysis window.
+        for tau in [2.5, 3.456, 7.0, 9.999] {
+            let s = p.at(5.0 + tau);
+            assert!((s.tau_excitation_nm - 2.0 * (w * tau).sin()).abs() < 1e-12);
+        }
+        // Faded in: raised cosine over the first 2.5 s of the sine.
+        let fade = 0.5 - 0.5 * (std::f64::consts::PI * 1.234 / 2.5).cos();
         let s = p.at(5.0 + 1.234);
-        assert!((s.tau_excitation_nm - 2.0 * (w * 1.234).sin()).abs() < 1e-12);
+        assert!((s.tau_excitation_nm - fade * 2.0 * (w * 1.234).sin()).abs() < 1e-12);
+        // Faded out over the ramp-out, nothing before the sine or in the rest.
+        let s = p.at(15.0 + 1.7);
+        let fade = 0.5 + 0.5 * (std::f64::consts::PI * 1.7 / 5.0).cos();
+        assert!((s.tau_excitation_nm - fade * 2.0 * (w * 11.7).sin()).abs() < 1e-12);
         assert_eq!(p.at(4.0).tau_excitation_nm, 0.0);
+        assert_eq!(p.at(20.5).tau_excitation_nm, 0.0);
+        // Continuous: no step anywhere in the excitation.
+        let mut prev = 0.0;
+        for i in 0..=2500 {
+            let x = p.at(i as f64 * 0.01).tau_excitation_nm;
+            assert!((x - prev).abs() < 2.0 * w * 0.01 + 1e-9, "step at {i}");
+            prev = x;
+        }
         assert_eq!(p.at(0.0).tau_bias_nm, 0.0);
         assert!((p.at(2.5).tau_bias_nm - 2.0).abs() < 1e-12);
         let mut prev = 0.0;

@@ -65,6 +65,13 @@ pub enum HysteresisMode {
     EquivalentViscous,
     /// Causal generalised-Maxwell bank ([`crate::prony`]).
     Prony,
+    /// The Prony bank, matched exactly to `K(1 + jc)` at the running
+    /// excitation frequency by a stiffness and a viscous correction (both
+    /// small: the bank's Kramers–Kronig drift there). Damped at every
+    /// frequency as a complex stiffness is, so transients (posture moves,
+    /// bias ramps) decay as they would in a human, and exact at the frequency
+    /// a single-sine period measures.
+    PronyMatched,
 }
 
 /// `[human.hysteretic_damping]`.

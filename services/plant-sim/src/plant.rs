@@ -14,6 +14,7 @@
 //! the human; the human's impedance pulls the forearm back towards `θ_eq`.
 
 use nalgebra::{DMatrix, DVector};
+use num_complex::Complex64;
 
 use crate::expm::zoh;
 use crate::model::{HysteresisMode, PlantModel};
@@ -221,7 +222,10 @@ impl Plant {
     /// equivalent-viscous hysteresis mode (`B_eq = H/ω`).
     pub fn set_excitation_omega(&mut self, omega_rad_s: f64) {
         let uses_it = self.model.human.hysteretic_damping.enabled
-            && self.model.human.hysteretic_damping.mode == HysteresisMode::EquivalentViscous;
+            && matches!(
+                self.model.human.hysteretic_damping.mode,
+                HysteresisMode::EquivalentViscous | HysteresisMode::PronyMatched
+            );
         if uses_it
             && omega_rad_s > 0.0
             && omega_rad_s.is_finite()
@@ -252,7 +256,12 @@ impl Plant {
     fn rebuild(&mut self) {
         let m = &self.model;
         let hd = m.human.hysteretic_damping;
-        let prony = hd.enabled && hd.mode == HysteresisMode::Prony && self.h_h > 0.0;
+        let prony = hd.enabled
+            && matches!(
+                hd.mode,
+                HysteresisMode::Prony | HysteresisMode::PronyMatched
+            )
+            && self.h_h > 0.0;
         self.bank = if prony {
             PronyBank::fit(
                 self.k_h,
@@ -280,6 +289,13 @@ impl Plant {
         };
         if hd.enabled && hd.mode == HysteresisMode::EquivalentViscous {
             b_h += self.h_h / self.excitation_omega;
+        }
+        if prony && hd.mode == HysteresisMode::PronyMatched {
+            // Match K + jH exactly at the excitation frequency.
+            let w = self.excitation_omega;
+            let miss = Complex64::new(self.k_h, self.h_h) - self.bank.response(w);
+            self.bank.k_inf_nm_per_rad += miss.re;
+            b_h += miss.im / w;
         }
         self.b_human = b_h;
         let compliant = m.cuff.compliance.enabled;

@@ -150,7 +150,7 @@ pub use run::{
     ReleaseSettings, RigSettings, RunConfig, RunSettings, SafeState, SafetySettings, ServiceSet,
     TimingMode, VoluntarySettings, GRAVITY_M_S2,
 };
-pub use subject::{Subject, SubjectExperiment};
+pub use subject::{ReportedPowerLaw, Subject, SubjectExperiment};
 
 /// The workspace's `configs/` directory (for tests and defaults).
 pub fn configs_dir() -> PathBuf {

@@ -4,7 +4,7 @@ use std::path::{Path, PathBuf};
 
 use serde::{Deserialize, Serialize};
 
-use crate::{read_toml, Check, ExperimentTable, Result, Subject};
+use crate::{read_toml, Check, ExperimentTable, ProtocolTiming, Result, Subject};
 
 /// How simulated time advances.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
@@ -161,6 +161,47 @@ pub struct ProtocolSettings {
     /// Override of the rest between periods (s), so simulations need not wait 40 s.
     #[serde(default)]
     pub rest_s: Option<f64>,
+    /// Override of the bias ramp-in (s); the paper: 5.
+    #[serde(default)]
+    pub ramp_in_s: Option<f64>,
+    /// Override of the settling part of the sine (s); the paper: 5.
+    #[serde(default)]
+    pub settling_s: Option<f64>,
+    /// Override of the analysis window (s); the paper: 5.
+    #[serde(default)]
+    pub analysis_s: Option<f64>,
+    /// Override of the bias ramp-out (s); the paper: 5.
+    #[serde(default)]
+    pub ramp_out_s: Option<f64>,
+}
+
+impl ProtocolSettings {
+    /// The timing overrides with their keys, for validation and application.
+    fn timing_overrides(&self) -> [(&'static str, Option<f64>); 5] {
+        [
+            ("protocol.ramp_in_s", self.ramp_in_s),
+            ("protocol.settling_s", self.settling_s),
+            ("protocol.analysis_s", self.analysis_s),
+            ("protocol.ramp_out_s", self.ramp_out_s),
+            ("protocol.rest_s", self.rest_s),
+        ]
+    }
+
+    /// Applies the overrides to the experiment table's timing.
+    pub fn apply_timing(&self, timing: &mut ProtocolTiming) {
+        let fields = [
+            &mut timing.ramp_in_s,
+            &mut timing.settling_s,
+            &mut timing.analysis_s,
+            &mut timing.ramp_out_s,
+            &mut timing.rest_s,
+        ];
+        for (field, (_, v)) in fields.into_iter().zip(self.timing_overrides()) {
+            if let Some(v) = v {
+                *field = v;
+            }
+        }
+    }
 }
 
 /// `[protocol.voluntary]`: the subject's voluntary motion for `mode = "voluntary"`.
@@ -400,9 +441,7 @@ impl RunConfig {
             }
         }
         let mut table = ExperimentTable::from_file(&cfg.protocol.experiments_file)?;
-        if let Some(rest) = cfg.protocol.rest_s {
-            table.timing.rest_s = rest;
-        }
+        cfg.protocol.apply_timing(&mut table.timing);
         let c = Check::new(file);
         for (i, n) in cfg.protocol.experiments.iter().enumerate() {
             if table.get(*n).is_none() {
@@ -492,8 +531,14 @@ impl RunConfig {
                 "must be non-empty letters, digits, '-' or '_'",
             ));
         }
-        if let Some(rest) = self.protocol.rest_s {
-            c.non_negative("protocol.rest_s", rest)?;
+        for (key, v) in self.protocol.timing_overrides() {
+            if let Some(v) = v {
+                if key == "protocol.analysis_s" {
+                    c.positive(key, v)?;
+                } else {
+                    c.non_negative(key, v)?;
+                }
+            }
         }
         if let Some(p) = self.realtime.and_then(|r| r.sched_fifo_priority) {
             if !(1..=99).contains(&p) {

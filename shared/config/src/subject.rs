@@ -18,6 +18,22 @@ pub struct SubjectExperiment {
     pub hysteretic_damping_nm_per_rad: f64,
 }
 
+/// The power law a publication reported for the subject, kept beside the
+/// simulated inputs so a reproduction can compare against it. Never used to
+/// simulate: the per-experiment K and H are the inputs.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ReportedPowerLaw {
+    /// Intercept β0 of `log10 H = β0 + β1 log10 K` as printed.
+    pub beta0: f64,
+    /// Slope β1 as printed.
+    pub beta1: f64,
+    /// R² as printed.
+    pub r2: f64,
+    /// Where it was printed (e.g. "He et al. 2020, Table III").
+    pub source: String,
+}
+
 /// A subject file (`configs/subjects/*.toml`).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -28,6 +44,9 @@ pub struct Subject {
     pub inertia_kg_m2: f64,
     /// Impedance per experiment.
     pub experiment: Vec<SubjectExperiment>,
+    /// The power law the source publication reported, for comparison only.
+    #[serde(default)]
+    pub reported_power_law: Option<ReportedPowerLaw>,
 }
 
 impl Subject {

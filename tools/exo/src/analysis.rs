@@ -286,7 +286,8 @@ pub fn fit_experiment(e: &ExperimentData) -> Result<ModelComparison> {
     )?)
 }
 
-fn group_of(experiment: u32) -> (u32, String) {
+/// The experiment group of the phase table (1-3, 4-6, 7-9): index and label.
+pub fn group_of(experiment: u32) -> (u32, String) {
     let g = (experiment.saturating_sub(1)) / 3;
     (g, format!("{}-{}", 3 * g + 1, 3 * g + 3))
 }

@@ -47,6 +47,24 @@ pub struct FitArgs {
     pub load_lever_arm_m: f64,
 }
 
+impl FitArgs {
+    /// The command-line defaults for `recordings`, as `exo run` and
+    /// `exo reproduce` fit their own recordings.
+    pub fn for_recordings(recordings: Vec<PathBuf>) -> Self {
+        FitArgs {
+            recordings,
+            json: false,
+            csv: None,
+            level: 0.05,
+            phase_margin_deg: 10.8,
+            k_range: None,
+            recorded_frf: false,
+            arm_inertia_kg_m2: 0.1,
+            load_lever_arm_m: 0.45,
+        }
+    }
+}
+
 /// What the fitter gets out of one recording.
 pub struct Loaded {
     /// The recording.

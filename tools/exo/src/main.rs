@@ -6,6 +6,8 @@
 //!   predicted amplification, Bode plot).
 //! - `exo run CONFIG`: start and supervise the processes of a run.
 //! - `exo tune SUBJECT`: the paper's tuning experiment, automated.
+//! - `exo fit`, `exo report`, `exo import`: recordings to the paper's tables and figures.
+//! - `exo reproduce`: the paper's modelling study, simulated and compared.
 
 mod analysis;
 mod args;
@@ -15,6 +17,7 @@ mod import_cmd;
 mod plot;
 mod report;
 mod report_cmd;
+mod reproduce_cmd;
 mod run_cmd;
 mod stability;
 mod supervisor;
@@ -50,6 +53,10 @@ enum Command {
     /// A self-contained HTML report of recordings: the paper's figures
     /// (Bode plots with fits, F-test bars, power law, time responses) and tables.
     Report(report_cmd::ReportArgs),
+    /// The paper's modelling study simulated: subjects A–J through the nine
+    /// experiments in the real processes, recorded, fitted and compared with
+    /// the simulated impedance.
+    Reproduce(reproduce_cmd::ReproduceArgs),
     /// Turn another rig's CSV (time, angle, torque, optional actuator torque)
     /// into a contract recording.
     Import(import_cmd::ImportArgs),
@@ -64,6 +71,7 @@ fn main() {
         Command::Fit(args) => fit_cmd::run(&args),
         Command::Report(args) => report_cmd::run(&args),
         Command::Import(args) => import_cmd::run(&args),
+        Command::Reproduce(args) => reproduce_cmd::run(&args),
     };
     if let Err(err) = result {
         eprintln!("exo: error: {err:#}");

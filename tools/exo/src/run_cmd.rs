@@ -42,7 +42,17 @@ pub fn services_of(
             "exo-identifier",
             Role::Restartable,
         ),
-        (s.plant_sim, "plant-sim", "exo-plant-sim", Role::Critical),
+        (
+            s.plant_sim,
+            "plant-sim",
+            "exo-plant-sim",
+            // With run.max_sim_time_s the simulator's normal exit is the end.
+            if cfg.run.max_sim_time_s.is_some() {
+                Role::EndsRun
+            } else {
+                Role::Critical
+            },
+        ),
         (
             s.sensor_driver,
             "sensor-driver",
@@ -78,6 +88,7 @@ pub fn services_of(
 /// one, simulated time (from the samples' stamps) and wall time.
 pub struct Progress {
     protocol: Collector<ProtocolState>,
+    every_period: bool,
     seen: usize,
     last: (u32, u32),
     first_stamp_ns: Option<u64>,
@@ -85,12 +96,22 @@ pub struct Progress {
 }
 
 impl Progress {
-    /// Watches the protocol channel of `instance`.
+    /// Watches the protocol channel of `instance`; a line per period.
     pub fn start(instance: &str) -> Result<Self> {
+        Self::watch(instance, true)
+    }
+
+    /// A line per experiment only (long runs).
+    pub fn per_experiment(instance: &str) -> Result<Self> {
+        Self::watch(instance, false)
+    }
+
+    fn watch(instance: &str, every_period: bool) -> Result<Self> {
         let node = format!("exo_progress_{}", std::process::id());
         Ok(Progress {
             protocol: Collector::start(&node, instance, Channel::Protocol)
                 .context("watching the protocol channel for progress")?,
+            every_period,
             seen: 0,
             last: (0, 0),
             first_stamp_ns: None,
@@ -103,7 +124,12 @@ impl Progress {
         let states = self.protocol.snapshot();
         for p in &states[self.seen.min(states.len())..] {
             let first = *self.first_stamp_ns.get_or_insert(p.stamp_ns);
-            if (p.experiment, p.period) != self.last && p.experiment > 0 {
+            let new = if self.every_period {
+                (p.experiment, p.period) != self.last
+            } else {
+                p.experiment != self.last.0
+            };
+            if new && p.experiment > 0 {
                 let sim_s = p.stamp_ns.saturating_sub(first) as f64 * 1e-9;
                 let wall_s = self.wall.elapsed().as_secs_f64();
                 eprintln!(
@@ -179,17 +205,7 @@ pub fn run(args: &RunArgs) -> Result<()> {
     if args.no_report || !identification {
         return Ok(());
     }
-    let fit_args = crate::fit_cmd::FitArgs {
-        recordings: vec![recording.clone()],
-        json: false,
-        csv: None,
-        level: 0.05,
-        phase_margin_deg: 10.8,
-        k_range: None,
-        recorded_frf: false,
-        arm_inertia_kg_m2: 0.1,
-        load_lever_arm_m: 0.45,
-    };
+    let fit_args = crate::fit_cmd::FitArgs::for_recordings(vec![recording.clone()]);
     let (_, report) = crate::fit_cmd::fit(&fit_args)?;
     print!("{}", crate::fit_cmd::tables(&report));
     let stem = recording
