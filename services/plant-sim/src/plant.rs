@@ -219,7 +219,8 @@ impl Plant {
     }
 
     /// Sets the running excitation frequency (rad/s) used by the
-    /// equivalent-viscous hysteresis mode (`B_eq = H/ω`).
+    /// equivalent-viscous hysteresis mode (`B_eq = H/ω`) and by the
+    /// prony-matched mode (its corrections make `K + jH` exact there).
     pub fn set_excitation_omega(&mut self, omega_rad_s: f64) {
         let uses_it = self.model.human.hysteretic_damping.enabled
             && matches!(

@@ -295,6 +295,7 @@ fn prony_matched_mode_is_exact_at_the_excitation_and_damped_elsewhere() {
     };
     let viscous = ring(HysteresisMode::EquivalentViscous);
     let matched = ring(HysteresisMode::PronyMatched);
+    // Measured 2026-11-23: 0.56 and 0.066.
     assert!(viscous > 0.4, "equivalent viscous kept {viscous}");
     assert!(matched < 0.15, "prony matched kept {matched}");
 }

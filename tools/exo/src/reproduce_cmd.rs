@@ -29,6 +29,7 @@ use crate::analysis::{group_of, FRow, FitReport};
 use crate::fit_cmd::{fit, FitArgs};
 use crate::run_cmd::{services_of, Progress};
 use crate::supervisor::{supervise, Logs};
+use crate::tune_cmd::subject_path;
 
 /// Arguments of `exo reproduce`.
 #[derive(Debug, Args)]
@@ -160,17 +161,6 @@ impl Reproduction {
     /// All criteria met.
     pub fn pass(&self) -> bool {
         self.failures.is_empty()
-    }
-}
-
-fn subject_file(name: &str) -> PathBuf {
-    let p = Path::new(name);
-    if p.exists() || name.contains('/') || name.ends_with(".toml") {
-        p.to_path_buf()
-    } else {
-        exo_config::configs_dir()
-            .join("subjects")
-            .join(format!("{}.toml", name.to_ascii_uppercase()))
     }
 }
 
@@ -479,7 +469,7 @@ pub fn run(a: &ReproduceArgs) -> Result<()> {
     let mut subjects = Vec::new();
     let mut recordings = Vec::new();
     for (i, s) in a.subjects.iter().enumerate() {
-        let file = subject_file(s);
+        let file = subject_path(s);
         let subject = Subject::from_file(&file)?;
         let name = subject.name.clone();
         for n in &base.protocol.experiments {

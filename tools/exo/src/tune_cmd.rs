@@ -148,7 +148,8 @@ pub struct Tuning {
     pub f_tuned_model: f64,
 }
 
-fn subject_path(subject: &str) -> PathBuf {
+/// A subject argument: a file, or a name of `configs/subjects/*.toml` (A–J).
+pub fn subject_path(subject: &str) -> PathBuf {
     let p = Path::new(subject);
     if p.exists() || subject.contains('/') || subject.ends_with(".toml") {
         p.to_path_buf()
