@@ -1,0 +1,559 @@
+//! What a recording says about the plant: one complex observation per
+//! transfer function and analysis window (single-sine periods) or per band
+//! (broadband windows), each with the noise measured from the data itself.
+//!
+//! Transfer functions, as the identifier defines them
+//! (`docs/recording-format.md`):
+//! - `S_h = τ_c/θ_e` (Nm/rad), the human's dynamic stiffness seen by the cuff;
+//! - `S_{h-e} = (τ_s − τ_gravity)/θ_e` (Nm/rad), the coupled human–exoskeleton
+//!   stiffness with the controller's gravity compensation removed;
+//! - `τ_s/τ_d` (dimensionless), the SEA's torque tracking.
+//!
+//! The controller's own gravity compensation is measured too
+//! (`τ_gravity/θ_e` at ω): it is an input of the comparison, not a term of
+//! the plant, so a gravity-compensation error shows as the difference between
+//! the plant's gravity and what the controller removed.
+
+use std::collections::BTreeMap;
+
+use exo_impedance::frf::{average_bins, band_groups, sine_ratio, welch_h1, SineCorrelator};
+use exo_recording::Recording;
+use num_complex::Complex64;
+use serde::Serialize;
+
+/// A transfer function a recording can support.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash, Serialize)]
+pub enum Tf {
+    /// `S_h = τ_c/θ_e` (Nm/rad).
+    #[serde(rename = "S_h")]
+    Sh,
+    /// `S_{h-e} = (τ_s − τ_gravity)/θ_e` (Nm/rad).
+    #[serde(rename = "S_h-e")]
+    She,
+    /// `τ_s/τ_d` (dimensionless).
+    #[serde(rename = "tau_s/tau_d")]
+    Sea,
+}
+
+impl Tf {
+    /// Every transfer function, in report order.
+    pub const ALL: [Tf; 3] = [Tf::Sh, Tf::She, Tf::Sea];
+
+    /// The name used in tables and JSON.
+    pub fn name(self) -> &'static str {
+        match self {
+            Tf::Sh => "S_h",
+            Tf::She => "S_h-e",
+            Tf::Sea => "tau_s/tau_d",
+        }
+    }
+
+    /// Which signals it is made of, for messages.
+    pub fn signals(self) -> &'static str {
+        match self {
+            Tf::Sh => "τ_c/θ_e",
+            Tf::She => "(τ_s − τ_gravity)/θ_e",
+            Tf::Sea => "τ_s/τ_d",
+        }
+    }
+}
+
+/// The conditions of one analysis window.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct Condition {
+    /// Experiment (1–9, or the recording's own numbering).
+    pub experiment: u32,
+    /// Period within the experiment.
+    pub period: u32,
+    /// Load on the exoskeleton (kg).
+    pub load_kg: f64,
+    /// Bias torque of the period (Nm).
+    pub bias_nm: f64,
+    /// Amplification α of the period.
+    pub alpha: f64,
+    /// Excitation amplitude (Nm; 0 for broadband).
+    pub amplitude_nm: f64,
+    /// Mean measured angle over the window (rad): the posture the plant is linearised at.
+    pub theta0_rad: f64,
+    /// Amplitude of θ_e at the excitation frequency (rad; the RMS·√2 of the band for broadband).
+    pub theta_amp_rad: f64,
+    /// Control period of the recording (s).
+    pub sample_period_s: f64,
+}
+
+/// One measured transfer-function value.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct Observation {
+    /// Which transfer function.
+    pub tf: Tf,
+    /// Frequency (rad/s).
+    pub omega_rad_s: f64,
+    /// Measured value.
+    pub value: Complex64,
+    /// Standard deviation of the real and of the imaginary part (same units as `value`).
+    pub sigma: [f64; 2],
+    /// Index of its window in [`Dataset::conditions`].
+    pub window: usize,
+    /// The controller's gravity compensation `τ_gravity/θ_e` at ω (Nm/rad), measured.
+    pub gravity_comp: Complex64,
+}
+
+/// The samples of one analysis window, kept for the time-domain comparison.
+#[derive(Debug, Clone, Default)]
+pub struct WindowSignals {
+    /// Time from the window start (s).
+    pub t_s: Vec<f64>,
+    /// Measured angle (rad).
+    pub theta_rad: Vec<f64>,
+    /// Cuff torque (Nm).
+    pub tau_c_nm: Vec<f64>,
+    /// SEA torque less the controller's gravity compensation (Nm).
+    pub tau_s_net_nm: Vec<f64>,
+    /// Excitation frequency (rad/s; 0 for broadband).
+    pub omega_rad_s: f64,
+}
+
+/// Everything the diagnosis uses from a set of recordings.
+#[derive(Debug, Clone, Default)]
+pub struct Dataset {
+    /// Window conditions.
+    pub conditions: Vec<Condition>,
+    /// Observations (every transfer function of every window).
+    pub observations: Vec<Observation>,
+    /// Signals per window (same index as `conditions`).
+    pub signals: Vec<WindowSignals>,
+    /// What could not be used, each naming the file and window.
+    pub notes: Vec<String>,
+    /// Transfer functions the data supports.
+    pub supported: Vec<Tf>,
+    /// Sources read.
+    pub sources: Vec<String>,
+}
+
+impl Dataset {
+    /// The experiments present, sorted.
+    pub fn experiments(&self) -> Vec<u32> {
+        let mut e: Vec<u32> = self.conditions.iter().map(|c| c.experiment).collect();
+        e.sort_unstable();
+        e.dedup();
+        e
+    }
+
+    /// Observations of one transfer function.
+    pub fn of(&self, tf: Tf) -> impl Iterator<Item = &Observation> {
+        self.observations.iter().filter(move |o| o.tf == tf)
+    }
+}
+
+/// Settings of the data reduction.
+#[derive(Debug, Clone, Copy)]
+pub struct Reduction {
+    /// Smallest coherence (fraction of variance at ω) of θ_e and the output kept.
+    pub min_coherence: f64,
+    /// Welch segment for broadband windows (samples, power of two).
+    pub welch_segment: usize,
+    /// Bands a broadband window is summarised into.
+    pub broadband_points: usize,
+    /// Band (rad/s) of broadband estimates.
+    pub broadband_band_rad_s: [f64; 2],
+}
+
+impl Default for Reduction {
+    fn default() -> Self {
+        Self {
+            min_coherence: 0.5,
+            welch_segment: 2048,
+            broadband_points: 12,
+            broadband_band_rad_s: [1.0, 60.0],
+        }
+    }
+}
+
+/// An analysis window found in the protocol topic.
+struct Span {
+    experiment: u32,
+    period: u32,
+    start_ns: u64,
+    end_ns: u64,
+    omega: f64,
+    load_kg: f64,
+    bias_nm: f64,
+    alpha: f64,
+    amplitude: f64,
+}
+
+fn spans(r: &Recording) -> Vec<Span> {
+    let mut out = Vec::new();
+    let mut open: Option<Span> = None;
+    for p in &r.protocol {
+        let same = open
+            .as_ref()
+            .is_some_and(|s| s.experiment == p.experiment && s.period == p.period);
+        if p.phase == 3 && same {
+            continue;
+        }
+        if let Some(mut s) = open.take() {
+            s.end_ns = p.stamp_ns;
+            out.push(s);
+        }
+        if p.phase == 3 {
+            open = Some(Span {
+                experiment: p.experiment,
+                period: p.period,
+                start_ns: p.stamp_ns,
+                end_ns: u64::MAX,
+                omega: p.omega,
+                load_kg: p.load_kg,
+                bias_nm: p.bias_nm,
+                alpha: p.alpha,
+                amplitude: p.amplitude,
+            });
+        }
+    }
+    if let (Some(mut s), Some(last)) = (open, r.sensor.last()) {
+        s.end_ns = last.stamp_ns + 1;
+        out.push(s);
+    }
+    out
+}
+
+/// Reduces recordings to observations. Never fails on user data: what
+/// cannot be used is named in [`Dataset::notes`].
+pub fn reduce(recordings: &[Recording], s: &Reduction) -> Dataset {
+    let mut d = Dataset::default();
+    for r in recordings {
+        d.sources.push(r.source.clone());
+        for w in &r.warnings {
+            d.notes.push(w.clone());
+        }
+        if r.protocol.is_empty() {
+            d.notes.push(format!(
+                "{}: topic exo/protocol is missing or empty: no analysis windows",
+                r.source
+            ));
+        }
+        if r.sensor.is_empty() {
+            d.notes.push(format!(
+                "{}: topic exo/sensor is missing or empty",
+                r.source
+            ));
+            continue;
+        }
+        let human_only = r.meta("fit_target") == Some("human");
+        // Commands by the sample they answer.
+        let mut answer: BTreeMap<u64, (f64, f64)> = BTreeMap::new();
+        for c in &r.command {
+            answer.insert(c.sensor_seq, (c.tau_d, c.tau_gravity));
+        }
+        if r.command.is_empty() && !human_only {
+            d.notes.push(format!(
+                "{}: topic exo/command is missing: only S_h (τ_c/θ_e) is compared",
+                r.source
+            ));
+        }
+        let spans = spans(r);
+        if spans.is_empty() && !r.protocol.is_empty() {
+            d.notes.push(format!(
+                "{}: the protocol has no analysis phase (phase 3): no windows",
+                r.source
+            ));
+        }
+        for sp in &spans {
+            let what = format!(
+                "{}: experiment {} period {}",
+                r.source, sp.experiment, sp.period
+            );
+            let lo = r.sensor.partition_point(|x| x.stamp_ns < sp.start_ns);
+            let hi = r.sensor.partition_point(|x| x.stamp_ns < sp.end_ns);
+            let samples = &r.sensor[lo..hi];
+            if samples.len() < 16 {
+                d.notes
+                    .push(format!("{what}: {} samples, window skipped", samples.len()));
+                continue;
+            }
+            let t0 = samples[0].stamp_ns;
+            let mut sig = WindowSignals {
+                omega_rad_s: sp.omega,
+                ..Default::default()
+            };
+            let mut tau_d = Vec::with_capacity(samples.len());
+            let mut tau_s_raw = Vec::with_capacity(samples.len());
+            let mut tau_g = Vec::with_capacity(samples.len());
+            let mut answered = 0usize;
+            let mut bad = 0usize;
+            for x in samples {
+                if !(x.theta_e.is_finite() && x.tau_c.is_finite() && x.tau_s.is_finite()) {
+                    bad += 1;
+                    continue;
+                }
+                let (td, tg) = match answer.get(&x.seq) {
+                    Some(&(td, tg)) if td.is_finite() && tg.is_finite() => {
+                        answered += 1;
+                        (td, tg)
+                    }
+                    _ => (f64::NAN, 0.0),
+                };
+                sig.t_s.push((x.stamp_ns - t0) as f64 * 1e-9);
+                sig.theta_rad.push(x.theta_e);
+                sig.tau_c_nm.push(x.tau_c);
+                sig.tau_s_net_nm.push(x.tau_s - tg);
+                tau_s_raw.push(x.tau_s);
+                tau_d.push(td);
+                tau_g.push(tg);
+            }
+            if bad > 0 {
+                d.notes.push(format!(
+                    "{what}: {bad} samples with non-finite values left out"
+                ));
+            }
+            let n = sig.t_s.len();
+            if n < 16 {
+                continue;
+            }
+            let span_s = sig.t_s[n - 1];
+            let dt = if span_s > 0.0 {
+                span_s / (n - 1) as f64
+            } else {
+                1e-3
+            };
+            let has_command = answered * 10 >= n * 9 && !human_only;
+            let theta0 = sig.theta_rad.iter().sum::<f64>() / n as f64;
+            let cond_index = d.conditions.len();
+            let mut cond = Condition {
+                experiment: sp.experiment,
+                period: sp.period,
+                load_kg: sp.load_kg,
+                bias_nm: sp.bias_nm,
+                alpha: sp.alpha,
+                amplitude_nm: sp.amplitude,
+                theta0_rad: theta0,
+                theta_amp_rad: 0.0,
+                sample_period_s: dt,
+            };
+            let before = d.observations.len();
+            if sp.omega > 0.0 {
+                single_sine(
+                    &what,
+                    &sig,
+                    &tau_d,
+                    &tau_s_raw,
+                    &tau_g,
+                    has_command,
+                    cond_index,
+                    s,
+                    &mut cond,
+                    &mut d,
+                );
+            } else {
+                broadband(
+                    &what,
+                    &sig,
+                    &tau_d,
+                    &tau_s_raw,
+                    &tau_g,
+                    has_command,
+                    cond_index,
+                    s,
+                    &mut cond,
+                    &mut d,
+                );
+            }
+            if d.observations.len() > before {
+                d.conditions.push(cond);
+                d.signals.push(sig);
+            }
+        }
+    }
+    let mut sup: Vec<Tf> = d.observations.iter().map(|o| o.tf).collect();
+    sup.sort_unstable();
+    sup.dedup();
+    d.supported = sup;
+    d
+}
+
+fn sigma_of(cov: &[[f64; 2]; 2]) -> [f64; 2] {
+    [cov[0][0].max(0.0).sqrt(), cov[1][1].max(0.0).sqrt()]
+}
+
+#[allow(clippy::too_many_arguments)]
+fn single_sine(
+    what: &str,
+    sig: &WindowSignals,
+    tau_d: &[f64],
+    tau_s_raw: &[f64],
+    tau_g: &[f64],
+    has_command: bool,
+    window: usize,
+    s: &Reduction,
+    cond: &mut Condition,
+    d: &mut Dataset,
+) {
+    let w = sig.omega_rad_s;
+    let Ok(corr) = SineCorrelator::<6>::new(w, 0.0, true) else {
+        d.notes.push(format!("{what}: ω = {w} is not usable"));
+        return;
+    };
+    let mut corr = corr.with_names(["theta_e", "tau_c", "tau_s_net", "tau_s", "tau_d", "tau_g"]);
+    for i in 0..sig.t_s.len() {
+        let td = if tau_d[i].is_finite() { tau_d[i] } else { 0.0 };
+        if corr
+            .push(
+                sig.t_s[i],
+                &[
+                    sig.theta_rad[i],
+                    sig.tau_c_nm[i],
+                    sig.tau_s_net_nm[i],
+                    tau_s_raw[i],
+                    td,
+                    tau_g[i],
+                ],
+            )
+            .is_err()
+        {
+            d.notes
+                .push(format!("{what}: samples out of order, window skipped"));
+            return;
+        }
+    }
+    let end = sig.t_s.last().copied().unwrap_or(0.0) + cond.sample_period_s;
+    let amps = match corr.finish(Some(end)) {
+        Ok(a) => a,
+        Err(e) => {
+            d.notes.push(format!("{what}: {e}; window skipped"));
+            return;
+        }
+    };
+    let [a_th, a_tc, a_tsn, a_ts, a_td, a_tg] = amps;
+    cond.theta_amp_rad = a_th.amplitude.norm();
+    let gravity_comp = if has_command {
+        sine_ratio(&a_th, &a_tg).map_or(Complex64::new(0.0, 0.0), |p| p.ratio)
+    } else {
+        Complex64::new(0.0, 0.0)
+    };
+    let mut push =
+        |tf: Tf, x: &exo_impedance::frf::SineAmplitude, y: &exo_impedance::frf::SineAmplitude| {
+            match sine_ratio(x, y) {
+                Ok(p)
+                    if p.coherence >= s.min_coherence
+                        && p.ratio.re.is_finite()
+                        && p.ratio.im.is_finite() =>
+                {
+                    d.observations.push(Observation {
+                        tf,
+                        omega_rad_s: w,
+                        value: p.ratio,
+                        sigma: sigma_of(&p.cov),
+                        window,
+                        gravity_comp,
+                    })
+                }
+                Ok(p) => d.notes.push(format!(
+                    "{what}: {} left out: coherence {:.2} below {:.2}",
+                    tf.signals(),
+                    p.coherence,
+                    s.min_coherence
+                )),
+                Err(e) => d.notes.push(format!("{what}: {}: {e}", tf.signals())),
+            }
+        };
+    push(Tf::Sh, &a_th, &a_tc);
+    if has_command {
+        push(Tf::She, &a_th, &a_tsn);
+        if a_ts.amplitude.norm() > 0.0 {
+            push(Tf::Sea, &a_td, &a_ts);
+        }
+    }
+}
+
+#[allow(clippy::too_many_arguments)]
+fn broadband(
+    what: &str,
+    sig: &WindowSignals,
+    tau_d: &[f64],
+    tau_s_raw: &[f64],
+    tau_g: &[f64],
+    has_command: bool,
+    window: usize,
+    s: &Reduction,
+    cond: &mut Condition,
+    d: &mut Dataset,
+) {
+    let n = sig.t_s.len();
+    let rate = 1.0 / cond.sample_period_s;
+    let seg = s.welch_segment.min(n.next_power_of_two() / 2).max(16);
+    let h_c = match welch_h1(&sig.theta_rad, &sig.tau_c_nm, rate, seg) {
+        Ok(h) => h,
+        Err(e) => {
+            d.notes.push(format!("{what}: broadband estimate: {e}"));
+            return;
+        }
+    };
+    let mean = sig.theta_rad.iter().sum::<f64>() / n as f64;
+    let var = sig
+        .theta_rad
+        .iter()
+        .map(|x| (x - mean).powi(2))
+        .sum::<f64>()
+        / n as f64;
+    cond.theta_amp_rad = (2.0 * var).sqrt();
+    let [lo, hi] = s.broadband_band_rad_s;
+    let groups = band_groups(&h_c, s.min_coherence, 1e-3, lo, hi, s.broadband_points);
+    if groups.is_empty() {
+        d.notes.push(format!(
+            "{what}: no band of {lo}–{hi} rad/s with coherence ≥ {}",
+            s.min_coherence
+        ));
+        return;
+    }
+    let extra = if has_command {
+        let td: Vec<f64> = tau_d
+            .iter()
+            .map(|v| if v.is_finite() { *v } else { 0.0 })
+            .collect();
+        match (
+            welch_h1(&sig.theta_rad, &sig.tau_s_net_nm, rate, seg),
+            welch_h1(&td, tau_s_raw, rate, seg),
+            welch_h1(&sig.theta_rad, tau_g, rate, seg),
+        ) {
+            (Ok(a), Ok(b), Ok(c)) => Some((a, b, c)),
+            _ => None,
+        }
+    } else {
+        None
+    };
+    let zero = Complex64::new(0.0, 0.0);
+    for g in &groups {
+        let Some(b) = average_bins(&h_c, g) else {
+            continue;
+        };
+        let sd = |bin: &exo_impedance::frf::H1Bin| {
+            let e = bin.noise_rel() * bin.h.norm() / std::f64::consts::SQRT_2;
+            [e, e]
+        };
+        d.observations.push(Observation {
+            tf: Tf::Sh,
+            omega_rad_s: b.omega_rad_s,
+            value: b.h,
+            sigma: sd(&b),
+            window,
+            gravity_comp: zero,
+        });
+        if let Some((h_s, h_sea, h_g)) = &extra {
+            let gravity_comp = average_bins(h_g, g).map_or(zero, |b| b.h);
+            for (tf, h) in [(Tf::She, h_s), (Tf::Sea, h_sea)] {
+                if let Some(bb) = average_bins(h, g) {
+                    if bb.coherence >= s.min_coherence {
+                        d.observations.push(Observation {
+                            tf,
+                            omega_rad_s: bb.omega_rad_s,
+                            value: bb.h,
+                            sigma: sd(&bb),
+                            window,
+                            gravity_comp,
+                        });
+                    }
+                }
+            }
+        }
+    }
+}

@@ -1,0 +1,873 @@
+//! The diagnosis: locate the mismatch, refit the nominal model's own
+//! parameters, then add candidate physics one term at a time while it is
+//! significant, and score every model before and after.
+//!
+//! Selection (each step, every candidate not yet in the model):
+//! - nested-model F-test of the model with the candidate against the model
+//!   without it, as the paper compares M1 and M2 with M3 (eq. ft):
+//!   `F = ((RSS₀ − RSS₁)/Δp) / (RSS₁/(n − p₁))`;
+//! - Holm's correction over the candidates tried at the step (the chosen one
+//!   is the smallest p-value, so its adjusted p is `m·p`);
+//! - Akaike's criterion must fall and the held-out error must fall:
+//!   two-fold validation over periods (odd periods fit, even predicted, and
+//!   the reverse);
+//! - the lack-of-fit χ² against the noise measured in each window is
+//!   reported before and after: it says whether structure remains.
+//!
+//! The search runs only while the lack-of-fit test rejects (structure
+//! beyond the noise remains); a term is added only when the Holm-corrected
+//! F-test, Akaike's criterion and the held-out error all agree; the search
+//! stops when none qualifies or nothing is left to explain.
+
+use std::collections::BTreeMap;
+
+use exo_impedance::ftest::f_survival;
+use exo_plant_sim::PlantModel;
+use num_complex::Complex64;
+use serde::Serialize;
+use statrs::distribution::{ChiSquared, ContinuousCDF};
+
+use crate::data::{Condition, Dataset, Observation, Tf};
+use crate::fit::{fit, lack_of_fit_chi2, rss, sigma_floor, Fitted};
+use crate::model::{Param, Physics};
+use crate::terms::Term;
+
+/// Settings of a diagnosis.
+#[derive(Debug, Clone)]
+pub struct Settings {
+    /// Family-wise false-alarm probability of the tests.
+    pub level: f64,
+    /// Most terms added.
+    pub max_terms: usize,
+    /// Nominal `K_h`, `H_h` per experiment (a subject file), if known.
+    pub nominal_subject: Option<BTreeMap<u32, (f64, f64)>>,
+    /// Candidate terms allowed (default: the whole catalogue).
+    pub candidates: Vec<Term>,
+}
+
+impl Default for Settings {
+    fn default() -> Self {
+        Self {
+            level: 0.05,
+            max_terms: 4,
+            nominal_subject: None,
+            candidates: Term::ALL.to_vec(),
+        }
+    }
+}
+
+/// Error of a diagnosis.
+#[derive(Debug, thiserror::Error)]
+pub enum DiagnoseError {
+    /// Nothing to compare.
+    #[error("no usable observations: {0}")]
+    NoData(String),
+    /// Settings out of range.
+    #[error("{0}")]
+    Settings(String),
+}
+
+/// Fit quality of a model for one transfer function.
+#[derive(Debug, Clone, Serialize)]
+pub struct TfScore {
+    /// Transfer function.
+    pub tf: Tf,
+    /// Observations.
+    pub points: usize,
+    /// Weighted residual sum of squares (χ² with the measured noise).
+    pub rss: f64,
+    /// Complex R² (1 − Σ|data − model|² / Σ|data − mean|²).
+    pub r2: f64,
+    /// Weighted RSS on held-out periods (two-fold over periods).
+    pub heldout_rss: f64,
+}
+
+/// A model's scores.
+#[derive(Debug, Clone, Serialize)]
+pub struct Score {
+    /// Per transfer function.
+    pub per_tf: Vec<TfScore>,
+    /// Total weighted RSS.
+    pub rss: f64,
+    /// Total held-out RSS.
+    pub heldout_rss: f64,
+    /// χ² per degree of freedom against the measured noise and the model's accuracy.
+    pub chi2_per_dof: f64,
+    /// P-value of the lack-of-fit χ² test.
+    pub lack_of_fit_p: f64,
+    /// Free parameters.
+    pub parameters: usize,
+}
+
+/// One cell of the located mismatch.
+#[derive(Debug, Clone, Serialize)]
+pub struct Cell {
+    /// Transfer function.
+    pub tf: Tf,
+    /// Experiment.
+    pub experiment: u32,
+    /// Band name.
+    pub band: &'static str,
+    /// Points.
+    pub points: usize,
+    /// Mean magnitude error `|data|/|model| − 1` (%).
+    pub magnitude_pct: f64,
+    /// Mean phase error `arg(data/model)` (degrees).
+    pub phase_deg: f64,
+    /// Mean squared whitened residual (1 = at the noise).
+    pub chi2_per_point: f64,
+    /// P-value of the cell's χ² (2 per point).
+    pub p_value: f64,
+    /// Significant after Bonferroni over the cells.
+    pub significant: bool,
+}
+
+/// How a transfer function's residual scales across windows.
+#[derive(Debug, Clone, Serialize)]
+pub struct Scaling {
+    /// Transfer function.
+    pub tf: Tf,
+    /// Correlation of the residual's quadrature part (relative) with `1/A` (angle amplitude).
+    pub with_inverse_amplitude: f64,
+    /// Correlation of the residual's in-phase part (relative) with `K_h`.
+    pub with_stiffness: f64,
+    /// Correlation of the residual's phase with ω.
+    pub phase_with_omega: f64,
+    /// Windows.
+    pub windows: usize,
+}
+
+/// Time-domain view per experiment and channel.
+#[derive(Debug, Clone, Serialize)]
+pub struct TimeRow {
+    /// Experiment.
+    pub experiment: u32,
+    /// Channel (`tau_c`, `tau_s_net`, `theta_e`).
+    pub channel: &'static str,
+    /// Mean of the channel over the analysis windows (Nm or rad).
+    pub mean: f64,
+    /// RMS of data − model over the windows (model = the channel's mean plus its
+    /// transfer function times the measured angle's fundamental), nominal model.
+    pub rms_residual_nominal: f64,
+    /// Same with the final model.
+    pub rms_residual_final: f64,
+    /// 2nd and 3rd harmonic amplitude relative to the fundamental.
+    pub harmonics: [f64; 2],
+    /// Amplitude at 2.5 ω relative to the fundamental (the noise floor for the harmonics).
+    pub floor: f64,
+}
+
+/// Where the data and the nominal model differ.
+#[derive(Debug, Clone, Serialize)]
+pub struct Location {
+    /// Against the nominal model as given.
+    pub nominal_cells: Vec<Cell>,
+    /// Against the nominal model with its own parameters refitted.
+    pub refit_cells: Vec<Cell>,
+    /// Residual scaling after the refit.
+    pub scaling: Vec<Scaling>,
+    /// Time-domain residuals and harmonics.
+    pub time: Vec<TimeRow>,
+    /// Plain-words summary.
+    pub summary: Vec<String>,
+}
+
+/// A nominal parameter that moved in the refit.
+#[derive(Debug, Clone, Serialize)]
+pub struct ParamChange {
+    /// Parameter.
+    pub label: String,
+    /// Nominal value.
+    pub nominal: f64,
+    /// Refitted value.
+    pub fitted: f64,
+    /// Its standard error.
+    pub std_error: f64,
+    /// Change (%).
+    pub change_pct: f64,
+}
+
+/// One candidate tried at one step.
+#[derive(Debug, Clone, Serialize)]
+pub struct Candidate {
+    /// Term.
+    pub term: Term,
+    /// Plain words.
+    pub words: &'static str,
+    /// Parameters added.
+    pub added_parameters: usize,
+    /// F statistic against the current model.
+    pub f: f64,
+    /// Critical F at the Holm-corrected level for this candidate's rank.
+    pub f_critical: f64,
+    /// Raw p-value.
+    pub p_value: f64,
+    /// Holm-adjusted p-value.
+    pub p_holm: f64,
+    /// Change of Akaike's criterion.
+    pub delta_aic: f64,
+    /// Relative change of the held-out RSS (negative = better).
+    pub heldout_change: f64,
+    /// Fitted value in words.
+    pub description: String,
+    /// Chosen at this step.
+    pub chosen: bool,
+}
+
+/// One step of the search.
+#[derive(Debug, Clone, Serialize)]
+pub struct Step {
+    /// Step number (1-based).
+    pub step: usize,
+    /// Every candidate's statistics, best first.
+    pub candidates: Vec<Candidate>,
+}
+
+/// A term the diagnosis added.
+#[derive(Debug, Clone, Serialize)]
+pub struct Found {
+    /// Term.
+    pub term: Term,
+    /// Plant TOML key.
+    pub toml_key: &'static str,
+    /// Plain words.
+    pub words: &'static str,
+    /// Fitted value(s) with standard errors, in the final model.
+    pub description: String,
+    /// F when it was added, and its critical value.
+    pub f: f64,
+    /// Critical F.
+    pub f_critical: f64,
+    /// Holm-adjusted p-value.
+    pub p_holm: f64,
+    /// Held-out RSS change when it was added (relative).
+    pub heldout_change: f64,
+    /// The sentence.
+    pub sentence: String,
+}
+
+/// The whole result.
+#[derive(Debug, Clone, Serialize)]
+pub struct Diagnosis {
+    /// Recordings read.
+    pub sources: Vec<String>,
+    /// Transfer functions compared.
+    pub supported: Vec<Tf>,
+    /// What could not be used.
+    pub notes: Vec<String>,
+    /// The located mismatch.
+    pub location: Location,
+    /// Nominal model as given.
+    pub nominal: Score,
+    /// Nominal model with its own parameters refitted.
+    pub refit: Score,
+    /// Parameters of the nominal model that moved.
+    pub parameter_changes: Vec<ParamChange>,
+    /// The search.
+    pub steps: Vec<Step>,
+    /// Terms found, in the order added.
+    pub found: Vec<Found>,
+    /// The final model's score.
+    pub final_score: Score,
+    /// The verdict in plain words.
+    pub verdict: Vec<String>,
+    /// Nominal coefficients.
+    pub nominal_physics: Physics,
+    /// Refitted nominal coefficients.
+    pub refit_physics: Physics,
+    /// Final coefficients.
+    pub final_physics: Physics,
+}
+
+impl Diagnosis {
+    /// The updated plant model.
+    pub fn updated_plant(&self, base: &PlantModel) -> PlantModel {
+        self.final_physics.write_plant(base)
+    }
+}
+
+fn band_of(w: f64) -> &'static str {
+    if w < 4.0 {
+        "low (< 4 rad/s)"
+    } else if w < 10.0 {
+        "mid (4–10 rad/s)"
+    } else {
+        "high (≥ 10 rad/s)"
+    }
+}
+
+fn chi2_sf(x: f64, dof: f64) -> f64 {
+    if dof <= 0.0 || !x.is_finite() {
+        return f64::NAN;
+    }
+    ChiSquared::new(dof).map_or(f64::NAN, |d| d.sf(x))
+}
+
+fn score(d: &Dataset, start: &Physics, fitted: &Physics, free: &[Param]) -> Score {
+    let mut per_tf = Vec::new();
+    let folds = heldout(d, start, free);
+    for &tf in &d.supported {
+        let sel = |_: usize, o: &Observation| o.tf == tf;
+        let (r, _) = rss(d, fitted, &sel);
+        let obs: Vec<&Observation> = d.of(tf).collect();
+        let mean = obs.iter().map(|o| o.value).sum::<Complex64>() / obs.len().max(1) as f64;
+        let (mut ss_res, mut ss_tot) = (0.0, 0.0);
+        for o in &obs {
+            ss_res += (fitted.predict(o, &d.conditions[o.window]) - o.value).norm_sqr();
+            ss_tot += (o.value - mean).norm_sqr();
+        }
+        per_tf.push(TfScore {
+            tf,
+            points: obs.len(),
+            rss: r,
+            r2: if ss_tot > 0.0 {
+                1.0 - ss_res / ss_tot
+            } else {
+                f64::NAN
+            },
+            heldout_rss: folds.get(&tf).copied().unwrap_or(f64::NAN),
+        });
+    }
+    let (total, _) = rss(d, fitted, &|_, _| true);
+    let (chi, n) = lack_of_fit_chi2(d, fitted);
+    let dof = n as f64 - free.len() as f64;
+    Score {
+        rss: total,
+        heldout_rss: per_tf.iter().map(|t| t.heldout_rss).sum(),
+        chi2_per_dof: chi / dof.max(1.0),
+        lack_of_fit_p: chi2_sf(chi, dof),
+        parameters: free.len(),
+        per_tf,
+    }
+}
+
+/// Two-fold held-out RSS per transfer function: fit on odd periods, predict
+/// even ones, and the reverse. With no free parameters it is the plain RSS.
+fn heldout(d: &Dataset, start: &Physics, free: &[Param]) -> BTreeMap<Tf, f64> {
+    let mut out: BTreeMap<Tf, f64> = BTreeMap::new();
+    for fold in 0..2u32 {
+        let train = |_: usize, o: &Observation| d.conditions[o.window].period % 2 != fold;
+        let f = fit(d, start, free, &train);
+        for &tf in &d.supported {
+            let test =
+                |_: usize, o: &Observation| o.tf == tf && d.conditions[o.window].period % 2 == fold;
+            *out.entry(tf).or_default() += rss(d, &f.physics, &test).0;
+        }
+    }
+    out
+}
+
+fn cells(d: &Dataset, phys: &Physics, level: f64) -> Vec<Cell> {
+    let mut groups: BTreeMap<(Tf, u32, &'static str), Vec<&Observation>> = BTreeMap::new();
+    for o in &d.observations {
+        let c = &d.conditions[o.window];
+        groups
+            .entry((o.tf, c.experiment, band_of(o.omega_rad_s)))
+            .or_default()
+            .push(o);
+    }
+    let m = groups.len().max(1) as f64;
+    groups
+        .into_iter()
+        .map(|((tf, experiment, band), obs)| {
+            let (mut mag, mut ph, mut chi) = (0.0, 0.0, 0.0);
+            for o in &obs {
+                let pred = phys.predict(o, &d.conditions[o.window]);
+                let ratio = o.value / pred;
+                mag += ratio.norm() - 1.0;
+                ph += ratio.arg().to_degrees();
+                let r = pred - o.value;
+                chi += (r.re / sigma_floor(o, 0)).powi(2) + (r.im / sigma_floor(o, 1)).powi(2);
+            }
+            let n = obs.len() as f64;
+            let p_value = chi2_sf(chi, 2.0 * n);
+            Cell {
+                tf,
+                experiment,
+                band,
+                points: obs.len(),
+                magnitude_pct: 100.0 * mag / n,
+                phase_deg: ph / n,
+                chi2_per_point: chi / n,
+                p_value,
+                significant: p_value < level / m,
+            }
+        })
+        .collect()
+}
+
+fn pearson(x: &[f64], y: &[f64]) -> f64 {
+    let n = x.len() as f64;
+    if x.len() < 3 {
+        return f64::NAN;
+    }
+    let (mx, my) = (x.iter().sum::<f64>() / n, y.iter().sum::<f64>() / n);
+    let (mut sxy, mut sxx, mut syy) = (0.0, 0.0, 0.0);
+    for (a, b) in x.iter().zip(y) {
+        sxy += (a - mx) * (b - my);
+        sxx += (a - mx).powi(2);
+        syy += (b - my).powi(2);
+    }
+    if sxx > 0.0 && syy > 0.0 {
+        sxy / (sxx * syy).sqrt()
+    } else {
+        f64::NAN
+    }
+}
+
+fn scaling(d: &Dataset, phys: &Physics) -> Vec<Scaling> {
+    d.supported
+        .iter()
+        .map(|&tf| {
+            let (mut inv_a, mut quad, mut k, mut inph, mut w, mut ph) =
+                (vec![], vec![], vec![], vec![], vec![], vec![]);
+            for o in d.of(tf) {
+                let c = &d.conditions[o.window];
+                let pred = phys.predict(o, c);
+                let rel = (o.value - pred) / pred.norm().max(1e-12);
+                let rot = rel * (pred.conj() / pred.norm().max(1e-12));
+                inv_a.push(1.0 / c.theta_amp_rad.max(1e-9));
+                quad.push(rot.im);
+                k.push(phys.k.get(&c.experiment).copied().unwrap_or(0.0));
+                inph.push(rot.re);
+                w.push(o.omega_rad_s);
+                ph.push((o.value / pred).arg());
+            }
+            Scaling {
+                tf,
+                with_inverse_amplitude: pearson(&inv_a, &quad),
+                with_stiffness: pearson(&k, &inph),
+                phase_with_omega: pearson(&w, &ph),
+                windows: quad.len(),
+            }
+        })
+        .collect()
+}
+
+fn harmonic(t: &[f64], y: &[f64], w: f64) -> f64 {
+    exo_impedance::frf::sine_amplitude(t, y, w, true).map_or(f64::NAN, |a| a.amplitude.norm())
+}
+
+fn time_rows(d: &Dataset, nominal: &Physics, fin: &Physics) -> Vec<TimeRow> {
+    let mut acc: BTreeMap<(u32, &'static str), Vec<[f64; 6]>> = BTreeMap::new();
+    for (i, s) in d.signals.iter().enumerate() {
+        let c = &d.conditions[i];
+        let w = s.omega_rad_s;
+        if w <= 0.0 || s.t_s.len() < 16 {
+            continue;
+        }
+        let Ok(th) = exo_impedance::frf::sine_amplitude(&s.t_s, &s.theta_rad, w, true) else {
+            continue;
+        };
+        let gravity = d
+            .observations
+            .iter()
+            .find(|o| o.window == i && o.tf == Tf::She)
+            .map_or(Complex64::new(0.0, 0.0), |o| o.gravity_comp);
+        for (name, y, tf) in [
+            ("tau_c", &s.tau_c_nm, Some(Tf::Sh)),
+            ("tau_s_net", &s.tau_s_net_nm, Some(Tf::She)),
+            ("theta_e", &s.theta_rad, None),
+        ] {
+            if tf.is_some_and(|tf| !d.supported.contains(&tf)) {
+                continue;
+            }
+            let mean = y.iter().sum::<f64>() / y.len() as f64;
+            let fund = harmonic(&s.t_s, y, w);
+            let rms = |p: &Physics| match tf {
+                None => f64::NAN,
+                Some(tf) => {
+                    let g = p.predict_tf(tf, w, c, gravity);
+                    let a = g * th.amplitude;
+                    let mut e2 = 0.0;
+                    for (t, v) in s.t_s.iter().zip(y.iter()) {
+                        let m = mean + (a * Complex64::from_polar(1.0, w * t)).re;
+                        e2 += (v - m).powi(2);
+                    }
+                    (e2 / y.len() as f64).sqrt()
+                }
+            };
+            let row = [
+                mean,
+                rms(nominal),
+                rms(fin),
+                harmonic(&s.t_s, y, 2.0 * w) / fund,
+                harmonic(&s.t_s, y, 3.0 * w) / fund,
+                harmonic(&s.t_s, y, 2.5 * w) / fund,
+            ];
+            acc.entry((c.experiment, name)).or_default().push(row);
+        }
+    }
+    acc.into_iter()
+        .map(|((experiment, channel), rows)| {
+            let n = rows.len() as f64;
+            let avg = |k: usize| {
+                let v: Vec<f64> = rows
+                    .iter()
+                    .map(|r| r[k])
+                    .filter(|x| x.is_finite())
+                    .collect();
+                if v.is_empty() {
+                    f64::NAN
+                } else {
+                    v.iter().sum::<f64>() / v.len() as f64
+                }
+            };
+            let _ = n;
+            TimeRow {
+                experiment,
+                channel,
+                mean: avg(0),
+                rms_residual_nominal: avg(1),
+                rms_residual_final: avg(2),
+                harmonics: [avg(3), avg(4)],
+                floor: avg(5),
+            }
+        })
+        .collect()
+}
+
+/// The nominal model's own free parameters: the human's per-experiment
+/// stiffness (and hysteretic damping when the model has it), its inertia,
+/// and the parameters of every term the model already has.
+pub fn nominal_free(p: &Physics, experiments: &[u32], supported: &[Tf]) -> Vec<Param> {
+    let mut free: Vec<Param> = experiments.iter().map(|&e| Param::K(e)).collect();
+    free.push(Param::Mh);
+    for t in Term::ALL {
+        if t.in_nominal(p) && t.shows_in().iter().any(|tf| supported.contains(tf)) {
+            free.extend(t.params(experiments));
+        }
+    }
+    free
+}
+
+fn summary_of(cells: &[Cell], what: &str) -> Vec<String> {
+    let mut sig: Vec<&Cell> = cells.iter().filter(|c| c.significant).collect();
+    if sig.is_empty() {
+        return vec![format!(
+            "{what}: no transfer function, band or experiment differs beyond the measured noise"
+        )];
+    }
+    sig.sort_by(|a, b| b.chi2_per_point.total_cmp(&a.chi2_per_point));
+    let mut by_tf: BTreeMap<(Tf, &'static str), Vec<&Cell>> = BTreeMap::new();
+    for c in &sig {
+        by_tf.entry((c.tf, c.band)).or_default().push(c);
+    }
+    let mut out: Vec<(f64, String)> = by_tf
+        .into_iter()
+        .map(|((tf, band), cs)| {
+            let exps: Vec<String> = cs.iter().map(|c| c.experiment.to_string()).collect();
+            let n = cs.len() as f64;
+            let mag = cs.iter().map(|c| c.magnitude_pct).sum::<f64>() / n;
+            let ph = cs.iter().map(|c| c.phase_deg).sum::<f64>() / n;
+            let chi = cs.iter().map(|c| c.chi2_per_point).sum::<f64>() / n;
+            (
+                chi,
+                format!(
+                    "{what}: {} ({}) in the {band} band, experiments {}: magnitude {mag:+.1} %, phase {ph:+.2}°, {:.1}× the noise variance",
+                    tf.name(),
+                    tf.signals(),
+                    exps.join(", "),
+                    chi / 2.0
+                ),
+            )
+        })
+        .collect();
+    out.sort_by(|a, b| b.0.total_cmp(&a.0));
+    out.into_iter().map(|(_, s)| s).collect()
+}
+
+/// Runs the whole diagnosis of `d` against the plant model `nominal`.
+pub fn diagnose(
+    d: &Dataset,
+    nominal: &PlantModel,
+    s: &Settings,
+) -> Result<Diagnosis, DiagnoseError> {
+    if !(s.level > 0.0 && s.level < 1.0) {
+        return Err(DiagnoseError::Settings(format!(
+            "level = {}: must lie in (0, 1)",
+            s.level
+        )));
+    }
+    if d.observations.is_empty() {
+        return Err(DiagnoseError::NoData(if d.notes.is_empty() {
+            "the recordings have no analysis windows".into()
+        } else {
+            d.notes.join("; ")
+        }));
+    }
+    let experiments = d.experiments();
+    let mut p0 = Physics::from_plant(nominal, &experiments);
+    if let Some(subj) = &s.nominal_subject {
+        for (&e, &(k, h)) in subj {
+            if let Some(slot) = p0.k.get_mut(&e) {
+                *slot = k;
+                if nominal.human.hysteretic_damping.enabled {
+                    p0.h.insert(e, h);
+                }
+            }
+        }
+    }
+    let free0 = nominal_free(&p0, &experiments, &d.supported);
+    let nominal_score = score(d, &p0, &p0, &[]);
+    let base = fit(d, &p0, &free0, &|_, _| true);
+    let refit_score = score(d, &p0, &base.physics, &free0);
+
+    let mut changes = Vec::new();
+    for (i, &q) in free0.iter().enumerate() {
+        let (a, b) = (p0.get(q), base.physics.get(q));
+        let pct = if a != 0.0 {
+            100.0 * (b - a) / a.abs()
+        } else {
+            f64::NAN
+        };
+        changes.push(ParamChange {
+            label: q.label(),
+            nominal: a,
+            fitted: b,
+            std_error: base.std_errors[i],
+            change_pct: pct,
+        });
+    }
+
+    // Stepwise search.
+    let mut current: Fitted = base.clone();
+    let mut current_start = p0.clone();
+    let mut current_ho = refit_score.heldout_rss;
+    let mut in_model: Vec<Term> = Term::ALL
+        .iter()
+        .copied()
+        .filter(|t| t.in_nominal(&p0))
+        .collect();
+    let mut steps = Vec::new();
+    let mut found: Vec<(Term, Candidate)> = Vec::new();
+    let mut lack_p = refit_score.lack_of_fit_p;
+    for step in 1..=s.max_terms {
+        // Nothing left to explain: the model is within the measured noise
+        // and its own accuracy.
+        if lack_p >= s.level {
+            break;
+        }
+        let tried: Vec<Term> = s
+            .candidates
+            .iter()
+            .copied()
+            .filter(|t| !in_model.contains(t))
+            .filter(|t| t.shows_in().iter().any(|tf| d.supported.contains(tf)))
+            .collect();
+        if tried.is_empty() {
+            break;
+        }
+        let mut rows: Vec<(Candidate, Fitted, Physics, Vec<Param>)> = Vec::new();
+        for &t in &tried {
+            let mut start = current.physics.clone();
+            t.start(&mut start);
+            let mut free = current.free.clone();
+            let added = t.params(&experiments);
+            free.extend(added.iter().copied());
+            let f1 = fit(d, &start, &free, &|_, _| true);
+            let dp = added.len() as f64;
+            let dof = f1.n as f64 - f1.p() as f64;
+            let f_stat = if dof > 0.0 && f1.rss > 0.0 {
+                ((current.rss - f1.rss) / dp) / (f1.rss / dof)
+            } else {
+                f64::NAN
+            };
+            let p_value = if f_stat.is_finite() && f_stat > 0.0 {
+                f_survival(f_stat, dp, dof).unwrap_or(1.0)
+            } else {
+                1.0
+            };
+            let mut cstart = current_start.clone();
+            t.start(&mut cstart);
+            let ho = heldout(d, &cstart, &free).values().sum::<f64>();
+            let se = |q: Param| f1.std_error(q);
+            rows.push((
+                Candidate {
+                    term: t,
+                    words: t.words(),
+                    added_parameters: added.len(),
+                    f: f_stat,
+                    f_critical: f64::NAN,
+                    p_value,
+                    p_holm: f64::NAN,
+                    delta_aic: f1.aic() - current.aic(),
+                    heldout_change: (ho - current_ho) / current_ho.max(1e-300),
+                    description: t.describe(&f1.physics, &se),
+                    chosen: false,
+                },
+                f1,
+                cstart,
+                free,
+            ));
+        }
+        // Holm over the candidates of this step.
+        rows.sort_by(|a, b| {
+            a.0.p_value
+                .total_cmp(&b.0.p_value)
+                .then(a.1.rss.total_cmp(&b.1.rss))
+        });
+        let m = rows.len();
+        let mut running: f64 = 0.0;
+        for (i, r) in rows.iter_mut().enumerate() {
+            let adj = ((m - i) as f64 * r.0.p_value).min(1.0);
+            running = running.max(adj);
+            r.0.p_holm = running;
+            let level_i = s.level / (m - i) as f64;
+            let dof = r.1.n as f64 - r.1.p() as f64;
+            r.0.f_critical = exo_impedance::ftest::f_critical(
+                r.0.added_parameters as f64,
+                dof.max(1.0),
+                level_i,
+            )
+            .unwrap_or(f64::NAN);
+        }
+        let accept = rows.first().is_some_and(|r| {
+            r.0.p_holm < s.level && r.0.delta_aic < 0.0 && r.0.heldout_change < 0.0
+        });
+        if accept {
+            rows[0].0.chosen = true;
+        }
+        steps.push(Step {
+            step,
+            candidates: rows.iter().map(|r| r.0.clone()).collect(),
+        });
+        if !accept {
+            break;
+        }
+        let (cand, f1, cstart, _free) = rows.swap_remove(0);
+        current_ho *= 1.0 + cand.heldout_change;
+        in_model.push(cand.term);
+        found.push((cand.term, cand));
+        current = f1;
+        current_start = cstart;
+        let (chi, n) = lack_of_fit_chi2(d, &current.physics);
+        lack_p = chi2_sf(chi, n as f64 - current.p() as f64);
+    }
+    let final_score = score(d, &current_start, &current.physics, &current.free);
+
+    let found: Vec<Found> = found
+        .into_iter()
+        .map(|(t, c)| {
+            let se = |q: Param| current.std_error(q);
+            let description = t.describe(&current.physics, &se);
+            Found {
+                term: t,
+                toml_key: t.toml_key(),
+                words: t.words(),
+                sentence: format!(
+                    "left out: {}, {description}; F = {:.1} against a critical {:.2} (Holm-adjusted p = {:.2e}); held-out RSS {:+.0} %",
+                    t.words(),
+                    c.f,
+                    c.f_critical,
+                    c.p_holm,
+                    100.0 * c.heldout_change
+                ),
+                description,
+                f: c.f,
+                f_critical: c.f_critical,
+                p_holm: c.p_holm,
+                heldout_change: c.heldout_change,
+            }
+        })
+        .collect();
+
+    let nominal_cells = cells(d, &p0, s.level);
+    let refit_cells = cells(d, &base.physics, s.level);
+    let mut summary = summary_of(&nominal_cells, "against the nominal model");
+    summary.extend(summary_of(
+        &refit_cells,
+        "after refitting its own parameters",
+    ));
+    let location = Location {
+        nominal_cells,
+        refit_cells,
+        scaling: scaling(d, &base.physics),
+        time: time_rows(d, &p0, &current.physics),
+        summary,
+    };
+
+    let mut verdict = Vec::new();
+    let moved: Vec<&ParamChange> = changes
+        .iter()
+        .filter(|c| {
+            c.change_pct.is_finite()
+                && c.change_pct.abs()
+                    > 2.0 * (100.0 * c.std_error / c.nominal.abs().max(1e-300)).max(1.0)
+        })
+        .collect();
+    let improvement = 1.0 - refit_score.rss / nominal_score.rss.max(1e-300);
+    if !moved.is_empty() {
+        let words: Vec<String> = moved
+            .iter()
+            .take(6)
+            .map(|c| {
+                format!(
+                    "{} {:+.0} % ({:.4} → {:.4})",
+                    c.label, c.change_pct, c.nominal, c.fitted
+                )
+            })
+            .collect();
+        verdict.push(format!(
+            "same physics, other parameters: {}{}; RSS −{:.0} %",
+            words.join(", "),
+            if moved.len() > 6 {
+                format!(" and {} more", moved.len() - 6)
+            } else {
+                String::new()
+            },
+            100.0 * improvement
+        ));
+    }
+    if found.is_empty() {
+        verdict.push(format!(
+            "no missing physics: no candidate term is significant (χ²/dof {:.2} after the refit{})",
+            refit_score.chi2_per_dof,
+            if refit_score.lack_of_fit_p < s.level {
+                "; some structure remains that no term of the catalogue explains"
+            } else {
+                ", within the measured noise"
+            }
+        ));
+    } else {
+        for f in &found {
+            verdict.push(f.sentence.clone());
+        }
+        verdict.push(format!(
+            "with {} added: RSS {:.1} → {:.1} ({:+.0} %), held-out {:+.0} %, χ²/dof {:.2} → {:.2}",
+            found
+                .iter()
+                .map(|f| f.words)
+                .collect::<Vec<_>>()
+                .join(" and "),
+            refit_score.rss,
+            final_score.rss,
+            100.0 * (final_score.rss / refit_score.rss - 1.0),
+            100.0 * (final_score.heldout_rss / refit_score.heldout_rss - 1.0),
+            refit_score.chi2_per_dof,
+            final_score.chi2_per_dof
+        ));
+    }
+
+    Ok(Diagnosis {
+        sources: d.sources.clone(),
+        supported: d.supported.clone(),
+        notes: d.notes.clone(),
+        location,
+        nominal: nominal_score,
+        refit: refit_score,
+        parameter_changes: changes,
+        steps,
+        found,
+        final_score,
+        verdict,
+        nominal_physics: p0,
+        refit_physics: base.physics,
+        final_physics: current.physics,
+    })
+}
+
+/// The condition of a window, for callers that predict (plots).
+pub fn condition(d: &Dataset, window: usize) -> Option<&Condition> {
+    d.conditions.get(window)
+}

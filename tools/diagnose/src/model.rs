@@ -1,0 +1,484 @@
+//! The forward model: what a plant model (the simulator's TOML, every term
+//! in it) predicts for each transfer function a recording supports, in the
+//! frequency domain, linearised about each window's posture.
+//!
+//! With phasors at ω (`s = jω`), for each window:
+//!
+//! ```text
+//! Z_imp  = K_e + j H_e + jω B_h                      human joint impedance (paper eq. M1–M3 terms)
+//! Z_h    = Z_imp − M_h ω²                             forearm on the cuff
+//! S_cuff = Z_c Z_h / (Z_c + Z_h),  Z_c = k_c + jω b_c  (rigid cuff: S_cuff = Z_h)
+//! S_exo  = −M_e ω² + S_cuff + m g l cos θ₀ + jω b_f + j 4 F_c/(π A)
+//! S_h    = g_c e^{−jω d_c} S_cuff / (g_θ e^{−jω d_θ})
+//! S_h-e  = g_s e^{−jω d_s} S_exo / (g_θ e^{−jω d_θ}) − G_comp
+//! τ_s/τ_d = g_s e^{−jω d_s} e^{−jω (d_a + h/2)} ω_n² / (ω_n² − ω² + 2jζω_nω)
+//!           (ideal actuator: e^{−jω (d_s + d_a + h)}, and S_h-e gains e^{−jω h/2})
+//! ```
+//!
+//! `K_e`, `H_e` per experiment (the subject file's), `M_e = M_arm + m_load
+//! l²` (+ an inertia error), `m g l` the plant's gravity (+ an error), `A`
+//! the window's angle amplitude (Coulomb friction's describing function),
+//! `G_comp` the controller's own gravity compensation measured in the
+//! recording, `h` the control period (the command is held over it), `d_*`
+//! the sensor and actuator delays, `g_*` the sensor gains. Every symbol is
+//! a named term of the plant TOML; [`Physics::from_plant`] reads them and
+//! [`Physics::write_plant`] writes them back.
+//!
+//! Assumptions: the hysteretic damping is `K + jH` exactly at the excitation
+//! (the simulator's `equivalent_viscous` and `prony_matched` modes are; the
+//! plain `prony` bank differs by its few-per-cent Kramers–Kronig drift);
+//! gravity and friction are linearised (describing function) about the
+//! window's mean angle and amplitude; sensor offsets do not enter transfer
+//! functions and are not diagnosed.
+//!
+//! Accuracy against the simulator (`tests/forward.rs`, every term alone):
+//! linear terms within 0.2 % (the fit's floor, `fit::MODEL_ACCURACY`, is
+//! 0.5 %); Coulomb friction's describing function within 1.7 % (it ignores
+//! the harmonics); an ideal actuator (no SEA dynamics) within 0.8 %.
+
+use std::collections::BTreeMap;
+
+use exo_plant_sim::PlantModel;
+use num_complex::Complex64;
+use serde::Serialize;
+
+use crate::data::{Condition, Observation, Tf};
+
+/// One free parameter of the forward model.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash, Serialize)]
+pub enum Param {
+    /// Human stiffness `K_h` of an experiment (Nm/rad).
+    K(u32),
+    /// Hysteretic damping `H_h` of an experiment (Nm/rad).
+    H(u32),
+    /// Human viscous damping `B_h` (Nm·s/rad).
+    Bh,
+    /// Forearm inertia `M_h` (kg·m²).
+    Mh,
+    /// Coulomb friction torque of the exoskeleton joint (Nm).
+    Coulomb,
+    /// Viscous friction of the exoskeleton joint (Nm·s/rad).
+    Bf,
+    /// Encoder delay (s).
+    DelayTheta,
+    /// Cuff force/torque sensor delay (s).
+    DelayTauC,
+    /// SEA torque (deflection) sensor delay (s).
+    DelayTauS,
+    /// Actuator (motor command) delay (s).
+    DelayAct,
+    /// Cuff compliance `1/k_c` (rad/Nm); 0 is a rigid cuff.
+    CuffCompliance,
+    /// SEA torque bandwidth `ω_n` (rad/s).
+    SeaWn,
+    /// SEA damping ratio.
+    SeaZeta,
+    /// Exoskeleton inertia error (kg·m²), added to `M_arm + m_load l²`.
+    InertiaError,
+    /// Gravity torque error `Δ(m g l)` (Nm): plant gravity the model lacks.
+    GravityError,
+    /// Cuff F/T sensor gain.
+    GainTauC,
+    /// SEA torque sensor gain.
+    GainTauS,
+}
+
+impl Param {
+    /// Name with unit, for tables.
+    pub fn label(self) -> String {
+        match self {
+            Param::K(e) => format!("K_h[exp {e}] (Nm/rad)"),
+            Param::H(e) => format!("H_h[exp {e}] (Nm/rad)"),
+            Param::Bh => "B_h (Nm·s/rad)".into(),
+            Param::Mh => "M_h (kg·m²)".into(),
+            Param::Coulomb => "Coulomb friction (Nm)".into(),
+            Param::Bf => "joint viscous friction (Nm·s/rad)".into(),
+            Param::DelayTheta => "encoder delay (s)".into(),
+            Param::DelayTauC => "cuff F/T delay (s)".into(),
+            Param::DelayTauS => "SEA torque sensor delay (s)".into(),
+            Param::DelayAct => "actuator delay (s)".into(),
+            Param::CuffCompliance => "cuff compliance 1/k_c (rad/Nm)".into(),
+            Param::SeaWn => "SEA bandwidth ω_n (rad/s)".into(),
+            Param::SeaZeta => "SEA damping ratio".into(),
+            Param::InertiaError => "exoskeleton inertia error (kg·m²)".into(),
+            Param::GravityError => "gravity torque error Δ(mgl) (Nm)".into(),
+            Param::GainTauC => "cuff F/T gain".into(),
+            Param::GainTauS => "SEA torque sensor gain".into(),
+        }
+    }
+
+    /// Typical size, for finite differences and step control.
+    pub fn scale(self) -> f64 {
+        match self {
+            Param::K(_) => 10.0,
+            Param::H(_) => 3.0,
+            Param::Bh => 0.3,
+            Param::Mh => 0.05,
+            Param::Coulomb => 0.3,
+            Param::Bf => 0.1,
+            Param::DelayTheta | Param::DelayTauC | Param::DelayTauS | Param::DelayAct => 2e-3,
+            Param::CuffCompliance => 1e-3,
+            Param::SeaWn => 10.0,
+            Param::SeaZeta => 0.1,
+            Param::InertiaError => 0.03,
+            Param::GravityError => 0.5,
+            Param::GainTauC | Param::GainTauS => 0.05,
+        }
+    }
+
+    /// Smallest allowed value.
+    pub fn lower(self) -> f64 {
+        match self {
+            Param::K(_) => 1e-3,
+            Param::SeaWn => 1.0,
+            Param::SeaZeta => 0.01,
+            Param::GainTauC | Param::GainTauS => 0.05,
+            Param::InertiaError | Param::GravityError => f64::NEG_INFINITY,
+            _ => 0.0,
+        }
+    }
+}
+
+/// Every coefficient of the forward model (SI units as in [`Param`]).
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Physics {
+    /// `K_h` per experiment.
+    pub k: BTreeMap<u32, f64>,
+    /// `H_h` per experiment (0 without hysteretic damping).
+    pub h: BTreeMap<u32, f64>,
+    /// `B_h`.
+    pub b_h: f64,
+    /// `M_h`.
+    pub m_h: f64,
+    /// Coulomb friction torque.
+    pub coulomb_nm: f64,
+    /// Velocity over which the simulator's `tanh` smooths the friction's sign (rad/s).
+    pub coulomb_smoothing_rad_s: f64,
+    /// Joint viscous friction.
+    pub b_f: f64,
+    /// Delays: encoder, cuff F/T, SEA sensor, actuator (s).
+    pub delay_s: [f64; 4],
+    /// Cuff compliance `1/k_c` (0 = rigid) and damping `b_c`.
+    pub cuff_compliance: f64,
+    /// Cuff damping (Nm·s/rad), used when compliant.
+    pub cuff_b: f64,
+    /// SEA `(ω_n, ζ)`, `None` for an ideal actuator.
+    pub sea: Option<(f64, f64)>,
+    /// Exoskeleton arm inertia without load (kg·m²).
+    pub arm_inertia: f64,
+    /// Load lever arm (m).
+    pub lever_m: f64,
+    /// Plant gravity: `g (m_arm c_arm)` (Nm) and `g` (m/s²); 0 when off.
+    pub gravity_arm_nm: f64,
+    /// Gravitational acceleration used with the load (m/s²; 0 when gravity is off).
+    pub g_load: f64,
+    /// Inertia error (kg·m²).
+    pub inertia_error: f64,
+    /// Gravity error (Nm).
+    pub gravity_error: f64,
+    /// Sensor gains: encoder, cuff F/T, SEA torque.
+    pub gain: [f64; 3],
+    /// Encoder offset (rad).
+    pub theta_offset: f64,
+}
+
+impl Physics {
+    /// The coefficients of a plant model, with `K_h`, `H_h` for each
+    /// experiment from the model's defaults (the fit refines them).
+    pub fn from_plant(m: &PlantModel, experiments: &[u32]) -> Self {
+        let hd = m.human.hysteretic_damping;
+        let k0 = m.human.stiffness_nm_per_rad;
+        let h0 = if hd.enabled { hd.loss_factor * k0 } else { 0.0 };
+        let g = &m.gravity;
+        Self {
+            k: experiments.iter().map(|&e| (e, k0)).collect(),
+            h: experiments.iter().map(|&e| (e, h0)).collect(),
+            b_h: if m.human.viscous_damping.enabled {
+                m.human.viscous_damping.b_nm_s_per_rad
+            } else {
+                0.0
+            },
+            m_h: m.human.inertia_kg_m2,
+            coulomb_nm: if m.joint_friction.coulomb.enabled {
+                m.joint_friction.coulomb.torque_nm
+            } else {
+                0.0
+            },
+            coulomb_smoothing_rad_s: m.joint_friction.coulomb.smoothing_rad_s,
+            b_f: if m.joint_friction.viscous.enabled {
+                m.joint_friction.viscous.b_nm_s_per_rad
+            } else {
+                0.0
+            },
+            delay_s: [
+                m.sensors.encoder.terms.delay_s,
+                m.sensors.cuff_ft.terms.delay_s,
+                m.sensors.sea_deflection.terms.delay_s,
+                m.actuator.delay_s,
+            ],
+            cuff_compliance: if m.cuff.compliance.enabled {
+                1.0 / m.cuff.compliance.stiffness_nm_per_rad
+            } else {
+                0.0
+            },
+            cuff_b: m.cuff.compliance.damping_nm_s_per_rad,
+            sea: m.sea.dynamics.enabled.then_some({
+                (
+                    std::f64::consts::TAU * m.sea.dynamics.natural_frequency_hz,
+                    m.sea.dynamics.damping_ratio,
+                )
+            }),
+            arm_inertia: m.exo.arm_inertia_kg_m2,
+            lever_m: m.exo.load_lever_arm_m,
+            gravity_arm_nm: if g.enabled {
+                g.g_m_s2 * g.arm_mass_kg * g.arm_com_m
+            } else {
+                0.0
+            },
+            g_load: if g.enabled { g.g_m_s2 } else { 0.0 },
+            inertia_error: 0.0,
+            gravity_error: 0.0,
+            gain: [
+                m.sensors.encoder.terms.gain,
+                m.sensors.cuff_ft.terms.gain,
+                m.sensors.sea_deflection.terms.gain,
+            ],
+            theta_offset: m.sensors.encoder.terms.offset,
+        }
+    }
+
+    /// The value of a parameter.
+    pub fn get(&self, p: Param) -> f64 {
+        match p {
+            Param::K(e) => self.k.get(&e).copied().unwrap_or(0.0),
+            Param::H(e) => self.h.get(&e).copied().unwrap_or(0.0),
+            Param::Bh => self.b_h,
+            Param::Mh => self.m_h,
+            Param::Coulomb => self.coulomb_nm,
+            Param::Bf => self.b_f,
+            Param::DelayTheta => self.delay_s[0],
+            Param::DelayTauC => self.delay_s[1],
+            Param::DelayTauS => self.delay_s[2],
+            Param::DelayAct => self.delay_s[3],
+            Param::CuffCompliance => self.cuff_compliance,
+            Param::SeaWn => self.sea.map_or(0.0, |s| s.0),
+            Param::SeaZeta => self.sea.map_or(0.0, |s| s.1),
+            Param::InertiaError => self.inertia_error,
+            Param::GravityError => self.gravity_error,
+            Param::GainTauC => self.gain[1],
+            Param::GainTauS => self.gain[2],
+        }
+    }
+
+    /// Sets a parameter (clamped to its lower bound).
+    pub fn set(&mut self, p: Param, v: f64) {
+        let v = v.max(p.lower());
+        match p {
+            Param::K(e) => {
+                self.k.insert(e, v);
+            }
+            Param::H(e) => {
+                self.h.insert(e, v);
+            }
+            Param::Bh => self.b_h = v,
+            Param::Mh => self.m_h = v,
+            Param::Coulomb => self.coulomb_nm = v,
+            Param::Bf => self.b_f = v,
+            Param::DelayTheta => self.delay_s[0] = v,
+            Param::DelayTauC => self.delay_s[1] = v,
+            Param::DelayTauS => self.delay_s[2] = v,
+            Param::DelayAct => self.delay_s[3] = v,
+            Param::CuffCompliance => self.cuff_compliance = v,
+            Param::SeaWn => {
+                let z = self.sea.map_or(0.7, |s| s.1);
+                self.sea = Some((v, z));
+            }
+            Param::SeaZeta => {
+                let w = self.sea.map_or(62.8, |s| s.0);
+                self.sea = Some((w, v));
+            }
+            Param::InertiaError => self.inertia_error = v,
+            Param::GravityError => self.gravity_error = v,
+            Param::GainTauC => self.gain[1] = v,
+            Param::GainTauS => self.gain[2] = v,
+        }
+    }
+
+    /// The model's value of `o`'s transfer function in window `c`.
+    pub fn predict(&self, o: &Observation, c: &Condition) -> Complex64 {
+        self.predict_tf(o.tf, o.omega_rad_s, c, o.gravity_comp)
+    }
+
+    /// The model's value of `tf` at ω in window `c`, with the controller's
+    /// measured gravity compensation `gravity_comp` (for `S_h-e`).
+    pub fn predict_tf(&self, tf: Tf, w: f64, c: &Condition, gravity_comp: Complex64) -> Complex64 {
+        let j = Complex64::i();
+        let delay = |d: f64| Complex64::from_polar(1.0, -w * d);
+        let e_theta = self.gain[0] * delay(self.delay_s[0]);
+        match tf {
+            Tf::Sh => self.gain[1] * delay(self.delay_s[1]) * self.s_cuff(w, c) / e_theta,
+            Tf::She => {
+                let a_true = (c.theta_amp_rad / self.gain[0]).max(1e-9);
+                let theta0 = (c.theta0_rad - self.theta_offset) / self.gain[0];
+                let m_e =
+                    self.arm_inertia + c.load_kg * self.lever_m * self.lever_m + self.inertia_error;
+                let mgl = self.gravity_arm_nm
+                    + self.g_load * c.load_kg * self.lever_m
+                    + self.gravity_error;
+                let s_exo = -m_e * w * w
+                    + self.s_cuff(w, c)
+                    + mgl * theta0.cos()
+                    + j * w * self.b_f
+                    + j * coulomb_describing(
+                        self.coulomb_nm,
+                        self.coulomb_smoothing_rad_s,
+                        a_true,
+                        w,
+                    );
+                // An ideal actuator's torque is the held command: the sample
+                // reads the previous hold, half a control period behind
+                // the torque acting on average over the period.
+                let hold = if self.sea.is_some() {
+                    0.0
+                } else {
+                    0.5 * c.sample_period_s
+                };
+                self.gain[2] * delay(self.delay_s[2] + hold) * s_exo / e_theta - gravity_comp
+            }
+            Tf::Sea => {
+                let sea = match self.sea {
+                    Some((wn, z)) => {
+                        Complex64::new(wn * wn, 0.0)
+                            / Complex64::new(wn * wn - w * w, 2.0 * z * wn * w)
+                    }
+                    None => Complex64::new(1.0, 0.0),
+                };
+                // The command is held over a control period (zero-order
+                // hold, half a period of delay through the SEA's filter);
+                // an ideal actuator's sampled torque is the previous hold.
+                let hold = if self.sea.is_some() { 0.5 } else { 1.0 } * c.sample_period_s;
+                self.gain[2] * delay(self.delay_s[2] + self.delay_s[3] + hold) * sea
+            }
+        }
+    }
+
+    #[allow(clippy::needless_lifetimes)]
+    fn s_cuff(&self, w: f64, c: &Condition) -> Complex64 {
+        let k = self.k.get(&c.experiment).copied().unwrap_or(0.0);
+        let h = self.h.get(&c.experiment).copied().unwrap_or(0.0);
+        let z_h = Complex64::new(k - self.m_h * w * w, h + w * self.b_h);
+        if self.cuff_compliance > 0.0 {
+            let z_c = Complex64::new(1.0 / self.cuff_compliance, w * self.cuff_b);
+            z_c * z_h / (z_c + z_h)
+        } else {
+            z_h
+        }
+    }
+
+    /// Writes these coefficients into a plant model: terms with a
+    /// non-identity value are enabled with it. `K_h`, `H_h` per experiment
+    /// go to a subject file ([`Physics::subject_toml`]); the plant keeps
+    /// their means as its defaults.
+    pub fn write_plant(&self, base: &PlantModel) -> PlantModel {
+        let mut m = *base;
+        let mean = |v: &BTreeMap<u32, f64>| {
+            if v.is_empty() {
+                0.0
+            } else {
+                v.values().sum::<f64>() / v.len() as f64
+            }
+        };
+        let k = mean(&self.k);
+        if k > 0.0 {
+            m.human.stiffness_nm_per_rad = k;
+        }
+        let h = mean(&self.h);
+        let hd = &mut m.human.hysteretic_damping;
+        hd.enabled = h > 0.0;
+        if h > 0.0 && k > 0.0 {
+            hd.loss_factor = h / k;
+        }
+        m.human.viscous_damping.enabled = self.b_h > 0.0;
+        m.human.viscous_damping.b_nm_s_per_rad = self.b_h;
+        m.human.inertia_kg_m2 = self.m_h;
+        m.joint_friction.coulomb.enabled = self.coulomb_nm > 0.0;
+        m.joint_friction.coulomb.torque_nm = self.coulomb_nm;
+        m.joint_friction.viscous.enabled = self.b_f > 0.0;
+        m.joint_friction.viscous.b_nm_s_per_rad = self.b_f;
+        m.sensors.encoder.terms.delay_s = self.delay_s[0];
+        m.sensors.cuff_ft.terms.delay_s = self.delay_s[1];
+        m.sensors.sea_deflection.terms.delay_s = self.delay_s[2];
+        m.actuator.delay_s = self.delay_s[3];
+        m.cuff.compliance.enabled = self.cuff_compliance > 0.0;
+        if self.cuff_compliance > 0.0 {
+            m.cuff.compliance.stiffness_nm_per_rad = 1.0 / self.cuff_compliance;
+        }
+        match self.sea {
+            Some((wn, z)) => {
+                m.sea.dynamics.enabled = true;
+                m.sea.dynamics.natural_frequency_hz = wn / std::f64::consts::TAU;
+                m.sea.dynamics.damping_ratio = z;
+            }
+            None => m.sea.dynamics.enabled = false,
+        }
+        // Errors of the rig's inertia and gravity are the plant's own values.
+        m.exo.arm_inertia_kg_m2 = (self.arm_inertia + self.inertia_error).max(1e-6);
+        if self.gravity_error != 0.0 {
+            m.gravity.enabled = true;
+            let g = if m.gravity.g_m_s2 > 0.0 {
+                m.gravity.g_m_s2
+            } else {
+                9.80665
+            };
+            let com = if m.gravity.arm_com_m > 0.0 {
+                m.gravity.arm_com_m
+            } else {
+                0.2
+            };
+            m.gravity.arm_mass_kg =
+                ((self.gravity_arm_nm + self.gravity_error) / (g * com)).max(0.0);
+        }
+        m.sensors.cuff_ft.terms.gain = self.gain[1];
+        m.sensors.sea_deflection.terms.gain = self.gain[2];
+        m
+    }
+
+    /// A subject file (the format of `configs/subjects/*.toml`) with the
+    /// fitted `K_h`, `H_h` of every experiment.
+    pub fn subject_toml(&self, name: &str) -> String {
+        let mut s = format!(
+            "# Fitted by exo diagnose: K_h and H_h per experiment (Nm/rad).\n\nname = \"{name}\"\ninertia_kg_m2 = {}\n",
+            self.m_h
+        );
+        for (e, k) in &self.k {
+            let h = self.h.get(e).copied().unwrap_or(0.0);
+            s.push_str(&format!(
+                "\n[[experiment]]\nnumber = {e}\nstiffness_nm_per_rad = {k}\nhysteretic_damping_nm_per_rad = {h}\n"
+            ));
+        }
+        s
+    }
+}
+
+/// Describing function of the joint's smoothed Coulomb friction
+/// `F tanh(θ̇/v_s)` for `θ = A sin ωt`: the in-quadrature (velocity) part
+/// of the fundamental over the angle amplitude (Nm/rad). It tends to
+/// `4F/(πA)` for `v_s ≪ Aω`; computed by quadrature (64 points), exact
+/// for the simulator's smoothing.
+pub fn coulomb_describing(f_nm: f64, smoothing_rad_s: f64, a_rad: f64, w: f64) -> f64 {
+    if f_nm == 0.0 {
+        return 0.0;
+    }
+    let v = a_rad * w;
+    if smoothing_rad_s <= 0.0 {
+        return 4.0 * f_nm / (std::f64::consts::PI * a_rad);
+    }
+    const N: usize = 64;
+    let mut b1 = 0.0;
+    for i in 0..N {
+        let phi = std::f64::consts::TAU * (i as f64 + 0.5) / N as f64;
+        b1 += (v * phi.cos() / smoothing_rad_s).tanh() * phi.cos();
+    }
+    b1 *= 2.0 / N as f64;
+    f_nm * b1 / a_rad
+}

@@ -1,0 +1,246 @@
+//! The catalogue of physics terms the diagnosis can add: each a named term
+//! of the plant TOML, with its parameters, the transfer functions it shows
+//! in (its signature) and where the simulator implements it.
+
+use serde::Serialize;
+
+use crate::data::Tf;
+use crate::model::{Param, Physics};
+
+/// A physics term of the plant model.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Term {
+    /// Hysteretic damping of the human joint (complex stiffness `K(1 + jc)`), per experiment.
+    HystereticDamping,
+    /// Viscous damping of the human joint.
+    HumanViscousDamping,
+    /// Coulomb friction in the exoskeleton joint.
+    CoulombFriction,
+    /// Viscous friction in the exoskeleton joint.
+    JointViscousFriction,
+    /// A delay of the encoder (angle).
+    EncoderDelay,
+    /// A delay of the cuff force/torque sensor.
+    CuffSensorDelay,
+    /// A delay of the SEA torque sensor.
+    SeaSensorDelay,
+    /// A delay of the motor command.
+    ActuatorDelay,
+    /// Series compliance of the cuff.
+    CuffCompliance,
+    /// The SEA's finite torque bandwidth.
+    SeaBandwidth,
+    /// An error of the exoskeleton's (arm and load) inertia.
+    InertiaError,
+    /// A gravity (or gravity-compensation) error.
+    GravityError,
+    /// A gain error of the cuff force/torque sensor.
+    CuffSensorGain,
+    /// A gain error of the SEA torque sensor.
+    SeaSensorGain,
+}
+
+impl Term {
+    /// Every term, in catalogue order.
+    pub const ALL: [Term; 14] = [
+        Term::HystereticDamping,
+        Term::HumanViscousDamping,
+        Term::CoulombFriction,
+        Term::JointViscousFriction,
+        Term::EncoderDelay,
+        Term::CuffSensorDelay,
+        Term::SeaSensorDelay,
+        Term::ActuatorDelay,
+        Term::CuffCompliance,
+        Term::SeaBandwidth,
+        Term::InertiaError,
+        Term::GravityError,
+        Term::CuffSensorGain,
+        Term::SeaSensorGain,
+    ];
+
+    /// Plain words.
+    pub fn words(self) -> &'static str {
+        match self {
+            Term::HystereticDamping => "hysteretic damping (complex stiffness)",
+            Term::HumanViscousDamping => "viscous damping of the human joint",
+            Term::CoulombFriction => "Coulomb friction in the exoskeleton joint",
+            Term::JointViscousFriction => "viscous friction in the exoskeleton joint",
+            Term::EncoderDelay => "a delay of the encoder",
+            Term::CuffSensorDelay => "a delay of the cuff force/torque sensor",
+            Term::SeaSensorDelay => "a delay of the SEA torque sensor",
+            Term::ActuatorDelay => "a delay of the motor command",
+            Term::CuffCompliance => "series compliance of the cuff",
+            Term::SeaBandwidth => "the SEA's torque bandwidth",
+            Term::InertiaError => "an exoskeleton inertia error",
+            Term::GravityError => "a gravity-compensation error",
+            Term::CuffSensorGain => "a gain error of the cuff force/torque sensor",
+            Term::SeaSensorGain => "a gain error of the SEA torque sensor",
+        }
+    }
+
+    /// The plant TOML key that holds it.
+    pub fn toml_key(self) -> &'static str {
+        match self {
+            Term::HystereticDamping => "human.hysteretic_damping",
+            Term::HumanViscousDamping => "human.viscous_damping",
+            Term::CoulombFriction => "joint_friction.coulomb",
+            Term::JointViscousFriction => "joint_friction.viscous",
+            Term::EncoderDelay => "sensors.encoder.delay_s",
+            Term::CuffSensorDelay => "sensors.cuff_ft.delay_s",
+            Term::SeaSensorDelay => "sensors.sea_deflection.delay_s",
+            Term::ActuatorDelay => "actuator.delay_s",
+            Term::CuffCompliance => "cuff.compliance",
+            Term::SeaBandwidth => "sea.dynamics",
+            Term::InertiaError => "exo.arm_inertia_kg_m2",
+            Term::GravityError => "gravity.arm_mass_kg",
+            Term::CuffSensorGain => "sensors.cuff_ft.gain",
+            Term::SeaSensorGain => "sensors.sea_deflection.gain",
+        }
+    }
+
+    /// Its parameters for the experiments present.
+    pub fn params(self, experiments: &[u32]) -> Vec<Param> {
+        match self {
+            Term::HystereticDamping => experiments.iter().map(|&e| Param::H(e)).collect(),
+            Term::HumanViscousDamping => vec![Param::Bh],
+            Term::CoulombFriction => vec![Param::Coulomb],
+            Term::JointViscousFriction => vec![Param::Bf],
+            Term::EncoderDelay => vec![Param::DelayTheta],
+            Term::CuffSensorDelay => vec![Param::DelayTauC],
+            Term::SeaSensorDelay => vec![Param::DelayTauS],
+            Term::ActuatorDelay => vec![Param::DelayAct],
+            Term::CuffCompliance => vec![Param::CuffCompliance],
+            Term::SeaBandwidth => vec![Param::SeaWn, Param::SeaZeta],
+            Term::InertiaError => vec![Param::InertiaError],
+            Term::GravityError => vec![Param::GravityError],
+            Term::CuffSensorGain => vec![Param::GainTauC],
+            Term::SeaSensorGain => vec![Param::GainTauS],
+        }
+    }
+
+    /// The transfer functions it changes (its signature).
+    pub fn shows_in(self) -> &'static [Tf] {
+        match self {
+            Term::HystereticDamping
+            | Term::HumanViscousDamping
+            | Term::CuffCompliance
+            | Term::EncoderDelay => &[Tf::Sh, Tf::She],
+            Term::CuffSensorDelay | Term::CuffSensorGain => &[Tf::Sh],
+            Term::CoulombFriction
+            | Term::JointViscousFriction
+            | Term::InertiaError
+            | Term::GravityError => &[Tf::She],
+            Term::SeaSensorDelay | Term::SeaSensorGain => &[Tf::She, Tf::Sea],
+            Term::ActuatorDelay | Term::SeaBandwidth => &[Tf::Sea],
+        }
+    }
+
+    /// Whether the nominal model already has it (then its parameters are
+    /// refitted with the nominal ones rather than tried as missing physics).
+    /// Errors and gains are never part of the nominal refit: a rig's
+    /// calibration is what the nominal model asserts.
+    pub fn in_nominal(self, p: &Physics) -> bool {
+        match self {
+            Term::HystereticDamping => p.h.values().any(|&h| h > 0.0),
+            Term::HumanViscousDamping => p.b_h > 0.0,
+            Term::CoulombFriction => p.coulomb_nm > 0.0,
+            Term::JointViscousFriction => p.b_f > 0.0,
+            Term::EncoderDelay => p.delay_s[0] > 0.0,
+            Term::CuffSensorDelay => p.delay_s[1] > 0.0,
+            Term::SeaSensorDelay => p.delay_s[2] > 0.0,
+            Term::ActuatorDelay => p.delay_s[3] > 0.0,
+            Term::CuffCompliance => p.cuff_compliance > 0.0,
+            Term::SeaBandwidth => p.sea.is_some(),
+            Term::InertiaError
+            | Term::GravityError
+            | Term::CuffSensorGain
+            | Term::SeaSensorGain => false,
+        }
+    }
+
+    /// Starting values when the term is added to `p`.
+    pub fn start(self, p: &mut Physics) {
+        match self {
+            Term::HystereticDamping => {
+                let ks: Vec<(u32, f64)> = p.k.iter().map(|(e, k)| (*e, *k)).collect();
+                for (e, k) in ks {
+                    p.h.insert(e, 0.1 * k);
+                }
+            }
+            Term::HumanViscousDamping => p.b_h = 0.1,
+            Term::CoulombFriction => p.coulomb_nm = 0.05,
+            Term::JointViscousFriction => p.b_f = 0.05,
+            Term::EncoderDelay => p.delay_s[0] = 5e-4,
+            Term::CuffSensorDelay => p.delay_s[1] = 5e-4,
+            Term::SeaSensorDelay => p.delay_s[2] = 5e-4,
+            Term::ActuatorDelay => p.delay_s[3] = 5e-4,
+            Term::CuffCompliance => p.cuff_compliance = 2e-4,
+            Term::SeaBandwidth => p.sea = Some((std::f64::consts::TAU * 10.0, 0.7)),
+            Term::InertiaError => p.inertia_error = 0.0,
+            Term::GravityError => p.gravity_error = 0.0,
+            Term::CuffSensorGain => p.gain[1] = 1.0,
+            Term::SeaSensorGain => p.gain[2] = 1.0,
+        }
+    }
+
+    /// Its value in plain words with the fitted parameters, e.g.
+    /// "H = 12.3 ± 0.8 Nm/rad (c = 0.43)".
+    pub fn describe(self, p: &Physics, se: &dyn Fn(Param) -> Option<f64>) -> String {
+        let pm = |q: Param, scale: f64, digits: usize| {
+            let v = p.get(q) * scale;
+            match se(q) {
+                Some(s) if s.is_finite() => format!("{v:.digits$} ± {:.digits$}", s * scale),
+                _ => format!("{v:.digits$}"),
+            }
+        };
+        match self {
+            Term::HystereticDamping => {
+                let n = p.h.len().max(1) as f64;
+                let h_mean = p.h.values().sum::<f64>() / n;
+                let c: f64 =
+                    p.h.iter()
+                        .map(|(e, h)| h / p.k.get(e).copied().unwrap_or(f64::INFINITY))
+                        .sum::<f64>()
+                        / n;
+                let per: Vec<String> =
+                    p.h.keys()
+                        .map(|&e| format!("exp {e}: {}", pm(Param::H(e), 1.0, 2)))
+                        .collect();
+                format!(
+                    "H = {h_mean:.2} Nm/rad on average (c = {c:.2}); {}",
+                    per.join(", ")
+                )
+            }
+            Term::HumanViscousDamping => format!("B_h = {} Nm·s/rad", pm(Param::Bh, 1.0, 3)),
+            Term::CoulombFriction => format!("F_c = {} Nm", pm(Param::Coulomb, 1.0, 3)),
+            Term::JointViscousFriction => format!("b_f = {} Nm·s/rad", pm(Param::Bf, 1.0, 3)),
+            Term::EncoderDelay => format!("d = {} ms", pm(Param::DelayTheta, 1e3, 2)),
+            Term::CuffSensorDelay => format!("d = {} ms", pm(Param::DelayTauC, 1e3, 2)),
+            Term::SeaSensorDelay => format!("d = {} ms", pm(Param::DelayTauS, 1e3, 2)),
+            Term::ActuatorDelay => format!("d = {} ms", pm(Param::DelayAct, 1e3, 2)),
+            Term::CuffCompliance => {
+                let c = p.cuff_compliance;
+                let k = if c > 0.0 { 1.0 / c } else { f64::INFINITY };
+                let rel = se(Param::CuffCompliance).map(|s| s / c.max(1e-300));
+                match rel {
+                    Some(r) if r.is_finite() => {
+                        format!("k_c = {k:.0} ± {:.0} Nm/rad", k * r)
+                    }
+                    _ => format!("k_c = {k:.0} Nm/rad"),
+                }
+            }
+            Term::SeaBandwidth => format!(
+                "ω_n = {} rad/s ({:.2} Hz), ζ = {}",
+                pm(Param::SeaWn, 1.0, 1),
+                p.get(Param::SeaWn) / std::f64::consts::TAU,
+                pm(Param::SeaZeta, 1.0, 2)
+            ),
+            Term::InertiaError => format!("ΔM_e = {} kg·m²", pm(Param::InertiaError, 1.0, 4)),
+            Term::GravityError => format!("Δ(mgl) = {} Nm", pm(Param::GravityError, 1.0, 3)),
+            Term::CuffSensorGain => format!("gain = {}", pm(Param::GainTauC, 1.0, 3)),
+            Term::SeaSensorGain => format!("gain = {}", pm(Param::GainTauS, 1.0, 3)),
+        }
+    }
+}
