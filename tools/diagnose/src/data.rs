@@ -33,11 +33,22 @@ pub enum Tf {
     /// `τ_s/τ_d` (dimensionless).
     #[serde(rename = "tau_s/tau_d")]
     Sea,
+    /// The exoskeleton's static balance `mean(τ_s − τ_gravity − τ_c)` over
+    /// whole cycles (Nm, real; ω = 0): what the controller's gravity
+    /// compensation left to the plant's gravity, plus the torque sensors'
+    /// offsets. It needs no knowledge of the human's posture.
+    #[serde(rename = "static_balance")]
+    Balance,
 }
 
 impl Tf {
     /// Every transfer function, in report order.
-    pub const ALL: [Tf; 3] = [Tf::Sh, Tf::She, Tf::Sea];
+    pub const ALL: [Tf; 4] = [Tf::Sh, Tf::She, Tf::Sea, Tf::Balance];
+
+    /// Whether it is a frequency response (has a Bode plot).
+    pub fn is_dynamic(self) -> bool {
+        self != Tf::Balance
+    }
 
     /// The name used in tables and JSON.
     pub fn name(self) -> &'static str {
@@ -45,6 +56,7 @@ impl Tf {
             Tf::Sh => "S_h",
             Tf::She => "S_h-e",
             Tf::Sea => "tau_s/tau_d",
+            Tf::Balance => "static_balance",
         }
     }
 
@@ -54,6 +66,7 @@ impl Tf {
             Tf::Sh => "τ_c/θ_e",
             Tf::She => "(τ_s − τ_gravity)/θ_e",
             Tf::Sea => "τ_s/τ_d",
+            Tf::Balance => "mean(τ_s − τ_gravity − τ_c)",
         }
     }
 }
@@ -77,6 +90,8 @@ pub struct Condition {
     pub theta0_rad: f64,
     /// Amplitude of θ_e at the excitation frequency (rad; the RMS·√2 of the band for broadband).
     pub theta_amp_rad: f64,
+    /// Mean of `sin θ_e` over the window's whole cycles (the plant's gravity is `m g l sin θ`).
+    pub sin_theta_mean: f64,
     /// Control period of the recording (s).
     pub sample_period_s: f64,
 }
@@ -96,6 +111,8 @@ pub struct Observation {
     pub window: usize,
     /// The controller's gravity compensation `τ_gravity/θ_e` at ω (Nm/rad), measured.
     pub gravity_comp: Complex64,
+    /// For [`Tf::Balance`]: the window's mean `τ_gravity` and mean `τ_c` (Nm).
+    pub statics: [f64; 2],
 }
 
 /// The samples of one analysis window, kept for the time-domain comparison.
@@ -328,6 +345,7 @@ pub fn reduce(recordings: &[Recording], s: &Reduction) -> Dataset {
                 amplitude_nm: sp.amplitude,
                 theta0_rad: theta0,
                 theta_amp_rad: 0.0,
+                sin_theta_mean: theta0.sin(),
                 sample_period_s: dt,
             };
             let before = d.observations.len();
@@ -445,6 +463,7 @@ fn single_sine(
                         sigma: sigma_of(&p.cov),
                         window,
                         gravity_comp,
+                        statics: [0.0; 2],
                     })
                 }
                 Ok(p) => d.notes.push(format!(
@@ -462,7 +481,48 @@ fn single_sine(
         if a_ts.amplitude.norm() > 0.0 {
             push(Tf::Sea, &a_td, &a_ts);
         }
+        balance(what, sig, tau_g, window, cond, d);
     }
+}
+
+/// The static balance over the window's whole cycles, with the standard
+/// error of its mean from the residual after the fundamental (each cycle
+/// counted as one independent sample: conservative).
+fn balance(
+    what: &str,
+    sig: &WindowSignals,
+    tau_g: &[f64],
+    window: usize,
+    cond: &mut Condition,
+    d: &mut Dataset,
+) {
+    let w = sig.omega_rad_s;
+    let Some(n) = exo_impedance::frf::whole_cycles(&sig.t_s, w) else {
+        d.notes
+            .push(format!("{what}: static balance: less than one cycle"));
+        return;
+    };
+    let y: Vec<f64> = (0..n)
+        .map(|i| sig.tau_s_net_nm[i] - sig.tau_c_nm[i])
+        .collect();
+    let nf = n as f64;
+    let mean = y.iter().sum::<f64>() / nf;
+    let g_mean = tau_g[..n].iter().sum::<f64>() / nf;
+    let c_mean = sig.tau_c_nm[..n].iter().sum::<f64>() / nf;
+    cond.sin_theta_mean = sig.theta_rad[..n].iter().map(|t| t.sin()).sum::<f64>() / nf;
+    let Ok(a) = exo_impedance::frf::sine_amplitude(&sig.t_s[..n], &y, w, true) else {
+        return;
+    };
+    let se = (a.residual_var.max(0.0) / a.cycles.max(1) as f64).sqrt();
+    d.observations.push(Observation {
+        tf: Tf::Balance,
+        omega_rad_s: 0.0,
+        value: Complex64::new(mean, 0.0),
+        sigma: [se, se],
+        window,
+        gravity_comp: Complex64::new(0.0, 0.0),
+        statics: [g_mean, c_mean],
+    });
 }
 
 #[allow(clippy::too_many_arguments)]
@@ -537,6 +597,7 @@ fn broadband(
             sigma: sd(&b),
             window,
             gravity_comp: zero,
+            statics: [0.0; 2],
         });
         if let Some((h_s, h_sea, h_g)) = &extra {
             let gravity_comp = average_bins(h_g, g).map_or(zero, |b| b.h);
@@ -550,6 +611,7 @@ fn broadband(
                             sigma: sd(&bb),
                             window,
                             gravity_comp,
+                            statics: [0.0; 2],
                         });
                     }
                 }

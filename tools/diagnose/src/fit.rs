@@ -19,7 +19,7 @@ pub struct Fitted {
     pub std_errors: Vec<f64>,
     /// Weighted residual sum of squares (χ² with the measured noise).
     pub rss: f64,
-    /// Real residuals (two per observation used).
+    /// Real residuals (two per frequency-response point, one per static balance).
     pub n: usize,
     /// Whether the iteration converged.
     pub converged: bool,
@@ -56,7 +56,19 @@ pub const MODEL_ACCURACY: f64 = 0.005;
 /// ([`MODEL_ACCURACY`]), so a nearly noiseless point cannot demand more
 /// than the model can give.
 pub fn sigma_floor(o: &Observation, k: usize) -> f64 {
-    o.sigma[k].hypot(MODEL_ACCURACY * o.value.norm()).max(1e-12)
+    o.sigma[k]
+        .hypot(MODEL_ACCURACY * o.value.norm())
+        .max(absolute_floor(o.tf))
+}
+
+/// The smallest standard deviation of a component: 1 mNm for the static
+/// balance (whose value may be near zero), otherwise negligible.
+fn absolute_floor(tf: crate::data::Tf) -> f64 {
+    if tf == crate::data::Tf::Balance {
+        1e-3
+    } else {
+        1e-12
+    }
 }
 
 /// The forward model's accuracy for one transfer function (fraction of
@@ -81,9 +93,13 @@ pub fn lack_of_fit_chi2(d: &Dataset, phys: &Physics) -> (f64, usize) {
     for o in &d.observations {
         let acc = model_accuracy(phys, o.tf) * o.value.norm();
         let r = phys.predict(o, &d.conditions[o.window]) - o.value;
-        chi += (r.re / o.sigma[0].hypot(acc).max(1e-12)).powi(2)
-            + (r.im / o.sigma[1].hypot(acc).max(1e-12)).powi(2);
-        n += 2;
+        let fl = absolute_floor(o.tf);
+        chi += (r.re / o.sigma[0].hypot(acc).max(fl)).powi(2);
+        n += 1;
+        if o.tf.is_dynamic() {
+            chi += (r.im / o.sigma[1].hypot(acc).max(fl)).powi(2);
+            n += 1;
+        }
     }
     (chi, n)
 }
@@ -103,7 +119,10 @@ pub fn residuals(
         let c = &d.conditions[o.window];
         let r = phys.predict(o, c) - o.value;
         out.push(r.re / sigma_floor(o, 0));
-        out.push(r.im / sigma_floor(o, 1));
+        // The static balance is real: one residual.
+        if o.tf.is_dynamic() {
+            out.push(r.im / sigma_floor(o, 1));
+        }
     }
 }
 

@@ -81,6 +81,8 @@ pub enum Param {
     GainTauC,
     /// SEA torque sensor gain.
     GainTauS,
+    /// Offset between the SEA and cuff torque sensors (Nm).
+    TorqueOffset,
 }
 
 impl Param {
@@ -104,6 +106,7 @@ impl Param {
             Param::GravityError => "gravity torque error Δ(mgl) (Nm)".into(),
             Param::GainTauC => "cuff F/T gain".into(),
             Param::GainTauS => "SEA torque sensor gain".into(),
+            Param::TorqueOffset => "torque sensor offset τ_s − τ_c (Nm)".into(),
         }
     }
 
@@ -123,6 +126,7 @@ impl Param {
             Param::InertiaError => 0.03,
             Param::GravityError => 0.5,
             Param::GainTauC | Param::GainTauS => 0.05,
+            Param::TorqueOffset => 0.1,
         }
     }
 
@@ -133,7 +137,7 @@ impl Param {
             Param::SeaWn => 1.0,
             Param::SeaZeta => 0.01,
             Param::GainTauC | Param::GainTauS => 0.05,
-            Param::InertiaError | Param::GravityError => f64::NEG_INFINITY,
+            Param::InertiaError | Param::GravityError | Param::TorqueOffset => f64::NEG_INFINITY,
             _ => 0.0,
         }
     }
@@ -180,6 +184,8 @@ pub struct Physics {
     pub gain: [f64; 3],
     /// Encoder offset (rad).
     pub theta_offset: f64,
+    /// Offset of the SEA torque sensor less that of the cuff sensor (Nm).
+    pub torque_offset_nm: f64,
 }
 
 impl Physics {
@@ -244,6 +250,8 @@ impl Physics {
                 m.sensors.sea_deflection.terms.gain,
             ],
             theta_offset: m.sensors.encoder.terms.offset,
+            torque_offset_nm: m.sensors.sea_deflection.terms.offset
+                - m.sensors.cuff_ft.terms.offset,
         }
     }
 
@@ -267,6 +275,7 @@ impl Physics {
             Param::GravityError => self.gravity_error,
             Param::GainTauC => self.gain[1],
             Param::GainTauS => self.gain[2],
+            Param::TorqueOffset => self.torque_offset_nm,
         }
     }
 
@@ -301,12 +310,32 @@ impl Physics {
             Param::GravityError => self.gravity_error = v,
             Param::GainTauC => self.gain[1] = v,
             Param::GainTauS => self.gain[2] = v,
+            Param::TorqueOffset => self.torque_offset_nm = v,
         }
     }
 
     /// The model's value of `o`'s transfer function in window `c`.
     pub fn predict(&self, o: &Observation, c: &Condition) -> Complex64 {
+        if o.tf == Tf::Balance {
+            return Complex64::new(self.predict_balance(c, o.statics), 0.0);
+        }
         self.predict_tf(o.tf, o.omega_rad_s, c, o.gravity_comp)
+    }
+
+    /// The static balance `mean(τ_s − τ_gravity − τ_c)` (Nm) of window `c`
+    /// given its mean `[τ_gravity, τ_c]`: at rest on average the SEA holds
+    /// the cuff torque and the plant's gravity, so with sensor gains `g`
+    /// and the sensors' offset difference `Δ`:
+    /// `(g_s − g_c) τ_c + g_s m g l ⟨sin θ⟩ + Δ − τ_gravity`.
+    /// (Encoder gain 1 and offset 0 assumed here.)
+    pub fn predict_balance(&self, c: &Condition, statics: [f64; 2]) -> f64 {
+        let [tau_g, tau_c_meas] = statics;
+        let tau_c = tau_c_meas / self.gain[1];
+        let mgl = self.gravity_arm_nm + self.g_load * c.load_kg * self.lever_m + self.gravity_error;
+        (self.gain[2] - self.gain[1]) * tau_c
+            + self.gain[2] * mgl * c.sin_theta_mean
+            + self.torque_offset_nm
+            - tau_g
     }
 
     /// The model's value of `tf` at ω in window `c`, with the controller's
@@ -345,6 +374,7 @@ impl Physics {
                 };
                 self.gain[2] * delay(self.delay_s[2] + hold) * s_exo / e_theta - gravity_comp
             }
+            Tf::Balance => Complex64::new(0.0, 0.0),
             Tf::Sea => {
                 let sea = match self.sea {
                     Some((wn, z)) => {
@@ -439,6 +469,8 @@ impl Physics {
                 ((self.gravity_arm_nm + self.gravity_error) / (g * com)).max(0.0);
         }
         m.sensors.cuff_ft.terms.gain = self.gain[1];
+        m.sensors.sea_deflection.terms.offset =
+            m.sensors.cuff_ft.terms.offset + self.torque_offset_nm;
         m.sensors.sea_deflection.terms.gain = self.gain[2];
         m
     }

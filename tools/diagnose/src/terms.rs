@@ -39,11 +39,13 @@ pub enum Term {
     CuffSensorGain,
     /// A gain error of the SEA torque sensor.
     SeaSensorGain,
+    /// An offset between the SEA and the cuff torque sensors.
+    TorqueSensorOffset,
 }
 
 impl Term {
     /// Every term, in catalogue order.
-    pub const ALL: [Term; 14] = [
+    pub const ALL: [Term; 15] = [
         Term::HystereticDamping,
         Term::HumanViscousDamping,
         Term::CoulombFriction,
@@ -58,6 +60,7 @@ impl Term {
         Term::GravityError,
         Term::CuffSensorGain,
         Term::SeaSensorGain,
+        Term::TorqueSensorOffset,
     ];
 
     /// Plain words.
@@ -77,6 +80,7 @@ impl Term {
             Term::GravityError => "a gravity-compensation error",
             Term::CuffSensorGain => "a gain error of the cuff force/torque sensor",
             Term::SeaSensorGain => "a gain error of the SEA torque sensor",
+            Term::TorqueSensorOffset => "an offset between the SEA and cuff torque sensors",
         }
     }
 
@@ -97,6 +101,7 @@ impl Term {
             Term::GravityError => "gravity.arm_mass_kg",
             Term::CuffSensorGain => "sensors.cuff_ft.gain",
             Term::SeaSensorGain => "sensors.sea_deflection.gain",
+            Term::TorqueSensorOffset => "sensors.sea_deflection.offset",
         }
     }
 
@@ -117,6 +122,7 @@ impl Term {
             Term::GravityError => vec![Param::GravityError],
             Term::CuffSensorGain => vec![Param::GainTauC],
             Term::SeaSensorGain => vec![Param::GainTauS],
+            Term::TorqueSensorOffset => vec![Param::TorqueOffset],
         }
     }
 
@@ -127,12 +133,13 @@ impl Term {
             | Term::HumanViscousDamping
             | Term::CuffCompliance
             | Term::EncoderDelay => &[Tf::Sh, Tf::She],
-            Term::CuffSensorDelay | Term::CuffSensorGain => &[Tf::Sh],
-            Term::CoulombFriction
-            | Term::JointViscousFriction
-            | Term::InertiaError
-            | Term::GravityError => &[Tf::She],
-            Term::SeaSensorDelay | Term::SeaSensorGain => &[Tf::She, Tf::Sea],
+            Term::CuffSensorDelay => &[Tf::Sh],
+            Term::CuffSensorGain => &[Tf::Sh, Tf::Balance],
+            Term::CoulombFriction | Term::JointViscousFriction | Term::InertiaError => &[Tf::She],
+            Term::GravityError => &[Tf::She, Tf::Balance],
+            Term::TorqueSensorOffset => &[Tf::Balance],
+            Term::SeaSensorDelay => &[Tf::She, Tf::Sea],
+            Term::SeaSensorGain => &[Tf::She, Tf::Sea, Tf::Balance],
             Term::ActuatorDelay | Term::SeaBandwidth => &[Tf::Sea],
         }
     }
@@ -157,6 +164,7 @@ impl Term {
             | Term::GravityError
             | Term::CuffSensorGain
             | Term::SeaSensorGain => false,
+            Term::TorqueSensorOffset => p.torque_offset_nm != 0.0,
         }
     }
 
@@ -182,6 +190,7 @@ impl Term {
             Term::GravityError => p.gravity_error = 0.0,
             Term::CuffSensorGain => p.gain[1] = 1.0,
             Term::SeaSensorGain => p.gain[2] = 1.0,
+            Term::TorqueSensorOffset => p.torque_offset_nm = 0.0,
         }
     }
 
@@ -241,6 +250,9 @@ impl Term {
             Term::GravityError => format!("Δ(mgl) = {} Nm", pm(Param::GravityError, 1.0, 3)),
             Term::CuffSensorGain => format!("gain = {}", pm(Param::GainTauC, 1.0, 3)),
             Term::SeaSensorGain => format!("gain = {}", pm(Param::GainTauS, 1.0, 3)),
+            Term::TorqueSensorOffset => {
+                format!("Δ = {} Nm", pm(Param::TorqueOffset, 1.0, 3))
+            }
         }
     }
 }

@@ -12,6 +12,9 @@
 mod analysis;
 mod args;
 mod design_cmd;
+mod diagnose_bench;
+mod diagnose_cmd;
+mod diagnose_report;
 mod fit_cmd;
 mod import_cmd;
 mod plot;
@@ -57,6 +60,12 @@ enum Command {
     /// experiments in the real processes, recorded, fitted and compared with
     /// the simulated impedance.
     Reproduce(reproduce_cmd::ReproduceArgs),
+    /// Where a plant model and recordings differ: locate the mismatch, name
+    /// the physics the model left out, model it and show the fit improve.
+    Diagnose(diagnose_cmd::DiagnoseArgs),
+    /// The mismatch finder proven on concealed effects: each case simulated
+    /// through the real processes, diagnosed, and a confusion table printed.
+    DiagnoseBench(diagnose_bench::BenchArgs),
     /// Turn another rig's CSV (time, angle, torque, optional actuator torque)
     /// into a contract recording.
     Import(import_cmd::ImportArgs),
@@ -72,6 +81,8 @@ fn main() {
         Command::Report(args) => report_cmd::run(&args),
         Command::Import(args) => import_cmd::run(&args),
         Command::Reproduce(args) => reproduce_cmd::run(&args),
+        Command::Diagnose(args) => diagnose_cmd::run(&args),
+        Command::DiagnoseBench(args) => diagnose_bench::run(&args),
     };
     if let Err(err) = result {
         eprintln!("exo: error: {err:#}");

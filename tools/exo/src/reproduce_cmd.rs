@@ -168,11 +168,18 @@ fn absolute(p: &Path) -> Result<PathBuf> {
     std::path::absolute(p).with_context(|| format!("resolving {}", p.display()))
 }
 
-/// Simulates one subject through the base configuration; returns the recording.
-fn simulate(base: &RunConfig, subject: &Path, name: &str, dir: &Path) -> Result<PathBuf> {
+/// Simulates one subject through the base configuration (with another
+/// plant model if `plant` is given); returns the recording.
+pub fn simulate(
+    base: &RunConfig,
+    subject: &Path,
+    plant: Option<&Path>,
+    name: &str,
+    dir: &Path,
+) -> Result<PathBuf> {
     let mut cfg = base.clone();
     cfg.subject_file = absolute(subject)?;
-    cfg.plant_model = absolute(&cfg.plant_model)?;
+    cfg.plant_model = absolute(plant.unwrap_or(&cfg.plant_model))?;
     cfg.protocol.experiments_file = absolute(&cfg.protocol.experiments_file)?;
     cfg.run.output_dir = absolute(dir)?;
     cfg.run.instance = format!("{}-{name}-{}", cfg.run.instance, std::process::id());
@@ -492,7 +499,7 @@ pub fn run(a: &ReproduceArgs) -> Result<()> {
                 i + 1,
                 a.subjects.len()
             );
-            simulate(&base, &file, &name, &dir)?
+            simulate(&base, &file, None, &name, &dir)?
         };
         recordings.push(recording);
         subjects.push(subject);
