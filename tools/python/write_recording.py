@@ -11,9 +11,15 @@ default; --compression and --chunk-size change them).
 
 Usage: write_recording.py OUT.mcap [--subject NAME] [--k 40] [--c 0.4]
            [--periods 6] [--compression zstd|lz4|none] [--chunk-size BYTES]
+           [--tau-c-delay-ms D] [--noise SIGMA_NM] [--seed N]
+
+--tau-c-delay-ms delays the cuff torque by D ms (a sensor delay for `exo
+diagnose` to find); --noise adds Gaussian noise (Nm) to both torques from a
+seeded generator.
 """
 import argparse
 import math
+import random
 
 from mcap.writer import CompressionType
 from mcap_ros2.writer import Writer
@@ -59,7 +65,12 @@ def main():
     ap.add_argument("--periods", type=int, default=6)
     ap.add_argument("--compression", choices=["zstd", "lz4", "none"], default="zstd")
     ap.add_argument("--chunk-size", type=int, default=1024 * 1024)
+    ap.add_argument("--tau-c-delay-ms", type=float, default=0.0)
+    ap.add_argument("--noise", type=float, default=0.0)
+    ap.add_argument("--seed", type=int, default=1)
     a = ap.parse_args()
+    rng = random.Random(a.seed)
+    d = a.tau_c_delay_ms * 1e-3
     rate = 1000
     compression = {
         "zstd": CompressionType.ZSTD,
@@ -100,8 +111,12 @@ m = {a.m}
                     on = phase in (2, 3)
                     th = 0.8 + (amp * math.sin(omega * t) if on else 0.0)
                     x, y = (amp * math.sin(omega * t), amp * math.cos(omega * t)) if on else (0.0, 0.0)
-                    tau_c = s_re * x + s_im * y
+                    xd, yd = (amp * math.sin(omega * (t - d)), amp * math.cos(omega * (t - d))) if on else (0.0, 0.0)
+                    tau_c = s_re * xd + s_im * yd
                     tau_s = se_re * x + s_im * y
+                    if a.noise > 0.0:
+                        tau_c += rng.gauss(0.0, a.noise)
+                        tau_s += rng.gauss(0.0, a.noise)
                     w.write_message("exo/sensor", s_sensor, {
                         "seq": seq, "stamp_ns": t_ns, "theta_e": th, "omega_e": 0.0,
                         "tau_c": tau_c, "tau_s": tau_s, "status": 0,

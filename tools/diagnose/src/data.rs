@@ -156,6 +156,20 @@ impl Dataset {
         e
     }
 
+    /// The experiments with a human impedance observation (`S_h` or
+    /// `S_h-e`): only their `K_h`, `H_h` can be fitted.
+    pub fn impedance_experiments(&self) -> Vec<u32> {
+        let mut e: Vec<u32> = self
+            .observations
+            .iter()
+            .filter(|o| matches!(o.tf, Tf::Sh | Tf::She))
+            .map(|o| self.conditions[o.window].experiment)
+            .collect();
+        e.sort_unstable();
+        e.dedup();
+        e
+    }
+
     /// Observations of one transfer function.
     pub fn of(&self, tf: Tf) -> impl Iterator<Item = &Observation> {
         self.observations.iter().filter(move |o| o.tf == tf)
@@ -179,9 +193,11 @@ impl Default for Reduction {
     fn default() -> Self {
         Self {
             min_coherence: 0.5,
-            welch_segment: 2048,
-            broadband_points: 12,
-            broadband_band_rad_s: [1.0, 60.0],
+            // As the identifier's defaults, so `exo fit` and `exo diagnose`
+            // see the same broadband points.
+            welch_segment: 4096,
+            broadband_points: 20,
+            broadband_band_rad_s: [1.0, 100.0],
         }
     }
 }
@@ -238,7 +254,34 @@ fn spans(r: &Recording) -> Vec<Span> {
 /// cannot be used is named in [`Dataset::notes`].
 pub fn reduce(recordings: &[Recording], s: &Reduction) -> Dataset {
     let mut d = Dataset::default();
+    // Recordings of different subjects keep their experiments apart: the
+    // i-th subject's experiment n becomes 100·i + n (i from 1).
+    let mut subjects: Vec<String> = Vec::new();
     for r in recordings {
+        let s = r.meta("subject").unwrap_or(&r.source).to_string();
+        if !subjects.contains(&s) {
+            subjects.push(s);
+        }
+    }
+    if subjects.len() > 1 {
+        d.notes.push(format!(
+            "{} subjects: experiment n of subject i is numbered 100·i + n ({})",
+            subjects.len(),
+            subjects
+                .iter()
+                .enumerate()
+                .map(|(i, s)| format!("{}: {s}", i + 1))
+                .collect::<Vec<_>>()
+                .join(", ")
+        ));
+    }
+    for r in recordings {
+        let subject = r.meta("subject").unwrap_or(&r.source);
+        let key_offset = if subjects.len() > 1 {
+            100 * (1 + subjects.iter().position(|s| s == subject).unwrap_or(0) as u32)
+        } else {
+            0
+        };
         d.sources.push(r.source.clone());
         for w in &r.warnings {
             d.notes.push(w.clone());
@@ -337,7 +380,7 @@ pub fn reduce(recordings: &[Recording], s: &Reduction) -> Dataset {
             let theta0 = sig.theta_rad.iter().sum::<f64>() / n as f64;
             let cond_index = d.conditions.len();
             let mut cond = Condition {
-                experiment: sp.experiment,
+                experiment: sp.experiment + key_offset,
                 period: sp.period,
                 load_kg: sp.load_kg,
                 bias_nm: sp.bias_nm,

@@ -596,7 +596,7 @@ pub fn diagnose(
             d.notes.join("; ")
         }));
     }
-    let experiments = d.experiments();
+    let experiments = d.impedance_experiments();
     let mut p0 = Physics::from_plant(nominal, &experiments);
     if let Some(subj) = &s.nominal_subject {
         for (&e, &(k, h)) in subj {

@@ -109,7 +109,7 @@ fn score_rows(w: &mut String, label: &str, s: &Score) {
     for t in &s.per_tf {
         let _ = writeln!(
             w,
-            "  {label:<22} {:<12} {:>6} {:>14.1} {:>9.4} {:>14.1}",
+            "  {label:<22} {:<15} {:>6} {:>14.1} {:>9.4} {:>14.1}",
             t.tf.name(),
             t.points,
             t.rss,
@@ -229,7 +229,7 @@ pub fn text(r: &Diagnosis) -> String {
     let _ = writeln!(w, "\n4. Fit before and after");
     let _ = writeln!(
         w,
-        "  {:<22} {:<12} {:>6} {:>14} {:>9} {:>14}",
+        "  {:<22} {:<15} {:>6} {:>14} {:>9} {:>14}",
         "model", "transfer fn", "points", "RSS (χ²)", "R²", "held-out RSS"
     );
     score_rows(&mut w, "nominal as given", &r.nominal);

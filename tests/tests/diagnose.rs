@@ -1,0 +1,245 @@
+//! `exo diagnose` and `exo diagnose-bench` end to end: concealed effects
+//! in recordings of the real processes, in recordings an independent Python
+//! script wrote, and the real ankle recording; bad input refused by name.
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+use exo_tests::*;
+use serde_json::Value;
+
+fn scratch(tag: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("exo-it-diag-{tag}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+fn workspace_root() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("..")
+}
+
+fn python() -> String {
+    let out = Command::new("bash")
+        .arg(workspace_root().join("tools/python/ensure_venv.sh"))
+        .output()
+        .expect("ensure_venv.sh");
+    assert!(
+        out.status.success(),
+        "Python with mcap and mcap-ros2-support is needed: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    String::from_utf8(out.stdout).unwrap().trim().to_string()
+}
+
+/// The default plant with some of its text replaced, written to `dir`.
+fn plant_variant(dir: &Path, name: &str, edits: &[(&str, &str)]) -> PathBuf {
+    let mut text = std::fs::read_to_string(configs_dir().join("plants/default.toml")).unwrap();
+    for (from, to) in edits {
+        assert!(text.contains(from), "{from:?} not in the default plant");
+        text = text.replace(from, to);
+    }
+    let p = dir.join(name);
+    std::fs::write(&p, text).unwrap();
+    p
+}
+
+fn diagnose_json(model: &Path, recordings: &[&Path], extra: &[&str]) -> Value {
+    let mut args = vec!["diagnose", "--json", "--model", model.to_str().unwrap()];
+    args.extend(extra);
+    for r in recordings {
+        args.push(r.to_str().unwrap());
+    }
+    let out = exo(&args);
+    assert!(
+        out.status.success(),
+        "exo diagnose failed:\n{}",
+        stderr(&out)
+    );
+    serde_json::from_str(&stdout(&out)).unwrap()
+}
+
+fn found(v: &Value) -> Vec<String> {
+    v["found"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|f| f["term"].as_str().unwrap().to_string())
+        .collect()
+}
+
+#[test]
+fn the_bench_names_a_concealed_gravity_error_and_nothing_in_a_null_case() {
+    let dir = scratch("bench");
+    let out = exo(&[
+        "diagnose-bench",
+        "--cases",
+        "gravity,null-params",
+        "-o",
+        dir.to_str().unwrap(),
+        "--json",
+    ]);
+    assert!(
+        out.status.success(),
+        "exo diagnose-bench failed:\n{}\n{}",
+        stdout(&out),
+        stderr(&out)
+    );
+    let v: Value = serde_json::from_str(&stdout(&out)).unwrap();
+    let cases = v.as_array().unwrap();
+    assert_eq!(cases.len(), 2);
+    assert_eq!(cases[0]["case"], "gravity");
+    assert_eq!(
+        cases[0]["named"],
+        serde_json::json!(["gravity_error"]),
+        "{v:#}"
+    );
+    assert!(cases[0]["heldout_change"].as_f64().unwrap() < -0.5, "{v:#}");
+    assert_eq!(cases[1]["case"], "null-params");
+    assert_eq!(cases[1]["named"], serde_json::json!([]), "{v:#}");
+    // The report and the updated model were written, and the updated model
+    // is a plant model the simulator accepts, with the gravity it found.
+    let d = dir.join("gravity-diagnosis");
+    let html = std::fs::read_to_string(d.join("report.html")).unwrap();
+    assert!(
+        html.matches("<svg").count() >= 3,
+        "Bode overlays and a time overlay"
+    );
+    let updated = exo_plant_sim::PlantModel::from_file(&d.join("updated-plant.toml")).unwrap();
+    let nominal = exo_plant_sim::PlantModel::from_file(&dir.join("gravity-nominal.toml")).unwrap();
+    let truth = exo_plant_sim::PlantModel::from_file(&dir.join("gravity-truth.toml")).unwrap();
+    let found_mass = updated.gravity.arm_mass_kg;
+    let (n, t) = (nominal.gravity.arm_mass_kg, truth.gravity.arm_mass_kg);
+    assert!(
+        (found_mass - t).abs() < 0.25 * (t - n),
+        "arm mass: nominal {n}, true {t}, found {found_mass}"
+    );
+}
+
+#[test]
+fn a_python_written_recording_with_a_sensor_delay_and_complex_stiffness_is_diagnosed() {
+    let dir = scratch("py");
+    let py = python();
+    let write = |name: &str, extra: &[&str]| {
+        let rec = dir.join(name);
+        let out = Command::new(&py)
+            .arg(workspace_root().join("tools/python/write_recording.py"))
+            .arg(&rec)
+            .args(["--k", "40", "--c", "0.4", "--noise", "0.02"])
+            .args(extra)
+            .output()
+            .unwrap();
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        rec
+    };
+    let clean = write("clean.mcap", &[]);
+    let delayed = write("delayed.mcap", &["--tau-c-delay-ms", "5"]);
+    // The script's world has no gravity (τ_gravity = 0, τ_s balances τ_c).
+    let grav_off = [("[gravity]\nenabled = true", "[gravity]\nenabled = false")];
+    let hysteretic = plant_variant(&dir, "hysteretic.toml", &grav_off);
+    let viscous = plant_variant(
+        &dir,
+        "viscous.toml",
+        &[
+            grav_off[0],
+            (
+                "[human.hysteretic_damping]     # complex stiffness K(1 + jc)\nenabled = true",
+                "[human.hysteretic_damping]\nenabled = false",
+            ),
+            (
+                "[human.viscous_damping]\nenabled = false",
+                "[human.viscous_damping]\nenabled = true",
+            ),
+        ],
+    );
+    // The right model: nothing is missing.
+    let v = diagnose_json(&hysteretic, &[&clean], &[]);
+    assert!(found(&v).is_empty(), "{:#}", v["verdict"]);
+    // A 5 ms delay of the cuff torque.
+    let v = diagnose_json(&hysteretic, &[&delayed], &[]);
+    assert_eq!(found(&v), ["cuff_sensor_delay"], "{:#}", v["verdict"]);
+    let d = v["final_physics"]["delay_s"][1].as_f64().unwrap();
+    assert!((d - 0.005).abs() < 0.0005, "delay {d}");
+    // The paper's finding on someone else's data: a viscous model misses
+    // hysteretic damping, H = cK = 16 Nm/rad.
+    let v = diagnose_json(&viscous, &[&clean], &[]);
+    assert_eq!(found(&v), ["hysteretic_damping"], "{:#}", v["verdict"]);
+    let h = v["final_physics"]["h"]["1"].as_f64().unwrap();
+    assert!((h - 16.0).abs() < 0.5, "H = {h}");
+}
+
+#[test]
+fn the_real_ankle_recording_is_diagnosed_against_an_m1_model() {
+    let dir = scratch("ankle");
+    let csv =
+        workspace_root().join("../shared/data/ankle-stiffness-reklab/ankle_position_torque.csv");
+    let rec = dir.join("ankle.mcap");
+    let out = exo(&[
+        "import",
+        csv.to_str().unwrap(),
+        "--flip-torque",
+        "--subject",
+        "ankle",
+        "-o",
+        rec.to_str().unwrap(),
+    ]);
+    assert!(out.status.success(), "{}", stderr(&out));
+    let model = configs_dir().join("plants/ankle-m1.toml");
+    let v = diagnose_json(&model, &[&rec], &[]);
+    // Only τ/θ exists in a position-perturbation record.
+    assert_eq!(v["supported"], serde_json::json!(["S_h"]));
+    assert!(v["location"]["nominal_cells"].as_array().unwrap().len() >= 2);
+    // Whatever it finds, it says so in words, with the fit before and after.
+    assert!(!v["verdict"].as_array().unwrap().is_empty());
+    let r2 = v["final_score"]["per_tf"][0]["r2"].as_f64().unwrap();
+    let r2_refit = v["refit"]["per_tf"][0]["r2"].as_f64().unwrap();
+    assert!(r2 >= r2_refit - 1e-9 && r2 <= 1.0, "R² {r2_refit} → {r2}");
+}
+
+#[test]
+fn bad_input_is_refused_by_name() {
+    let dir = scratch("bad");
+    let rec = dir.join("nothing.mcap");
+    let out = exo(&[
+        "diagnose",
+        "--model",
+        dir.join("missing.toml").to_str().unwrap(),
+        rec.to_str().unwrap(),
+    ]);
+    assert!(!out.status.success());
+    assert!(stderr(&out).contains("missing.toml"), "{}", stderr(&out));
+    let out = exo(&[
+        "diagnose",
+        "--model",
+        configs_dir().join("plants/default.toml").to_str().unwrap(),
+        rec.to_str().unwrap(),
+    ]);
+    assert!(!out.status.success());
+    assert!(stderr(&out).contains("nothing.mcap"), "{}", stderr(&out));
+    let bad_plant = plant_variant(&dir, "bad.toml", &[("delay_s = 0.0", "delay_s = nan")]);
+    let out = exo(&[
+        "diagnose",
+        "--model",
+        bad_plant.to_str().unwrap(),
+        rec.to_str().unwrap(),
+    ]);
+    assert!(!out.status.success());
+    assert!(stderr(&out).contains("bad.toml"), "{}", stderr(&out));
+    let out = exo(&[
+        "diagnose",
+        "--level",
+        "2",
+        "--model",
+        configs_dir().join("plants/default.toml").to_str().unwrap(),
+        rec.to_str().unwrap(),
+    ]);
+    assert!(!out.status.success());
+    assert!(stderr(&out).contains("--level"), "{}", stderr(&out));
+    let out = exo(&["diagnose-bench", "--cases", "nonsense"]);
+    assert!(!out.status.success());
+    assert!(stderr(&out).contains("nonsense"), "{}", stderr(&out));
+}
