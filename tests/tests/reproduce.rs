@@ -2,7 +2,8 @@
 //! processes: one subject, all nine experiments of Table I, ten periods
 //! each. The test reads the subject file itself and checks the recovered M2
 //! parameters against it, then checks that the comparison does fail when
-//! the inputs it compares with are not the ones simulated.
+//! the inputs it compares with are not the ones simulated, and that `exo
+//! diagnose` finds the hysteretic damping a viscous model leaves out.
 
 use exo_config::Subject;
 use exo_tests::*;
@@ -89,6 +90,37 @@ fn subject_b_is_recovered_and_a_wrong_input_is_caught() {
         "{text}\n{}",
         stderr(&out)
     );
+
+    // Issue 5 item 5: the mismatch finder, starting from the paper's viscous
+    // M1 elbow, names hysteretic damping in the same recording and recovers
+    // the simulated H of every experiment.
+    let out = exo(&[
+        "diagnose",
+        "--json",
+        "--model",
+        configs_dir().join("plants/elbow-m1.toml").to_str().unwrap(),
+        dir.join("B.mcap").to_str().unwrap(),
+    ]);
+    assert!(out.status.success(), "{}", stderr(&out));
+    let d: Value = serde_json::from_str(&stdout(&out)).unwrap();
+    let named: Vec<&str> = d["found"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|f| f["term"].as_str().unwrap())
+        .collect();
+    assert_eq!(named, ["hysteretic_damping"], "{:#}", d["verdict"]);
+    for e in &b.experiment {
+        let h = d["final_physics"]["h"][e.number.to_string()]
+            .as_f64()
+            .unwrap();
+        assert!(
+            (h / e.hysteretic_damping_nm_per_rad - 1.0).abs() < 0.05,
+            "experiment {}: diagnosed H {h} against {}",
+            e.number,
+            e.hysteretic_damping_nm_per_rad
+        );
+    }
     let _ = std::fs::remove_dir_all(&dir);
     let _ = std::fs::remove_dir_all(&other);
 }
