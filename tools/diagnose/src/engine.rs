@@ -377,10 +377,14 @@ fn cells(d: &Dataset, phys: &Physics, level: f64) -> Vec<Cell> {
                 mag += ratio.norm() - 1.0;
                 ph += ratio.arg().to_degrees();
                 let r = pred - o.value;
-                chi += (r.re / sigma_floor(o, 0)).powi(2) + (r.im / sigma_floor(o, 1)).powi(2);
+                chi += (r.re / sigma_floor(o, 0)).powi(2);
+                if o.tf.is_dynamic() {
+                    chi += (r.im / sigma_floor(o, 1)).powi(2);
+                }
             }
             let n = obs.len() as f64;
-            let p_value = chi2_sf(chi, 2.0 * n);
+            let per = if tf.is_dynamic() { 2.0 } else { 1.0 };
+            let p_value = chi2_sf(chi, per * n);
             Cell {
                 tf,
                 experiment,
@@ -561,14 +565,16 @@ fn summary_of(cells: &[Cell], what: &str) -> Vec<String> {
             let mag = cs.iter().map(|c| c.magnitude_pct).sum::<f64>() / n;
             let ph = cs.iter().map(|c| c.phase_deg).sum::<f64>() / n;
             let chi = cs.iter().map(|c| c.chi2_per_point).sum::<f64>() / n;
+            let p = cs.iter().map(|c| c.p_value).fold(1.0, f64::min);
             (
                 chi,
                 format!(
-                    "{what}: {} ({}) in the {band} band, experiments {}: magnitude {mag:+.1} %, phase {ph:+.2}°, {:.1}× the noise variance",
+                    "{what}: {} ({}) in the {band} band, experiments {}: magnitude {mag:+.1} %, phase {ph:+.2}°, {:.1}× the noise variance (p = {p:.1e}, {} cells)",
                     tf.name(),
                     tf.signals(),
                     exps.join(", "),
-                    chi / 2.0
+                    chi / if tf.is_dynamic() { 2.0 } else { 1.0 },
+                    cs.len()
                 ),
             )
         })

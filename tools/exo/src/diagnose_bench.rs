@@ -44,6 +44,10 @@ pub struct BenchArgs {
     /// Diagnose the recordings already in the output directory.
     #[arg(long)]
     pub diagnose_only: bool,
+    /// Added to every case's noise seed (the plant's `integration.seed`), to
+    /// repeat the bench on other noise.
+    #[arg(long, default_value_t = 0)]
+    pub seed_offset: u64,
 }
 
 /// One benchmark case.
@@ -183,6 +187,9 @@ pub struct Outcome {
     pub rss: [f64; 2],
     /// Held-out RSS change with the named terms (relative).
     pub heldout_change: f64,
+    /// The naive look: the worst R² over the frequency responses of the
+    /// nominal model with its own parameters refitted.
+    pub r2_refit: f64,
     /// Named exactly the expected terms.
     pub correct: bool,
 }
@@ -222,6 +229,7 @@ pub fn run(a: &BenchArgs) -> Result<()> {
     for (i, c) in chosen.iter().enumerate() {
         let mut truth = default_plant;
         (c.truth)(&mut truth, &subject);
+        truth.integration.seed = truth.integration.seed.wrapping_add(a.seed_offset);
         let mut nominal = default_plant;
         (c.nominal)(&mut nominal, &subject);
         let truth_file = dir.join(format!("{}-truth.toml", c.name));
@@ -269,6 +277,13 @@ pub fn run(a: &BenchArgs) -> Result<()> {
             verdict: r.verdict.clone(),
             rss: [r.refit.rss, r.final_score.rss],
             heldout_change: r.final_score.heldout_rss / r.refit.heldout_rss - 1.0,
+            r2_refit: r
+                .refit
+                .per_tf
+                .iter()
+                .filter(|t| t.tf.is_dynamic())
+                .map(|t| t.r2)
+                .fold(f64::INFINITY, f64::min),
         });
     }
     if a.json {
@@ -303,16 +318,17 @@ pub fn table(o: &[Outcome]) -> String {
     let mut s = String::new();
     let _ = writeln!(
         s,
-        "\n{:<13} {:<36} {:<36} {:>12} {:>12} {:>10}  ok",
-        "case", "true effect", "named", "RSS refit", "RSS final", "held-out"
+        "\n{:<13} {:<34} {:<34} {:>9} {:>12} {:>10} {:>9}  ok",
+        "case", "true effect", "named", "R² refit", "RSS refit", "RSS final", "held-out"
     );
     for x in o {
         let _ = writeln!(
             s,
-            "{:<13} {:<36} {:<36} {:>12.1} {:>12.1} {:>9.0}%  {}",
+            "{:<13} {:<34} {:<34} {:>9.4} {:>12.1} {:>10.1} {:>8.0}%  {}",
             x.case,
             names(&x.expected),
             names(&x.named),
+            x.r2_refit,
             x.rss[0],
             x.rss[1],
             100.0 * x.heldout_change,
@@ -333,11 +349,84 @@ pub fn table(o: &[Outcome]) -> String {
         s,
         "\nconcealed effects named exactly: {named_ok} of {concealed}; null cases with nothing named: {clean} of {nulls}"
     );
+    s.push_str(&confusion(o));
     for x in o {
         let _ = writeln!(s, "\n{} — {}", x.case, x.what);
         for v in &x.verdict {
             let _ = writeln!(s, "  {v}");
         }
+    }
+    s
+}
+
+/// The confusion matrix: rows are the true effects (and `none` for the null
+/// cases), columns the terms named (and `none`). A true effect counts on
+/// the diagonal when it was named, under `none` when it was missed; a term
+/// named that the case does not have counts in the row of the case's
+/// effect (or `none`), so every off-diagonal number is an error.
+pub fn confusion(o: &[Outcome]) -> String {
+    let label = |t: Option<Term>| t.map_or("none".to_string(), |t| format!("{t:?}"));
+    let mut rows: Vec<Option<Term>> = Vec::new();
+    let mut cols: Vec<Option<Term>> = Vec::new();
+    let mut cells: std::collections::BTreeMap<(String, String), usize> = Default::default();
+    let mut add = |r: Option<Term>,
+                   c: Option<Term>,
+                   rows: &mut Vec<Option<Term>>,
+                   cols: &mut Vec<Option<Term>>| {
+        if !rows.contains(&r) {
+            rows.push(r);
+        }
+        if !cols.contains(&c) {
+            cols.push(c);
+        }
+        *cells.entry((label(r), label(c))).or_default() += 1;
+    };
+    for x in o {
+        if x.expected.is_empty() {
+            if x.named.is_empty() {
+                add(None, None, &mut rows, &mut cols);
+            }
+            for n in &x.named {
+                add(None, Some(*n), &mut rows, &mut cols);
+            }
+            continue;
+        }
+        for t in &x.expected {
+            let hit = x.named.contains(t);
+            add(
+                Some(*t),
+                if hit { Some(*t) } else { None },
+                &mut rows,
+                &mut cols,
+            );
+        }
+        for n in x.named.iter().filter(|n| !x.expected.contains(n)) {
+            add(Some(x.expected[0]), Some(*n), &mut rows, &mut cols);
+        }
+    }
+    let mut s = String::from(
+        "\nconfusion (rows: true effect, columns: named; a case with two effects counts in both rows)\n",
+    );
+    let _ = write!(s, "{:<20}", "true \\ named");
+    for c in &cols {
+        let _ = write!(s, " {:>18}", label(*c));
+    }
+    s.push('\n');
+    for r in &rows {
+        let _ = write!(s, "{:<20}", label(*r));
+        for c in &cols {
+            let n = cells.get(&(label(*r), label(*c))).copied().unwrap_or(0);
+            let _ = write!(
+                s,
+                " {:>18}",
+                if n == 0 {
+                    ".".to_string()
+                } else {
+                    n.to_string()
+                }
+            );
+        }
+        s.push('\n');
     }
     s
 }
