@@ -28,7 +28,7 @@ use serde::Serialize;
 use statrs::distribution::{ChiSquared, ContinuousCDF};
 
 use crate::data::{Condition, Dataset, Observation, Tf};
-use crate::fit::{fit, lack_of_fit_chi2, rss, sigma_floor, Fitted};
+use crate::fit::{fit, lack_of_fit_chi2, lack_of_fit_p, rss, sigma_floor, Fitted};
 use crate::model::{Param, Physics};
 use crate::terms::Term;
 
@@ -93,7 +93,7 @@ pub struct Score {
     pub heldout_rss: f64,
     /// χ² per degree of freedom against the measured noise and the model's accuracy.
     pub chi2_per_dof: f64,
-    /// P-value of the lack-of-fit χ² test.
+    /// P-value of the lack-of-fit χ² test (per transfer function, Bonferroni over them).
     pub lack_of_fit_p: f64,
     /// Free parameters.
     pub parameters: usize,
@@ -335,7 +335,7 @@ fn score(d: &Dataset, start: &Physics, fitted: &Physics, free: &[Param]) -> Scor
         rss: total,
         heldout_rss: per_tf.iter().map(|t| t.heldout_rss).sum(),
         chi2_per_dof: chi / dof.max(1.0),
-        lack_of_fit_p: chi2_sf(chi, dof),
+        lack_of_fit_p: lack_of_fit_p(d, fitted, free.len()),
         parameters: free.len(),
         per_tf,
     }
@@ -747,8 +747,7 @@ pub fn diagnose(
         found.push((cand.term, cand));
         current = f1;
         current_start = cstart;
-        let (chi, n) = lack_of_fit_chi2(d, &current.physics);
-        lack_p = chi2_sf(chi, n as f64 - current.p() as f64);
+        lack_p = lack_of_fit_p(d, &current.physics, current.p());
     }
     let final_score = score(d, &current_start, &current.physics, &current.free);
 

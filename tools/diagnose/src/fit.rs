@@ -88,9 +88,17 @@ pub fn model_accuracy(phys: &Physics, tf: crate::data::Tf) -> f64 {
 /// this model's own accuracy ([`model_accuracy`]). Used to decide whether
 /// anything is left to explain.
 pub fn lack_of_fit_chi2(d: &Dataset, phys: &Physics) -> (f64, usize) {
+    lack_of_fit_chi2_of(d, phys, None)
+}
+
+fn lack_of_fit_chi2_of(d: &Dataset, phys: &Physics, only: Option<crate::data::Tf>) -> (f64, usize) {
     let mut chi = 0.0;
     let mut n = 0;
-    for o in &d.observations {
+    for o in d
+        .observations
+        .iter()
+        .filter(|o| only.is_none_or(|t| o.tf == t))
+    {
         let acc = model_accuracy(phys, o.tf) * o.value.norm();
         let r = phys.predict(o, &d.conditions[o.window]) - o.value;
         let fl = absolute_floor(o.tf);
@@ -102,6 +110,28 @@ pub fn lack_of_fit_chi2(d: &Dataset, phys: &Physics) -> (f64, usize) {
         }
     }
     (chi, n)
+}
+
+/// The lack-of-fit p-value of `phys` with `p` free parameters: the
+/// χ² test ([`lack_of_fit_chi2`]) of each transfer function on its own
+/// (its share of the parameters by its share of the residuals), the
+/// smallest p-value Bonferroni-corrected over the transfer functions, so a
+/// mismatch confined to one of them is not diluted by the others.
+pub fn lack_of_fit_p(d: &Dataset, phys: &Physics, p: usize) -> f64 {
+    let (_, n_all) = lack_of_fit_chi2(d, phys);
+    let mut worst: f64 = 1.0;
+    let tfs = d.supported.len().max(1) as f64;
+    for &tf in &d.supported {
+        let (chi, n) = lack_of_fit_chi2_of(d, phys, Some(tf));
+        let dof = n as f64 - p as f64 * n as f64 / n_all.max(1) as f64;
+        if dof > 0.0 {
+            if let Ok(dist) = statrs::distribution::ChiSquared::new(dof) {
+                use statrs::distribution::ContinuousCDF;
+                worst = worst.min((tfs * dist.sf(chi)).min(1.0));
+            }
+        }
+    }
+    worst
 }
 
 /// Whitened residuals of `phys` on the observations selected by `use_obs`.

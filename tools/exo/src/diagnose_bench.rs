@@ -48,6 +48,10 @@ pub struct BenchArgs {
     /// repeat the bench on other noise.
     #[arg(long, default_value_t = 0)]
     pub seed_offset: u64,
+    /// Scales every effect's size (Coulomb torque, delay, cuff compliance,
+    /// gravity error), to find the smallest the diagnosis still names.
+    #[arg(long, default_value_t = 1.0)]
+    pub scale: f64,
 }
 
 /// One benchmark case.
@@ -59,12 +63,20 @@ pub struct Case {
     /// Terms the truth has and the nominal model lacks.
     pub expected: Vec<Term>,
     /// Makes the true plant from the default one.
-    pub truth: fn(&mut PlantModel, &Subject),
+    /// Makes the true plant from the default one, the effect's size times
+    /// the scale (`--scale`; hysteresis, the subject's own, is not scaled).
+    pub truth: fn(&mut PlantModel, &Subject, f64),
     /// Makes the nominal model from the default one.
     pub nominal: fn(&mut PlantModel, &Subject),
 }
 
 fn same(_: &mut PlantModel, _: &Subject) {}
+
+fn same_truth(_: &mut PlantModel, _: &Subject, _: f64) {}
+
+fn viscous_truth(m: &mut PlantModel, s: &Subject, _: f64) {
+    viscous_tuned(m, s)
+}
 
 /// A viscous human whose damping matches the subject's hysteretic damping
 /// at the coupled system's resonance: the Bode magnitude peak agrees, only
@@ -97,16 +109,16 @@ pub fn cases() -> Vec<Case> {
             name: "hysteresis",
             what: "hysteretic damping behind a viscous nominal model tuned to the resonance peak",
             expected: vec![Term::HystereticDamping],
-            truth: same,
+            truth: same_truth,
             nominal: viscous_tuned,
         },
         Case {
             name: "coulomb",
             what: "0.3 Nm Coulomb friction in the exoskeleton joint (like hysteresis at one amplitude)",
             expected: vec![Term::CoulombFriction],
-            truth: |m, _| {
+            truth: |m, _, scale| {
                 m.joint_friction.coulomb.enabled = true;
-                m.joint_friction.coulomb.torque_nm = 0.3;
+                m.joint_friction.coulomb.torque_nm = 0.3 * scale;
             },
             nominal: same,
         },
@@ -114,16 +126,16 @@ pub fn cases() -> Vec<Case> {
             name: "delay",
             what: "a 5 ms encoder delay (a phase error of 0.6° at 2 rad/s)",
             expected: vec![Term::EncoderDelay],
-            truth: |m, _| m.sensors.encoder.terms.delay_s = 0.005,
+            truth: |m, _, scale| m.sensors.encoder.terms.delay_s = 0.005 * scale,
             nominal: same,
         },
         Case {
             name: "cuff",
             what: "cuff compliance of 600 Nm/rad (visible near the top of the band)",
             expected: vec![Term::CuffCompliance],
-            truth: |m, _| {
+            truth: |m, _, scale| {
                 m.cuff.compliance.enabled = true;
-                m.cuff.compliance.stiffness_nm_per_rad = 600.0;
+                m.cuff.compliance.stiffness_nm_per_rad = 600.0 / scale;
                 m.cuff.compliance.damping_nm_s_per_rad = 2.0;
             },
             nominal: same,
@@ -132,28 +144,28 @@ pub fn cases() -> Vec<Case> {
             name: "gravity",
             what: "the arm 30 % heavier than model and controller assume (a gravity-compensation error, shifting with posture under bias)",
             expected: vec![Term::GravityError],
-            truth: |m, _| m.gravity.arm_mass_kg *= 1.3,
+            truth: |m, _, scale| m.gravity.arm_mass_kg *= 1.0 + 0.3 * scale,
             nominal: same,
         },
         Case {
             name: "two",
             what: "hysteretic damping behind a tuned viscous model, and a 5 ms encoder delay",
             expected: vec![Term::HystereticDamping, Term::EncoderDelay],
-            truth: |m, _| m.sensors.encoder.terms.delay_s = 0.005,
+            truth: |m, _, scale| m.sensors.encoder.terms.delay_s = 0.005 * scale,
             nominal: viscous_tuned,
         },
         Case {
             name: "null-seed",
             what: "no missing physics: the nominal model, another noise seed",
             expected: vec![],
-            truth: |m, _| m.integration.seed = 7,
+            truth: |m, _, _| m.integration.seed = 7,
             nominal: same,
         },
         Case {
             name: "null-params",
             what: "no missing physics: forearm inertia +15 %, SEA bandwidth 8 Hz, another seed",
             expected: vec![],
-            truth: |m, _| {
+            truth: |m, _, _| {
                 m.human.inertia_kg_m2 *= 1.15;
                 m.sea.dynamics.natural_frequency_hz = 8.0;
                 m.integration.seed = 11;
@@ -164,7 +176,7 @@ pub fn cases() -> Vec<Case> {
             name: "null-viscous",
             what: "no missing physics: a viscous human with a viscous nominal model",
             expected: vec![],
-            truth: viscous_tuned,
+            truth: viscous_truth,
             nominal: viscous_tuned,
         },
     ]
@@ -220,6 +232,9 @@ pub fn run(a: &BenchArgs) -> Result<()> {
         .iter()
         .filter(|c| a.cases.is_empty() || a.cases.iter().any(|n| n == c.name))
         .collect();
+    if !(a.scale.is_finite() && a.scale > 0.0) {
+        bail!("--scale = {}: must be a positive number", a.scale);
+    }
     let base = RunConfig::from_file(&a.config)?;
     let subject = Subject::from_file(&base.subject_file)?;
     let default_plant = PlantModel::from_file(&base.plant_model)?;
@@ -228,7 +243,7 @@ pub fn run(a: &BenchArgs) -> Result<()> {
     let mut outcomes = Vec::new();
     for (i, c) in chosen.iter().enumerate() {
         let mut truth = default_plant;
-        (c.truth)(&mut truth, &subject);
+        (c.truth)(&mut truth, &subject, a.scale);
         truth.integration.seed = truth.integration.seed.wrapping_add(a.seed_offset);
         let mut nominal = default_plant;
         (c.nominal)(&mut nominal, &subject);
