@@ -198,6 +198,11 @@ fn the_real_ankle_recording_is_diagnosed_against_an_m1_model() {
     let r2 = v["final_score"]["per_tf"][0]["r2"].as_f64().unwrap();
     let r2_refit = v["refit"]["per_tf"][0]["r2"].as_f64().unwrap();
     assert!(r2 >= r2_refit - 1e-9 && r2 <= 1.0, "R² {r2_refit} → {r2}");
+    // Anything it adds must also predict the held-out bands better.
+    let ho = v["final_score"]["heldout_rss"].as_f64().unwrap();
+    let ho_refit = v["refit"]["heldout_rss"].as_f64().unwrap();
+    assert!(ho <= ho_refit * (1.0 + 1e-9), "held-out {ho_refit} → {ho}");
+    eprintln!("ankle: {:#}", v["verdict"]);
 }
 
 #[test]

@@ -102,6 +102,35 @@ pub struct ViscousTerm {
     pub b_nm_s_per_rad: f64,
 }
 
+/// `[human.stretch_reflex]`: the stretch-reflex pathway, a torque opposing
+/// the joint's delayed, low-passed velocity (the reflex arm of the
+/// parallel-cascade model of joint stiffness, Kearney et al. 1997):
+/// `τ_r = −G · LP(θ̇_h(t − δ))`, `LP(s) = 1/(1 + s/ω_c)²`; in the frequency
+/// domain it adds `G jω e^{−jωδ}/(1 + jω/ω_c)²` to the joint impedance.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct StretchReflex {
+    /// On or off.
+    pub enabled: bool,
+    /// Velocity gain `G` (Nm·s/rad).
+    pub gain_nm_s_per_rad: f64,
+    /// Pathway delay `δ` (s), e.g. 0.04 for an ankle.
+    pub delay_s: f64,
+    /// Corner of the critically damped second-order low-pass `ω_c` (rad/s).
+    pub cutoff_rad_s: f64,
+}
+
+impl Default for StretchReflex {
+    fn default() -> Self {
+        Self {
+            enabled: false,
+            gain_nm_s_per_rad: 0.0,
+            delay_s: 0.04,
+            cutoff_rad_s: 15.0,
+        }
+    }
+}
+
 /// `[human]`.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -114,6 +143,9 @@ pub struct Human {
     pub hysteretic_damping: HystereticDamping,
     /// Viscous damping `B_h`.
     pub viscous_damping: ViscousTerm,
+    /// Stretch-reflex pathway (off when the section is absent).
+    #[serde(default)]
+    pub stretch_reflex: StretchReflex,
     /// Posture the subject holds at rest and during a period (rad).
     pub rest_angle_rad: f64,
     /// Posture during a period (the paper: about 45°).
@@ -402,6 +434,21 @@ impl PlantModel {
         non_negative(
             "human.viscous_damping.b_nm_s_per_rad",
             h.viscous_damping.b_nm_s_per_rad,
+        )?;
+        non_negative(
+            "human.stretch_reflex.gain_nm_s_per_rad",
+            h.stretch_reflex.gain_nm_s_per_rad,
+        )?;
+        non_negative("human.stretch_reflex.delay_s", h.stretch_reflex.delay_s)?;
+        if h.stretch_reflex.delay_s > 1.0 {
+            return Err(bad(
+                "human.stretch_reflex.delay_s",
+                format!("must be at most 1 s, got {}", h.stretch_reflex.delay_s),
+            ));
+        }
+        positive(
+            "human.stretch_reflex.cutoff_rad_s",
+            h.stretch_reflex.cutoff_rad_s,
         )?;
         finite("human.rest_angle_rad", h.rest_angle_rad)?;
         finite("human.active_angle_rad", h.active_angle_rad)?;

@@ -25,7 +25,9 @@ const U_TAU_D: usize = 0;
 const U_THETA_EQ: usize = 1;
 const U_OMEGA_EQ: usize = 2;
 const U_TAU_NL: usize = 3;
-const N_INPUTS: usize = 4;
+/// Torque on the human joint from the stretch reflex (`[human.stretch_reflex]`).
+const U_TAU_REFLEX: usize = 4;
+const N_INPUTS: usize = 5;
 
 /// What the human does (set by the caller each control period).
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
@@ -125,6 +127,9 @@ pub struct Plant {
     t_s: f64,
     drive: HumanDrive,
     actuator_delay: Delay,
+    /// The stretch reflex: the joint velocity delayed, and its two low-pass states.
+    reflex_delay: Delay,
+    reflex_lp: [f64; 2],
     theta_delay: Delay,
     tau_c_delay: Delay,
     tau_s_delay: Delay,
@@ -176,6 +181,8 @@ impl Plant {
                 omega_eq_rad_s: 0.0,
             },
             actuator_delay: Delay::new(steps_of(model.actuator.delay_s, h), 0.0),
+            reflex_delay: Delay::new(steps_of(model.human.stretch_reflex.delay_s, h), 0.0),
+            reflex_lp: [0.0; 2],
             theta_delay: Delay::new(
                 steps_of(model.sensors.encoder.terms.delay_s, h),
                 model.human.rest_angle_rad,
@@ -395,6 +402,7 @@ impl Plant {
                 b[(1, j)] += act_u[j] / m_e;
             }
             b[(1, U_TAU_NL)] += 1.0 / m_e;
+            b[(w_h, U_TAU_REFLEX)] += 1.0 / m_h;
         } else {
             let m_tot = m_e + m_h;
             for j in 0..n {
@@ -405,6 +413,7 @@ impl Plant {
                 b[(1, j)] += (imp_u[j] + act_u[j]) / m_tot;
             }
             b[(1, U_TAU_NL)] += 1.0 / m_tot;
+            b[(1, U_TAU_REFLEX)] += 1.0 / m_tot;
         }
         let (phi, gamma) = zoh(&a, &b, m.integration.step_s);
         // Carry the state over a rebuild (new Prony states start at θ_h).
@@ -466,11 +475,13 @@ impl Plant {
         self.u[U_THETA_EQ] = self.drive.theta_eq_rad;
         self.u[U_OMEGA_EQ] = self.drive.omega_eq_rad_s;
         self.u[U_TAU_NL] = self.nonlinear_torque();
+        self.u[U_TAU_REFLEX] = self.reflex_torque();
         self.x_next.gemv(1.0, &self.phi, &self.x, 0.0);
         self.x_next.gemv(1.0, &self.gamma, &self.u, 1.0);
         std::mem::swap(&mut self.x, &mut self.x_next);
         self.t_s += self.model.integration.step_s;
         self.drive.theta_eq_rad += self.drive.omega_eq_rad_s * self.model.integration.step_s;
+        self.advance_reflex();
         let t = self.truth();
         self.theta_delay.push(t.theta_e_rad);
         self.tau_c_delay.push(t.tau_c_nm);
@@ -483,6 +494,31 @@ impl Plant {
         for _ in 0..n {
             self.step(tau_d_nm);
         }
+    }
+
+    /// The stretch reflex's torque on the human joint (Nm):
+    /// `−G · LP(θ̇_h(t − δ))`, 0 when the term is off.
+    fn reflex_torque(&self) -> f64 {
+        let r = self.model.human.stretch_reflex;
+        if r.enabled {
+            -r.gain_nm_s_per_rad * self.reflex_lp[1]
+        } else {
+            0.0
+        }
+    }
+
+    /// Feeds the stretch velocity through the reflex's delay and its two
+    /// first-order low-pass sections (exact for a held input).
+    fn advance_reflex(&mut self) {
+        let r = self.model.human.stretch_reflex;
+        if !r.enabled {
+            return;
+        }
+        let stretch_rate = self.x[self.layout.w_h] - self.drive.omega_eq_rad_s;
+        let v = self.reflex_delay.push(stretch_rate);
+        let a = 1.0 - (-r.cutoff_rad_s * self.model.integration.step_s).exp();
+        self.reflex_lp[0] += a * (v - self.reflex_lp[0]);
+        self.reflex_lp[1] += a * (self.reflex_lp[0] - self.reflex_lp[1]);
     }
 
     fn impedance_torque(&self) -> f64 {
@@ -518,7 +554,7 @@ impl Plant {
             for j in 0..N_INPUTS {
                 acc += self.b[(l.w_e, j)] * self.u[j];
             }
-            self.model.human.inertia_kg_m2 * acc - self.impedance_torque()
+            self.model.human.inertia_kg_m2 * acc - self.impedance_torque() - self.u[U_TAU_REFLEX]
         };
         PlantTruth {
             t_s: self.t_s,

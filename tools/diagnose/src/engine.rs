@@ -10,14 +10,15 @@
 //!   is the smallest p-value, so its adjusted p is `m·p`);
 //! - Akaike's criterion must fall and the held-out error must fall:
 //!   two-fold validation over periods (odd periods fit, even predicted, and
-//!   the reverse);
+//!   the reverse; within a single broadband window, alternate bands);
 //! - the lack-of-fit χ² against the noise measured in each window is
 //!   reported before and after: it says whether structure remains.
 //!
 //! The search runs only while the lack-of-fit test rejects (structure
-//! beyond the noise remains); a term is added only when the Holm-corrected
-//! F-test, Akaike's criterion and the held-out error all agree; the search
-//! stops when none qualifies or nothing is left to explain.
+//! beyond the noise remains); the most significant candidate that the
+//! Holm-corrected F-test, Akaike's criterion and the held-out error all
+//! accept is added; the search stops when none qualifies or nothing is left
+//! to explain.
 
 use std::collections::BTreeMap;
 
@@ -344,17 +345,53 @@ fn score(d: &Dataset, start: &Physics, fitted: &Physics, free: &[Param]) -> Scor
 /// Two-fold held-out RSS per transfer function: fit on odd periods, predict
 /// even ones, and the reverse. With no free parameters it is the plain RSS.
 fn heldout(d: &Dataset, start: &Physics, free: &[Param]) -> BTreeMap<Tf, f64> {
+    let folds = folds(d);
     let mut out: BTreeMap<Tf, f64> = BTreeMap::new();
-    for fold in 0..2u32 {
-        let train = |_: usize, o: &Observation| d.conditions[o.window].period % 2 != fold;
+    for fold in 0..2u8 {
+        let train = |i: usize, _: &Observation| folds[i] != fold;
         let f = fit(d, start, free, &train);
         for &tf in &d.supported {
-            let test =
-                |_: usize, o: &Observation| o.tf == tf && d.conditions[o.window].period % 2 == fold;
+            let test = |i: usize, o: &Observation| o.tf == tf && folds[i] == fold;
             *out.entry(tf).or_default() += rss(d, &f.physics, &test).0;
         }
     }
     out
+}
+
+/// The fold (0 or 1) of every observation: the parity of its period when
+/// its experiment has two periods or more; otherwise (one broadband
+/// window) the parity of its rank in frequency within its window and
+/// transfer function, so the held-out points interleave the band.
+fn folds(d: &Dataset) -> Vec<u8> {
+    let mut periods: BTreeMap<u32, std::collections::BTreeSet<u32>> = BTreeMap::new();
+    for c in &d.conditions {
+        periods.entry(c.experiment).or_default().insert(c.period);
+    }
+    let mut rank: BTreeMap<(usize, Tf), Vec<(f64, usize)>> = BTreeMap::new();
+    for (i, o) in d.observations.iter().enumerate() {
+        rank.entry((o.window, o.tf))
+            .or_default()
+            .push((o.omega_rad_s, i));
+    }
+    let mut by_rank = vec![0u8; d.observations.len()];
+    for v in rank.values_mut() {
+        v.sort_by(|a, b| a.0.total_cmp(&b.0));
+        for (r, &(_, i)) in v.iter().enumerate() {
+            by_rank[i] = (r % 2) as u8;
+        }
+    }
+    d.observations
+        .iter()
+        .enumerate()
+        .map(|(i, o)| {
+            let c = &d.conditions[o.window];
+            if periods.get(&c.experiment).is_some_and(|p| p.len() >= 2) {
+                (c.period % 2) as u8
+            } else {
+                by_rank[i]
+            }
+        })
+        .collect()
 }
 
 fn cells(d: &Dataset, phys: &Physics, level: f64) -> Vec<Cell> {
@@ -666,12 +703,22 @@ pub fn diagnose(
         }
         let mut rows: Vec<(Candidate, Fitted, Physics, Vec<Param>)> = Vec::new();
         for &t in &tried {
-            let mut start = current.physics.clone();
-            t.start(&mut start);
             let mut free = current.free.clone();
             let added = t.params(&experiments);
             free.extend(added.iter().copied());
-            let f1 = fit(d, &start, &free, &|_, _| true);
+            // The best of the term's starting points.
+            let mut best: Option<(Fitted, usize)> = None;
+            for i in 0.. {
+                let mut start = current.physics.clone();
+                if !t.start_variant(i, &mut start) {
+                    break;
+                }
+                let f = fit(d, &start, &free, &|_, _| true);
+                if best.as_ref().is_none_or(|(b, _)| f.rss < b.rss) {
+                    best = Some((f, i));
+                }
+            }
+            let Some((f1, variant)) = best else { continue };
             let dp = added.len() as f64;
             let dof = f1.n as f64 - f1.p() as f64;
             let f_stat = if dof > 0.0 && f1.rss > 0.0 {
@@ -685,7 +732,7 @@ pub fn diagnose(
                 1.0
             };
             let mut cstart = current_start.clone();
-            t.start(&mut cstart);
+            t.start_variant(variant, &mut cstart);
             let ho = heldout(d, &cstart, &free).values().sum::<f64>();
             let se = |q: Param| f1.std_error(q);
             rows.push((
@@ -728,11 +775,14 @@ pub fn diagnose(
             )
             .unwrap_or(f64::NAN);
         }
-        let accept = rows.first().is_some_and(|r| {
-            r.0.p_holm < s.level && r.0.delta_aic < 0.0 && r.0.heldout_change < 0.0
-        });
-        if accept {
-            rows[0].0.chosen = true;
+        // The most significant candidate that Holm's test, Akaike's
+        // criterion and the held-out error all accept.
+        let pick = rows
+            .iter()
+            .position(|r| r.0.p_holm < s.level && r.0.delta_aic < 0.0 && r.0.heldout_change < 0.0);
+        let accept = pick.is_some();
+        if let Some(i) = pick {
+            rows[i].0.chosen = true;
         }
         steps.push(Step {
             step,
@@ -741,7 +791,7 @@ pub fn diagnose(
         if !accept {
             break;
         }
-        let (cand, f1, cstart, _free) = rows.swap_remove(0);
+        let (cand, f1, cstart, _free) = rows.swap_remove(pick.unwrap_or(0));
         current_ho *= 1.0 + cand.heldout_change;
         in_model.push(cand.term);
         found.push((cand.term, cand));

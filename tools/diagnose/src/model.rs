@@ -6,6 +6,7 @@
 //!
 //! ```text
 //! Z_imp  = K_e + j H_e + jω B_h                      human joint impedance (paper eq. M1–M3 terms)
+//!          + G jω e^{−jωδ}/(1 + jω/ω_c)²              stretch reflex (when on)
 //! Z_h    = Z_imp − M_h ω²                             forearm on the cuff
 //! S_cuff = Z_c Z_h / (Z_c + Z_h),  Z_c = k_c + jω b_c  (rigid cuff: S_cuff = Z_h)
 //! S_exo  = −M_e ω² + S_cuff + m g l cos θ₀ + jω b_f + j 4 F_c/(π A)
@@ -83,6 +84,12 @@ pub enum Param {
     GainTauS,
     /// Offset between the SEA and cuff torque sensors (Nm).
     TorqueOffset,
+    /// Stretch-reflex velocity gain `G` (Nm·s/rad).
+    ReflexGain,
+    /// Stretch-reflex delay `δ` (s).
+    ReflexDelay,
+    /// Stretch-reflex low-pass corner `ω_c` (rad/s).
+    ReflexCutoff,
 }
 
 impl Param {
@@ -107,6 +114,9 @@ impl Param {
             Param::GainTauC => "cuff F/T gain".into(),
             Param::GainTauS => "SEA torque sensor gain".into(),
             Param::TorqueOffset => "torque sensor offset τ_s − τ_c (Nm)".into(),
+            Param::ReflexGain => "stretch-reflex gain (Nm·s/rad)".into(),
+            Param::ReflexDelay => "stretch-reflex delay (s)".into(),
+            Param::ReflexCutoff => "stretch-reflex corner (rad/s)".into(),
         }
     }
 
@@ -127,6 +137,9 @@ impl Param {
             Param::GravityError => 0.5,
             Param::GainTauC | Param::GainTauS => 0.05,
             Param::TorqueOffset => 0.1,
+            Param::ReflexGain => 1.0,
+            Param::ReflexDelay => 0.01,
+            Param::ReflexCutoff => 5.0,
         }
     }
 
@@ -136,6 +149,7 @@ impl Param {
             Param::K(_) => 1e-3,
             Param::SeaWn => 1.0,
             Param::SeaZeta => 0.01,
+            Param::ReflexCutoff => 1.0,
             Param::GainTauC | Param::GainTauS => 0.05,
             Param::InertiaError | Param::GravityError | Param::TorqueOffset => f64::NEG_INFINITY,
             _ => 0.0,
@@ -186,6 +200,8 @@ pub struct Physics {
     pub theta_offset: f64,
     /// Offset of the SEA torque sensor less that of the cuff sensor (Nm).
     pub torque_offset_nm: f64,
+    /// Stretch reflex `[G (Nm·s/rad), δ (s), ω_c (rad/s)]`; G = 0 is off.
+    pub reflex: [f64; 3],
 }
 
 impl Physics {
@@ -252,6 +268,14 @@ impl Physics {
             theta_offset: m.sensors.encoder.terms.offset,
             torque_offset_nm: m.sensors.sea_deflection.terms.offset
                 - m.sensors.cuff_ft.terms.offset,
+            reflex: {
+                let r = m.human.stretch_reflex;
+                [
+                    if r.enabled { r.gain_nm_s_per_rad } else { 0.0 },
+                    r.delay_s,
+                    r.cutoff_rad_s,
+                ]
+            },
         }
     }
 
@@ -276,6 +300,9 @@ impl Physics {
             Param::GainTauC => self.gain[1],
             Param::GainTauS => self.gain[2],
             Param::TorqueOffset => self.torque_offset_nm,
+            Param::ReflexGain => self.reflex[0],
+            Param::ReflexDelay => self.reflex[1],
+            Param::ReflexCutoff => self.reflex[2],
         }
     }
 
@@ -311,6 +338,9 @@ impl Physics {
             Param::GainTauC => self.gain[1] = v,
             Param::GainTauS => self.gain[2] = v,
             Param::TorqueOffset => self.torque_offset_nm = v,
+            Param::ReflexGain => self.reflex[0] = v,
+            Param::ReflexDelay => self.reflex[1] = v.min(0.5),
+            Param::ReflexCutoff => self.reflex[2] = v,
         }
     }
 
@@ -396,7 +426,12 @@ impl Physics {
     fn s_cuff(&self, w: f64, c: &Condition) -> Complex64 {
         let k = self.k.get(&c.experiment).copied().unwrap_or(0.0);
         let h = self.h.get(&c.experiment).copied().unwrap_or(0.0);
-        let z_h = Complex64::new(k - self.m_h * w * w, h + w * self.b_h);
+        let mut z_h = Complex64::new(k - self.m_h * w * w, h + w * self.b_h);
+        let [g, delay, wc] = self.reflex;
+        if g > 0.0 {
+            let lp = Complex64::new(1.0, w / wc);
+            z_h += Complex64::new(0.0, g * w) * Complex64::from_polar(1.0, -w * delay) / (lp * lp);
+        }
         if self.cuff_compliance > 0.0 {
             let z_c = Complex64::new(1.0 / self.cuff_compliance, w * self.cuff_b);
             z_c * z_h / (z_c + z_h)
@@ -431,6 +466,11 @@ impl Physics {
         m.human.viscous_damping.enabled = self.b_h > 0.0;
         m.human.viscous_damping.b_nm_s_per_rad = self.b_h;
         m.human.inertia_kg_m2 = self.m_h;
+        let r = &mut m.human.stretch_reflex;
+        r.enabled = self.reflex[0] > 0.0;
+        r.gain_nm_s_per_rad = self.reflex[0];
+        r.delay_s = self.reflex[1];
+        r.cutoff_rad_s = self.reflex[2];
         m.joint_friction.coulomb.enabled = self.coulomb_nm > 0.0;
         m.joint_friction.coulomb.torque_nm = self.coulomb_nm;
         m.joint_friction.viscous.enabled = self.b_f > 0.0;

@@ -41,11 +41,13 @@ pub enum Term {
     SeaSensorGain,
     /// An offset between the SEA and the cuff torque sensors.
     TorqueSensorOffset,
+    /// The stretch-reflex pathway of the human joint.
+    StretchReflex,
 }
 
 impl Term {
     /// Every term, in catalogue order.
-    pub const ALL: [Term; 15] = [
+    pub const ALL: [Term; 16] = [
         Term::HystereticDamping,
         Term::HumanViscousDamping,
         Term::CoulombFriction,
@@ -61,6 +63,7 @@ impl Term {
         Term::CuffSensorGain,
         Term::SeaSensorGain,
         Term::TorqueSensorOffset,
+        Term::StretchReflex,
     ];
 
     /// Plain words.
@@ -81,6 +84,7 @@ impl Term {
             Term::CuffSensorGain => "a gain error of the cuff force/torque sensor",
             Term::SeaSensorGain => "a gain error of the SEA torque sensor",
             Term::TorqueSensorOffset => "an offset between the SEA and cuff torque sensors",
+            Term::StretchReflex => "a stretch reflex (delayed velocity feedback)",
         }
     }
 
@@ -102,6 +106,7 @@ impl Term {
             Term::CuffSensorGain => "sensors.cuff_ft.gain",
             Term::SeaSensorGain => "sensors.sea_deflection.gain",
             Term::TorqueSensorOffset => "sensors.sea_deflection.offset",
+            Term::StretchReflex => "human.stretch_reflex",
         }
     }
 
@@ -123,6 +128,7 @@ impl Term {
             Term::CuffSensorGain => vec![Param::GainTauC],
             Term::SeaSensorGain => vec![Param::GainTauS],
             Term::TorqueSensorOffset => vec![Param::TorqueOffset],
+            Term::StretchReflex => vec![Param::ReflexGain, Param::ReflexDelay, Param::ReflexCutoff],
         }
     }
 
@@ -132,7 +138,8 @@ impl Term {
             Term::HystereticDamping
             | Term::HumanViscousDamping
             | Term::CuffCompliance
-            | Term::EncoderDelay => &[Tf::Sh, Tf::She],
+            | Term::EncoderDelay
+            | Term::StretchReflex => &[Tf::Sh, Tf::She],
             Term::CuffSensorDelay => &[Tf::Sh],
             Term::CuffSensorGain => &[Tf::Sh, Tf::Balance],
             Term::CoulombFriction | Term::JointViscousFriction | Term::InertiaError => &[Tf::She],
@@ -165,6 +172,7 @@ impl Term {
             | Term::CuffSensorGain
             | Term::SeaSensorGain => false,
             Term::TorqueSensorOffset => p.torque_offset_nm != 0.0,
+            Term::StretchReflex => p.reflex[0] > 0.0,
         }
     }
 
@@ -191,6 +199,24 @@ impl Term {
             Term::CuffSensorGain => p.gain[1] = 1.0,
             Term::SeaSensorGain => p.gain[2] = 1.0,
             Term::TorqueSensorOffset => p.torque_offset_nm = 0.0,
+            Term::StretchReflex => p.reflex = [1.0, 0.04, 15.0],
+        }
+    }
+
+    /// Starting point `i` of the term's fit: 0 is [`Term::start`]; the
+    /// reflex, whose fit is not convex in its delay, has four more (delays
+    /// of 20, 60, 80, 100 ms). False past the last.
+    pub fn start_variant(self, i: usize, p: &mut Physics) -> bool {
+        if i == 0 {
+            self.start(p);
+            return true;
+        }
+        match (self, i) {
+            (Term::StretchReflex, 1..=4) => {
+                p.reflex = [1.0, [0.02, 0.06, 0.08, 0.1][i - 1], 15.0];
+                true
+            }
+            _ => false,
         }
     }
 
@@ -253,6 +279,12 @@ impl Term {
             Term::TorqueSensorOffset => {
                 format!("Δ = {} Nm", pm(Param::TorqueOffset, 1.0, 3))
             }
+            Term::StretchReflex => format!(
+                "G = {} Nm·s/rad, δ = {} ms, ω_c = {} rad/s",
+                pm(Param::ReflexGain, 1.0, 2),
+                pm(Param::ReflexDelay, 1e3, 1),
+                pm(Param::ReflexCutoff, 1.0, 1)
+            ),
         }
     }
 }

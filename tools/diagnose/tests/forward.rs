@@ -143,6 +143,12 @@ fn every_term_of_the_plant_matches_the_forward_model() {
     m.sensors.sea_deflection.terms.gain = 0.95;
     variants.push(("sensor gains", m, s));
     let mut m = base;
+    m.human.stretch_reflex.enabled = true;
+    m.human.stretch_reflex.gain_nm_s_per_rad = 1.5;
+    m.human.stretch_reflex.delay_s = 0.04;
+    m.human.stretch_reflex.cutoff_rad_s = 15.0;
+    variants.push(("stretch reflex", m, s));
+    let mut m = base;
     m.human.hysteretic_damping.mode = exo_plant_sim::model::HysteresisMode::PronyMatched;
     variants.push(("prony matched", m, s));
     let g = base.gravity;
