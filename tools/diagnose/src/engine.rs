@@ -17,7 +17,8 @@
 //! The search runs only while the lack-of-fit test rejects (structure
 //! beyond the noise remains); the most significant candidate that the
 //! Holm-corrected F-test, Akaike's criterion and the held-out error all
-//! accept is added; the search stops when none qualifies or nothing is left
+//! accept, and whose parameters are determined (one differs from the
+//! term's absence by more than two standard errors), is added; the search stops when none qualifies or nothing is left
 //! to explain.
 
 use std::collections::BTreeMap;
@@ -211,6 +212,9 @@ pub struct Candidate {
     pub heldout_change: f64,
     /// Fitted value in words.
     pub description: String,
+    /// Its parameters are determined: one differs from the term's absence
+    /// by more than two standard errors.
+    pub identified: bool,
     /// Chosen at this step.
     pub chosen: bool,
 }
@@ -747,6 +751,7 @@ pub fn diagnose(
                     delta_aic: f1.aic() - current.aic(),
                     heldout_change: (ho - current_ho) / current_ho.max(1e-300),
                     description: t.describe(&f1.physics, &se),
+                    identified: t.identified(&f1.physics, &se, &experiments),
                     chosen: false,
                 },
                 f1,
@@ -777,9 +782,12 @@ pub fn diagnose(
         }
         // The most significant candidate that Holm's test, Akaike's
         // criterion and the held-out error all accept.
-        let pick = rows
-            .iter()
-            .position(|r| r.0.p_holm < s.level && r.0.delta_aic < 0.0 && r.0.heldout_change < 0.0);
+        let pick = rows.iter().position(|r| {
+            r.0.p_holm < s.level
+                && r.0.delta_aic < 0.0
+                && r.0.heldout_change < 0.0
+                && r.0.identified
+        });
         let accept = pick.is_some();
         if let Some(i) = pick {
             rows[i].0.chosen = true;

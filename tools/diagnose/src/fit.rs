@@ -183,33 +183,59 @@ pub fn fit(
     let mut lambda = 1e-3;
     let mut converged = p == 0;
     let mut jac = DMatrix::<f64>::zeros(n, p);
-    let mut rp = Vec::new();
-    let mut rm = Vec::new();
-    let jacobian =
-        |phys: &Physics, jac: &mut DMatrix<f64>, rp: &mut Vec<f64>, rm: &mut Vec<f64>| {
-            for (k, &q) in free.iter().enumerate() {
-                let v = phys.get(q);
-                let h = 1e-5 * q.scale().max(v.abs() * 1e-3);
-                let mut a = phys.clone();
-                let mut b = phys.clone();
-                a.set(q, v + h);
-                b.set(q, v - h);
-                let (ha, hb) = (a.get(q) - v, v - b.get(q));
-                residuals(d, &a, use_obs, rp);
-                residuals(d, &b, use_obs, rm);
-                let span = ha + hb;
-                for i in 0..n {
-                    jac[(i, k)] = if span > 0.0 {
-                        (rp[i] - rm[i]) / span
-                    } else {
-                        0.0
-                    };
-                }
+    let mut col = Vec::new();
+    // Where each used observation's residuals sit, and which experiment it
+    // belongs to: a per-experiment parameter (K_h, H_h) moves only its own
+    // experiment's rows, so its column is computed from those alone.
+    let mut rows: Vec<(usize, usize)> = Vec::new();
+    {
+        let mut row = 0;
+        for (i, o) in d.observations.iter().enumerate() {
+            if use_obs(i, o) {
+                rows.push((i, row));
+                row += if o.tf.is_dynamic() { 2 } else { 1 };
             }
+        }
+    }
+    let column = |phys: &Physics, q: Param, col: &mut [f64]| {
+        let v = phys.get(q);
+        let h = 1e-5 * q.scale().max(v.abs() * 1e-3);
+        let mut a = phys.clone();
+        let mut b = phys.clone();
+        a.set(q, v + h);
+        b.set(q, v - h);
+        let span = (a.get(q) - v) + (v - b.get(q));
+        col.fill(0.0);
+        if span <= 0.0 {
+            return;
+        }
+        let only = match q {
+            Param::K(e) | Param::H(e) => Some(e),
+            _ => None,
         };
+        for &(i, row) in &rows {
+            let o = &d.observations[i];
+            let c = &d.conditions[o.window];
+            if only.is_some_and(|e| e != c.experiment) {
+                continue;
+            }
+            let dz = (a.predict(o, c) - b.predict(o, c)) / span;
+            col[row] = dz.re / sigma_floor(o, 0);
+            if o.tf.is_dynamic() {
+                col[row + 1] = dz.im / sigma_floor(o, 1);
+            }
+        }
+    };
+    let jacobian = |phys: &Physics, jac: &mut DMatrix<f64>, col: &mut Vec<f64>| {
+        col.resize(n, 0.0);
+        for (k, &q) in free.iter().enumerate() {
+            column(phys, q, col);
+            jac.column_mut(k).copy_from_slice(col);
+        }
+    };
     if p > 0 && n > 0 {
         for _ in 0..200 {
-            jacobian(&phys, &mut jac, &mut rp, &mut rm);
+            jacobian(&phys, &mut jac, &mut col);
             let jt = jac.transpose();
             let jtj = &jt * &jac;
             let g = &jt * DVector::from_column_slice(&r);
@@ -257,7 +283,7 @@ pub fn fit(
     // residual variance (robust to a mis-scaled noise estimate).
     let mut std_errors = vec![f64::NAN; p];
     if p > 0 && n > p {
-        jacobian(&phys, &mut jac, &mut rp, &mut rm);
+        jacobian(&phys, &mut jac, &mut col);
         let jtj = jac.transpose() * &jac;
         if let Some(inv) = jtj.try_inverse() {
             let s2 = cost / (n - p) as f64;

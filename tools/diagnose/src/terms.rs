@@ -203,6 +203,31 @@ impl Term {
         }
     }
 
+    /// The parameters of which at least one must differ from its "absent"
+    /// value (0, or 1 for a gain) by more than two standard errors for the
+    /// term to count as identified (the reflex: its gain; hysteresis: any
+    /// experiment's H; the SEA's bandwidth is never absent).
+    pub fn identified(
+        self,
+        p: &Physics,
+        se: &dyn Fn(Param) -> Option<f64>,
+        experiments: &[u32],
+    ) -> bool {
+        let absent = |q: Param| match q {
+            Param::GainTauC | Param::GainTauS => 1.0,
+            _ => 0.0,
+        };
+        let keys: Vec<Param> = match self {
+            Term::SeaBandwidth => return true,
+            Term::StretchReflex => vec![Param::ReflexGain],
+            t => t.params(experiments),
+        };
+        keys.into_iter().any(|q| match se(q) {
+            Some(s) if s.is_finite() => (p.get(q) - absent(q)).abs() > 2.0 * s,
+            _ => false,
+        })
+    }
+
     /// Starting point `i` of the term's fit: 0 is [`Term::start`]; the
     /// reflex, whose fit is not convex in its delay, has four more (delays
     /// of 20, 60, 80, 100 ms). False past the last.

@@ -222,7 +222,11 @@ pub fn text(r: &Diagnosis) -> String {
                 c.p_holm,
                 c.delta_aic,
                 100.0 * c.heldout_change,
-                c.description
+                if c.identified {
+                    c.description.clone()
+                } else {
+                    format!("{} (not determined)", c.description)
+                }
             );
         }
     }
