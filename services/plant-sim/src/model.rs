@@ -9,8 +9,9 @@
 //! [human.hysteretic_damping]   # complex stiffness K(1 + jc)
 //! enabled = true
 //! loss_factor = 0.4            # default c; subject files give H = cK per experiment
-//! mode = "equivalent_viscous"  # or "prony"
+//! mode = "equivalent_viscous"  # or "prony", "prony_matched"
 //! band_rad_s = [0.1, 300.0]    # prony only
+//! matched_band_decades = [0.0, 1.0]  # prony_matched only
 //! elements_per_decade = 3.0
 //! reference_rad_s = 5.48
 //! [human.viscous_damping]
@@ -65,12 +66,16 @@ pub enum HysteresisMode {
     EquivalentViscous,
     /// Causal generalised-Maxwell bank ([`crate::prony`]).
     Prony,
-    /// The Prony bank, matched exactly to `K(1 + jc)` at the running
-    /// excitation frequency by a stiffness and a viscous correction (both
-    /// small: the bank's Kramers–Kronig drift there). Damped at every
-    /// frequency as a complex stiffness is, so transients (posture moves,
-    /// bias ramps) decay as they would in a human, and exact at the frequency
-    /// a single-sine period measures.
+    /// A Prony bank fitted about the running excitation frequency
+    /// (`matched_band_decades`) and scaled to give `K + jH` exactly there
+    /// ([`crate::prony::PronyBank::fit_matched`]): causal, passive, damped
+    /// at every frequency as a complex stiffness is, so transients (posture
+    /// moves, bias ramps) decay as they would in a human, with a static
+    /// stiffness that stays a large fraction of `K` (so a bias torque does
+    /// not creep for long), and exact at the frequency a single-sine period
+    /// measures. When the bank changes (a new period's frequency, a new
+    /// experiment's K and H) its internal state is set so that the joint
+    /// torque is continuous.
     PronyMatched,
 }
 
@@ -90,6 +95,15 @@ pub struct HystereticDamping {
     pub elements_per_decade: f64,
     /// Frequency where `Re K` equals the nominal K (rad/s).
     pub reference_rad_s: f64,
+    /// `prony_matched`: the band of constant loss factor, in decades below
+    /// and above the excitation frequency.
+    #[serde(default = "default_matched_band_decades")]
+    pub matched_band_decades: [f64; 2],
+}
+
+/// The default `matched_band_decades`.
+pub fn default_matched_band_decades() -> [f64; 2] {
+    [0.0, 1.0]
 }
 
 /// A term with one coefficient.
@@ -431,6 +445,15 @@ impl PlantModel {
             "human.hysteretic_damping.reference_rad_s",
             h.hysteretic_damping.reference_rad_s,
         )?;
+        let [below, above] = h.hysteretic_damping.matched_band_decades;
+        non_negative("human.hysteretic_damping.matched_band_decades[0]", below)?;
+        non_negative("human.hysteretic_damping.matched_band_decades[1]", above)?;
+        if below + above <= 0.0 {
+            return Err(bad(
+                "human.hysteretic_damping.matched_band_decades",
+                "must be [below, above] with a band wider than zero".into(),
+            ));
+        }
         non_negative(
             "human.viscous_damping.b_nm_s_per_rad",
             h.viscous_damping.b_nm_s_per_rad,

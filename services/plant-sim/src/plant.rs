@@ -14,7 +14,6 @@
 //! the human; the human's impedance pulls the forearm back towards `θ_eq`.
 
 use nalgebra::{DMatrix, DVector};
-use num_complex::Complex64;
 
 use crate::expm::zoh;
 use crate::model::{HysteresisMode, PlantModel};
@@ -264,46 +263,65 @@ impl Plant {
     fn rebuild(&mut self) {
         let m = &self.model;
         let hd = m.human.hysteretic_damping;
-        let prony = hd.enabled
-            && matches!(
-                hd.mode,
-                HysteresisMode::Prony | HysteresisMode::PronyMatched
-            )
-            && self.h_h > 0.0;
-        self.bank = if prony {
-            PronyBank::fit(
-                self.k_h,
-                self.h_h / self.k_h,
-                hd.band_rad_s,
-                hd.elements_per_decade,
-                hd.reference_rad_s,
-            )
-            .unwrap_or(PronyBank {
-                k_inf_nm_per_rad: self.k_h,
-                k_nm_per_rad: vec![],
-                tau_s: vec![],
-            })
+        let spring = PronyBank {
+            k_inf_nm_per_rad: self.k_h,
+            k_nm_per_rad: vec![],
+            tau_s: vec![],
+        };
+        let mut equivalent_viscous = hd.enabled && hd.mode == HysteresisMode::EquivalentViscous;
+        let bank = if !(hd.enabled && self.h_h > 0.0) {
+            spring
         } else {
-            PronyBank {
-                k_inf_nm_per_rad: self.k_h,
-                k_nm_per_rad: vec![],
-                tau_s: vec![],
+            match hd.mode {
+                HysteresisMode::EquivalentViscous => spring,
+                HysteresisMode::Prony => PronyBank::fit(
+                    self.k_h,
+                    self.h_h / self.k_h,
+                    hd.band_rad_s,
+                    hd.elements_per_decade,
+                    hd.reference_rad_s,
+                )
+                .unwrap_or(spring),
+                // Exact at the excitation; should the band not allow it
+                // (`K_∞ < 0`, a loss factor far above the paper's), the
+                // equivalent viscous damping is exact there too.
+                HysteresisMode::PronyMatched => PronyBank::fit_matched(
+                    self.k_h,
+                    self.h_h,
+                    self.excitation_omega,
+                    hd.matched_band_decades,
+                    hd.elements_per_decade,
+                )
+                .unwrap_or_else(|_| {
+                    equivalent_viscous = true;
+                    spring
+                }),
             }
         };
+        // The old bank's elastic torque and relaxation rate at the current
+        // deviation, which the new bank takes over (no torque step on a
+        // change of bank).
+        let old_layout = self.layout;
+        let remap = (self.x.len() == old_layout.n && bank != self.bank)
+            .then(|| {
+                let xi = self.x[old_layout.th_h] - self.drive.theta_eq_rad;
+                let strains: Vec<f64> = (0..old_layout.n_z)
+                    .map(|i| xi - self.x[old_layout.z0 + i])
+                    .collect();
+                let torque = self.bank.elastic_torque(xi, &strains);
+                let rate = self.bank.relaxation_rate(&strains);
+                bank.strains_carrying(xi, torque, rate)
+                    .map(|s| s.iter().map(|s| xi - s).collect::<Vec<f64>>())
+            })
+            .flatten();
+        self.bank = bank;
         let mut b_h = if m.human.viscous_damping.enabled {
             m.human.viscous_damping.b_nm_s_per_rad
         } else {
             0.0
         };
-        if hd.enabled && hd.mode == HysteresisMode::EquivalentViscous {
+        if equivalent_viscous {
             b_h += self.h_h / self.excitation_omega;
-        }
-        if prony && hd.mode == HysteresisMode::PronyMatched {
-            // Match K + jH exactly at the excitation frequency.
-            let w = self.excitation_omega;
-            let miss = Complex64::new(self.k_h, self.h_h) - self.bank.response(w);
-            self.bank.k_inf_nm_per_rad += miss.re;
-            b_h += miss.im / w;
         }
         self.b_human = b_h;
         let compliant = m.cuff.compliance.enabled;
@@ -428,8 +446,18 @@ impl Plant {
                 x[s] = self.x[os];
                 x[s + 1] = self.x[os + 1];
             }
-            for i in 0..n_z.min(old.n_z) {
-                x[z0 + i] = self.x[old.z0 + i];
+            match remap {
+                // A new bank, holding the old one's elastic torque.
+                Some(z) => {
+                    for (i, z) in z.iter().enumerate() {
+                        x[z0 + i] = *z;
+                    }
+                }
+                None => {
+                    for i in 0..n_z.min(old.n_z) {
+                        x[z0 + i] = self.x[old.z0 + i];
+                    }
+                }
             }
         }
         self.layout = l;

@@ -245,6 +245,144 @@ fn default_model_round_trips_and_bad_keys_are_named() {
     assert!(e.contains("integration.step_s"), "{e}");
 }
 
+/// Every (K, H) of the ten subjects at every frequency of the protocol.
+fn protocol_cases() -> Vec<(String, u32, f64, f64, f64)> {
+    let dir = exo_config::configs_dir();
+    let table = exo_config::ExperimentTable::from_file(&dir.join("experiments.toml")).unwrap();
+    let mut out = Vec::new();
+    for name in ["A", "B", "C", "D", "E", "F", "G", "H", "I", "J"] {
+        let subject =
+            exo_config::Subject::from_file(&dir.join(format!("subjects/{name}.toml"))).unwrap();
+        for e in &table.experiment {
+            let input = subject.get(e.number).unwrap();
+            for period in 1..=table.periods {
+                out.push((
+                    name.to_string(),
+                    e.number,
+                    input.stiffness_nm_per_rad,
+                    input.hysteretic_damping_nm_per_rad,
+                    table.omega_rad_s(e, period),
+                ));
+            }
+        }
+    }
+    out
+}
+
+#[test]
+fn matched_bank_is_exact_passive_and_stiff_for_every_subject_and_frequency() {
+    let hd = default_model().human.hysteretic_damping;
+    let (mut least_static, mut slowest) = (f64::INFINITY, 0.0_f64);
+    for (name, e, k, h, w) in protocol_cases() {
+        let bank = PronyBank::fit_matched(k, h, w, hd.matched_band_decades, hd.elements_per_decade)
+            .unwrap_or_else(|err| panic!("subject {name} experiment {e} ω {w}: {err}"));
+        let r = bank.response(w);
+        assert!(
+            (r - Complex64::new(k, h)).norm() < 1e-9 * k,
+            "subject {name} experiment {e} ω {w}: {r} against {k} + j{h}"
+        );
+        assert!(bank.k_nm_per_rad.iter().all(|v| *v >= 0.0));
+        least_static = least_static.min(bank.static_stiffness() / k);
+        slowest = slowest.max(bank.tau_s.iter().copied().fold(0.0, f64::max));
+    }
+    // Measured 2026-11-23 (decades [0, 1], 3 per decade): K(0) ≥ 0.38 K,
+    // slowest relaxation time 1.6 s (at ω = 2 rad/s).
+    eprintln!("least K(0)/K {least_static:.3}, slowest relaxation {slowest:.2} s");
+    assert!(least_static > 0.35, "K(0) down to {least_static} K");
+    assert!(slowest < 2.0, "relaxation times up to {slowest} s");
+}
+
+/// A bias torque on a matched subject: the deflection it creeps to, and
+/// how far it still moves over the last `window_s` of a `hold_s` hold.
+fn bias_creep(m: &PlantModel, k: f64, h: f64, omega: f64, bias: f64, hold_s: f64) -> (f64, f64) {
+    let mut p = Plant::new(m);
+    p.set_human_impedance(k, h);
+    p.set_excitation_omega(omega);
+    // Raised-cosine ramp over 5 s, as the protocol's ramp-in.
+    let ramp_steps = 50_000;
+    for i in 0..ramp_steps {
+        let x = i as f64 / ramp_steps as f64;
+        p.step(bias * (0.5 - 0.5 * (std::f64::consts::PI * x).cos()));
+    }
+    let steps = (hold_s / 1e-4) as usize;
+    let mut at_window = 0.0;
+    for i in 0..steps {
+        p.step(bias);
+        if i == steps - 50_000 {
+            at_window = p.truth().theta_e_rad;
+        }
+    }
+    let end = p.truth().theta_e_rad;
+    (end, (end - at_window).abs())
+}
+
+#[test]
+fn a_bias_torque_creeps_to_a_stiff_rest_within_the_settling_window() {
+    let m = quiet(default_model());
+    let mut m = m;
+    m.human.hysteretic_damping.mode = HysteresisMode::PronyMatched;
+    // Subject J, experiment 7 (8 Nm bias), at its lowest and highest
+    // frequency: the old matched mode (a 0.1–300 rad/s bank corrected at
+    // the excitation) had K(0) = −11.6 Nm/rad at 31.77 rad/s here.
+    let (k, h) = (60.11, 12.83);
+    for omega in [4.0, 31.77] {
+        // 5 s of settling, then the 5 s analysis window.
+        let (theta, moved) = bias_creep(&m, k, h, omega, 8.0, 10.0);
+        let bank = PronyBank::fit_matched(
+            k,
+            h,
+            omega,
+            m.human.hysteretic_damping.matched_band_decades,
+            m.human.hysteretic_damping.elements_per_decade,
+        )
+        .unwrap();
+        let rest = 8.0 / bank.static_stiffness();
+        eprintln!(
+            "ω {omega}: deflection {theta:.4} rad (8 Nm/K(0) = {rest:.4}), moved {moved:.2e} rad in the window"
+        );
+        assert!((theta / rest - 1.0).abs() < 0.02, "{theta} against {rest}");
+        // Measured 2026-11-23: 3.9e-5 rad at 4 rad/s (the slowest bank),
+        // against the ≈ 0.045 rad of the sine in this window (and with a
+        // 0.1–300 rad/s bank, 1e-3 rad even where its K(0) stays positive).
+        assert!(moved < 1e-4, "still creeping {moved} rad");
+    }
+}
+
+#[test]
+fn changing_the_matched_bank_under_load_keeps_the_torque_continuous() {
+    let mut m = quiet(default_model());
+    m.human.hysteretic_damping.mode = HysteresisMode::PronyMatched;
+    let mut p = Plant::new(&m);
+    p.set_human_impedance(33.68, 13.92);
+    p.set_excitation_omega(4.0);
+    // Deflected by a bias, the elements still relaxing.
+    p.advance(1.0, 8.0);
+    let before = p.truth();
+    // A new period's frequency, then a new experiment's K and H, with the
+    // arm where it is: the state is carried, the torque does not step.
+    p.set_excitation_omega(31.77);
+    let after_omega = p.truth();
+    p.set_human_impedance(60.11, 12.83);
+    let after_k = p.truth();
+    for (what, t) in [("ω", after_omega), ("K, H", after_k)] {
+        assert_eq!(t.theta_e_rad, before.theta_e_rad);
+        assert!(
+            (t.tau_c_nm - before.tau_c_nm).abs() < 1e-9,
+            "{what}: τ_c {} → {}",
+            before.tau_c_nm,
+            t.tau_c_nm
+        );
+    }
+    // And the next step moves on smoothly: no jump beyond one step's change.
+    let mut prev = after_k.tau_c_nm;
+    for _ in 0..100 {
+        p.step(8.0);
+        let now = p.truth().tau_c_nm;
+        assert!((now - prev).abs() < 1e-2, "τ_c jumped {prev} → {now}");
+        prev = now;
+    }
+}
+
 #[test]
 fn prony_matched_mode_is_exact_at_the_excitation_and_damped_elsewhere() {
     let mut m = quiet(default_model());
@@ -260,7 +398,7 @@ fn prony_matched_mode_is_exact_at_the_excitation_and_damped_elsewhere() {
         let (s_h, _) = measure_after(&mut p, w0, 2.0, 30.0);
         let w = std::f64::consts::TAU / ((std::f64::consts::TAU / w0 / 1e-4).round() * 1e-4);
         // Exact at ω₀: K − M_h ω² + jH (the whole-sample ω differs from ω₀
-        // by < 0.1 %, which moves only the viscous correction's tiny share).
+        // by < 0.1 %, which moves the bank's response by less than that).
         let expect = Complex64::new(k - m_h * w * w, h);
         assert!(
             (s_h - expect).norm() < 2e-3 * expect.norm(),
@@ -271,7 +409,7 @@ fn prony_matched_mode_is_exact_at_the_excitation_and_damped_elsewhere() {
     // the excitation frequency is 15.89 rad/s: the equivalent-viscous mode
     // damps it with B = H/15.89 only (ζ ≈ 0.02, time constant ≈ 14 s); the
     // matched mode with the complex stiffness's own damping there
-    // (ζ ≈ c/2 ≈ 0.09, time constant ≈ 3 s).
+    // (ζ ≈ 0.08, time constant ≈ 3.5 s).
     let ring = |mode: HysteresisMode| {
         let mut m = m;
         m.human.hysteretic_damping.mode = mode;
@@ -295,7 +433,10 @@ fn prony_matched_mode_is_exact_at_the_excitation_and_damped_elsewhere() {
     };
     let viscous = ring(HysteresisMode::EquivalentViscous);
     let matched = ring(HysteresisMode::PronyMatched);
-    // Measured 2026-11-23: 0.56 and 0.066.
+    eprintln!("kept after 8 s: equivalent viscous {viscous:.3}, prony matched {matched:.3}");
+    // Measured 2026-11-23: 0.56 and 0.144 (the bank's constant loss starts
+    // half a decade below the sine, at 5 rad/s; its elements still damp the
+    // 3.5 rad/s mode with ζ ≈ 0.08).
     assert!(viscous > 0.4, "equivalent viscous kept {viscous}");
-    assert!(matched < 0.15, "prony matched kept {matched}");
+    assert!(matched < 0.2, "prony matched kept {matched}");
 }
