@@ -27,6 +27,18 @@ impl<T: Debug + ZeroCopySend + Copy + Send + 'static> Collector<T> {
     /// Subscribes to `ch` of `instance` (node `node_name`) and returns once
     /// the subscription exists, so nothing published afterwards is missed.
     pub fn start(node_name: &str, instance: &str, ch: Channel) -> Result<Self, IpcError> {
+        Self::start_filtered(node_name, instance, ch, |_| true)
+    }
+
+    /// [`Collector::start`], keeping only the samples `keep` accepts (a
+    /// watch for rare events on a busy channel, e.g. a latched safe state
+    /// in the commands, without holding every sample).
+    pub fn start_filtered(
+        node_name: &str,
+        instance: &str,
+        ch: Channel,
+        keep_if: impl Fn(&T) -> bool + Send + 'static,
+    ) -> Result<Self, IpcError> {
         let samples = Arc::new(Mutex::new(Vec::new()));
         let stop = Arc::new(AtomicBool::new(false));
         let (ready_tx, ready_rx) = mpsc::channel::<Result<(), IpcError>>();
@@ -49,7 +61,11 @@ impl<T: Debug + ZeroCopySend + Copy + Send + 'static> Collector<T> {
                     return Ok(());
                 }
             };
-            let push = |v: T| keep.lock().unwrap_or_else(PoisonError::into_inner).push(v);
+            let push = |v: T| {
+                if keep_if(&v) {
+                    keep.lock().unwrap_or_else(PoisonError::into_inner).push(v);
+                }
+            };
             while !halt.load(Ordering::Relaxed) {
                 let mut got = false;
                 while let Some(v) = inbox.try_recv()? {

@@ -23,12 +23,15 @@ use anyhow::{bail, Context, Result};
 use clap::Args;
 use exo_config::{ReportedPowerLaw, RunConfig, Subject};
 use exo_impedance::{fit_power_law, Complex64};
+use exo_messages::{status, ActuatorCommand, ControlMode, SensorSample};
+use exo_service_kit::channels::Channel;
+use exo_service_kit::collect::Collector;
 use serde::Serialize;
 
 use crate::analysis::{group_of, FRow, FitReport};
 use crate::fit_cmd::{fit, FitArgs};
 use crate::run_cmd::{services_of, Progress};
-use crate::supervisor::{supervise, Logs};
+use crate::supervisor::{supervise_checked, Ended, Logs};
 use crate::tune_cmd::subject_path;
 
 /// Arguments of `exo reproduce`.
@@ -184,6 +187,11 @@ pub fn simulate(
     cfg.run.output_dir = absolute(dir)?;
     cfg.run.instance = format!("{}-{name}-{}", cfg.run.instance, std::process::id());
     cfg.services.recorder = true;
+    // The run's bound: the plant simulator stops at the protocol's simulated
+    // duration plus a margin, so a run whose controller never finishes (a
+    // latched safe state keeps it answering forever) cannot hang.
+    let bound_s = protocol_duration_s(base) + BOUND_MARGIN_S;
+    cfg.run.max_sim_time_s = Some(bound_s);
     let run_file = dir.join(format!("{name}.toml"));
     let text = toml::to_string(&cfg).context("writing the subject's run file")?;
     std::fs::write(&run_file, text).with_context(|| format!("writing {}", run_file.display()))?;
@@ -192,14 +200,124 @@ pub fn simulate(
     exo_plant_sim::PlantModel::from_file(&cfg.plant_model)?;
     let recording = dir.join(format!("{name}.mcap"));
     let mut progress = Progress::per_experiment(&cfg.run.instance)?;
-    supervise(
+    let watch = SafeStateWatch::start(&cfg.run.instance)?;
+    let ended = supervise_checked(
         services_of(&cfg, &run_file, Some(&recording))?,
         Logs::Quiet,
-        || progress.poll(),
+        || {
+            progress.poll();
+            match watch.latched() {
+                Some(what) => bail!(
+                    "{what}, {}; the run is stopped (the recording so far is {})",
+                    locate(&cfg, what.sim_s),
+                    recording.display()
+                ),
+                None => Ok(()),
+            }
+        },
     )
     .with_context(|| format!("simulating subject {name} ({})", run_file.display()))?;
     progress.poll();
-    Ok(recording)
+    match ended {
+        Ended::By("controller") => Ok(recording),
+        Ended::By(other) => bail!(
+            "subject {name}: the run reached its bound of {bound_s:.1} s simulated ({other} stopped) before the controller finished the protocol ({})",
+            run_file.display()
+        ),
+        Ended::Signal => bail!("subject {name}: interrupted"),
+    }
+}
+
+/// Simulated time (s) a run gets beyond its protocol before it counts as hung.
+const BOUND_MARGIN_S: f64 = 10.0;
+
+/// The protocol's simulated duration (s) of a run configuration.
+fn protocol_duration_s(cfg: &RunConfig) -> f64 {
+    let table = cfg.experiment_table();
+    let periods = cfg
+        .protocol
+        .periods
+        .as_ref()
+        .map_or(table.periods as usize, Vec::len);
+    (cfg.protocol.experiments.len() * periods) as f64 * table.timing.period_s()
+}
+
+/// "experiment E period P" of a protocol time (s) of a run configuration.
+fn locate(cfg: &RunConfig, t_s: f64) -> String {
+    let table = cfg.experiment_table();
+    let all: Vec<u32> = (1..=table.periods).collect();
+    let periods = cfg.protocol.periods.as_deref().unwrap_or(&all);
+    let index = (t_s / table.timing.period_s()).floor().max(0.0) as usize;
+    match (
+        cfg.protocol.experiments.get(index / periods.len().max(1)),
+        periods.get(index % periods.len().max(1)),
+    ) {
+        (Some(e), Some(p)) => format!("in experiment {e} period {p}"),
+        _ => "after the protocol".into(),
+    }
+}
+
+/// A latched safe state seen on the run's channels.
+#[derive(Debug, Clone, Copy)]
+struct Latched {
+    who: &'static str,
+    mode: &'static str,
+    sim_s: f64,
+}
+
+impl std::fmt::Display for Latched {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(
+            f,
+            "the {} latched its safe state ({}) at {:.3} s simulated",
+            self.who, self.mode, self.sim_s
+        )
+    }
+}
+
+/// Watches the commands (the controller's mode) and the samples (the
+/// driver's safe-state bit) for a latched safe state, keeping only those.
+struct SafeStateWatch {
+    commands: Collector<ActuatorCommand>,
+    samples: Collector<SensorSample>,
+}
+
+impl SafeStateWatch {
+    fn start(instance: &str) -> Result<Self> {
+        let node = format!("exo_repro_watch_{}", std::process::id());
+        Ok(SafeStateWatch {
+            commands: Collector::start_filtered(
+                &node,
+                instance,
+                Channel::Command,
+                |c: &ActuatorCommand| {
+                    ControlMode::from_u32(c.mode).is_some_and(ControlMode::is_safe_state)
+                },
+            )
+            .context("watching the commands for a safe state")?,
+            samples: Collector::start_filtered(
+                &node,
+                instance,
+                Channel::Sensor,
+                |s: &SensorSample| s.status & status::SAFE_STATE != 0,
+            )
+            .context("watching the samples for the driver's safe state")?,
+        })
+    }
+
+    fn latched(&self) -> Option<Latched> {
+        let command = self.commands.latest().map(|c| Latched {
+            who: "controller",
+            mode: ControlMode::from_u32(c.mode).map_or("?", ControlMode::name),
+            sim_s: c.stamp_ns as f64 * 1e-9,
+        });
+        let sample = self.samples.latest().map(|s| Latched {
+            who: "sensor driver",
+            mode: "status bit SAFE_STATE",
+            sim_s: s.stamp_ns as f64 * 1e-9,
+        });
+        command.or(sample)
+    }
 }
 
 /// `|x| ≤ limit`; false for NaN, so a missing number misses the criterion.
@@ -519,4 +637,22 @@ pub fn run(a: &ReproduceArgs) -> Result<()> {
         );
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_bound_covers_the_protocol_and_a_time_names_its_period() {
+        let cfg = RunConfig::from_file(&exo_config::configs_dir().join("reproduce.toml")).unwrap();
+        // Nine experiments of ten periods of 5 + 5 + 5 + 1 + 0.5 s.
+        let t = cfg.experiment_table().timing;
+        assert_eq!(t.period_s(), 16.5);
+        assert_eq!(protocol_duration_s(&cfg), 90.0 * 16.5);
+        // The 66th period (index 65): experiment 7, period 6.
+        assert_eq!(locate(&cfg, 65.0 * 16.5 + 3.0), "in experiment 7 period 6");
+        assert_eq!(locate(&cfg, 0.0), "in experiment 1 period 1");
+        assert_eq!(locate(&cfg, 90.0 * 16.5 + 1.0), "after the protocol");
+    }
 }

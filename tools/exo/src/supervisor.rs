@@ -182,6 +182,30 @@ fn describe(status: ExitStatus) -> String {
 /// Runs the services until the one with [`Role::EndsRun`] exits cleanly,
 /// a critical one fails, or a stop signal arrives.
 pub fn supervise(services: Vec<ServiceSpec>, logs: Logs, mut on_tick: impl FnMut()) -> Result<()> {
+    supervise_checked(services, logs, || {
+        on_tick();
+        Ok(())
+    })
+    .map(|_| ())
+}
+
+/// How a supervised run ended without error.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Ended {
+    /// The named service with [`Role::EndsRun`] exited cleanly.
+    By(&'static str),
+    /// A stop signal (Ctrl-C, SIGTERM) arrived.
+    Signal,
+}
+
+/// [`supervise`], with a check every tick (about 20 ms): an error from
+/// `on_tick` stops every service and is the run's error. Returns which
+/// service ended the run, or that a signal did.
+pub fn supervise_checked(
+    services: Vec<ServiceSpec>,
+    logs: Logs,
+    mut on_tick: impl FnMut() -> Result<()>,
+) -> Result<Ended> {
     let stop = Arc::new(AtomicBool::new(false));
     for sig in [signal_hook::consts::SIGINT, signal_hook::consts::SIGTERM] {
         signal_hook::flag::register(sig, Arc::clone(&stop))
@@ -203,10 +227,10 @@ pub fn supervise(services: Vec<ServiceSpec>, logs: Logs, mut on_tick: impl FnMut
             }
         }
     }
-    let outcome: Result<()> = 'supervise: loop {
+    let outcome: Result<Ended> = 'supervise: loop {
         if stop.load(Ordering::Relaxed) {
             eprintln!("exo: stop requested; stopping every service");
-            break Ok(());
+            break Ok(Ended::Signal);
         }
         for r in running.iter_mut() {
             let status = match r.child.try_wait() {
@@ -218,7 +242,7 @@ pub fn supervise(services: Vec<ServiceSpec>, logs: Logs, mut on_tick: impl FnMut
             };
             let name = r.spec.name;
             match r.spec.role {
-                Role::EndsRun if status.success() => break 'supervise Ok(()),
+                Role::EndsRun if status.success() => break 'supervise Ok(Ended::By(name)),
                 Role::Restartable if r.restarts < MAX_RESTARTS => {
                     r.restarts += 1;
                     eprintln!(
@@ -246,7 +270,9 @@ pub fn supervise(services: Vec<ServiceSpec>, logs: Logs, mut on_tick: impl FnMut
                 }
             }
         }
-        on_tick();
+        if let Err(e) = on_tick() {
+            break 'supervise Err(e);
+        }
         std::thread::sleep(Duration::from_millis(20));
     };
     stop_all(&mut running);
