@@ -333,8 +333,14 @@ fn law(fit: exo_impedance::PowerLawFit) -> Law {
     }
 }
 
-/// Compares what the fit recovered with the simulated subjects.
-pub fn compare(subjects: &[Subject], report: &FitReport, c: Criteria) -> Result<Reproduction> {
+/// Compares what the fit recovered with the simulated subjects, which went
+/// through `experiments` (each must have been fitted).
+pub fn compare(
+    subjects: &[Subject],
+    experiments: &[u32],
+    report: &FitReport,
+    c: Criteria,
+) -> Result<Reproduction> {
     let mut out = Vec::new();
     let mut failures = Vec::new();
     for subject in subjects {
@@ -343,6 +349,13 @@ pub fn compare(subjects: &[Subject], report: &FitReport, c: Criteria) -> Result<
             failures.push(format!("subject {name}: no fitted data"));
             continue;
         };
+        for n in experiments {
+            if !fitted.experiments.iter().any(|e| e.experiment == *n) {
+                failures.push(format!(
+                    "subject {name} experiment {n}: simulated but not fitted (no usable data)"
+                ));
+            }
+        }
         let mut experiments = Vec::new();
         let (mut k_in, mut h_in) = (Vec::new(), Vec::new());
         // Phase of S_h the inputs imply, over the same points the table keeps.
@@ -623,7 +636,12 @@ pub fn run(a: &ReproduceArgs) -> Result<()> {
         subjects.push(subject);
     }
     let (_, report) = fit(&FitArgs::for_recordings(recordings.clone()))?;
-    let mut r = compare(&subjects, &report, Criteria::default())?;
+    let mut r = compare(
+        &subjects,
+        &base.protocol.experiments,
+        &report,
+        Criteria::default(),
+    )?;
     r.recordings = recordings;
     if a.json {
         println!("{}", serde_json::to_string_pretty(&r)?);
