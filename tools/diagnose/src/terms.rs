@@ -205,8 +205,9 @@ impl Term {
 
     /// The parameters of which at least one must differ from its "absent"
     /// value (0, or 1 for a gain) by more than two standard errors for the
-    /// term to count as identified (the reflex: its gain; hysteresis: any
-    /// experiment's H; the SEA's bandwidth is never absent).
+    /// term to count as identified (hysteresis: any experiment's H; the
+    /// reflex: its gain and its delay both; the SEA's bandwidth is never
+    /// absent).
     pub fn identified(
         self,
         p: &Physics,
@@ -217,15 +218,17 @@ impl Term {
             Param::GainTauC | Param::GainTauS => 1.0,
             _ => 0.0,
         };
-        let keys: Vec<Param> = match self {
-            Term::SeaBandwidth => return true,
-            Term::StretchReflex => vec![Param::ReflexGain],
-            t => t.params(experiments),
-        };
-        keys.into_iter().any(|q| match se(q) {
+        let beyond = |q: Param| match se(q) {
             Some(s) if s.is_finite() => (p.get(q) - absent(q)).abs() > 2.0 * s,
             _ => false,
-        })
+        };
+        match self {
+            Term::SeaBandwidth => true,
+            // A reflex needs both its gain and its delay: with the delay
+            // undetermined it is a low-passed viscous damping, not a reflex.
+            Term::StretchReflex => beyond(Param::ReflexGain) && beyond(Param::ReflexDelay),
+            t => t.params(experiments).into_iter().any(beyond),
+        }
     }
 
     /// Starting point `i` of the term's fit: 0 is [`Term::start`]; the
