@@ -44,9 +44,29 @@ pub fn stderr(o: &Output) -> String {
     String::from_utf8_lossy(&o.stderr).into_owned()
 }
 
+/// The repository root.
+pub fn workspace_root() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("..")
+}
+
+/// The project's Python (with `mcap` and `mcap-ros2-support`), set up by
+/// `tools/python/ensure_venv.sh`.
+pub fn python() -> String {
+    let out = Command::new("bash")
+        .arg(workspace_root().join("tools/python/ensure_venv.sh"))
+        .output()
+        .expect("ensure_venv.sh");
+    assert!(
+        out.status.success(),
+        "Python with mcap and mcap-ros2-support is needed: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    String::from_utf8(out.stdout).unwrap().trim().to_string()
+}
+
 /// The workspace's `configs/` directory.
 pub fn configs_dir() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("../configs")
+    workspace_root().join("configs")
 }
 
 /// A scratch directory for one test, with a run configuration derived from

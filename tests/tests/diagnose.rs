@@ -15,23 +15,6 @@ fn scratch(tag: &str) -> PathBuf {
     dir
 }
 
-fn workspace_root() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("..")
-}
-
-fn python() -> String {
-    let out = Command::new("bash")
-        .arg(workspace_root().join("tools/python/ensure_venv.sh"))
-        .output()
-        .expect("ensure_venv.sh");
-    assert!(
-        out.status.success(),
-        "Python with mcap and mcap-ros2-support is needed: {}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    String::from_utf8(out.stdout).unwrap().trim().to_string()
-}
-
 /// The default plant with some of its text replaced, written to `dir`.
 fn plant_variant(dir: &Path, name: &str, edits: &[(&str, &str)]) -> PathBuf {
     let mut text = std::fs::read_to_string(configs_dir().join("plants/default.toml")).unwrap();

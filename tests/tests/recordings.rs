@@ -93,23 +93,6 @@ fn the_main_job_records_fits_and_reports_the_simulated_subject() {
     );
 }
 
-fn python() -> String {
-    let out = Command::new("bash")
-        .arg(workspace_root().join("tools/python/ensure_venv.sh"))
-        .output()
-        .expect("ensure_venv.sh");
-    assert!(
-        out.status.success(),
-        "Python with mcap and mcap-ros2-support is needed: {}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    String::from_utf8(out.stdout).unwrap().trim().to_string()
-}
-
-fn workspace_root() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("..")
-}
-
 #[test]
 fn a_recording_written_by_an_independent_python_script_is_fitted() {
     let dir = std::env::temp_dir().join(format!("exo-it-py-{}", std::process::id()));

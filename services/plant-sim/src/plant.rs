@@ -129,6 +129,8 @@ pub struct Plant {
     /// The stretch reflex: the joint velocity delayed, and its two low-pass states.
     reflex_delay: Delay,
     reflex_lp: [f64; 2],
+    /// Per-step gain of each low-pass section, `1 − e^{−ω_c h}`.
+    reflex_alpha: f64,
     theta_delay: Delay,
     tau_c_delay: Delay,
     tau_s_delay: Delay,
@@ -182,6 +184,8 @@ impl Plant {
             actuator_delay: Delay::new(steps_of(model.actuator.delay_s, h), 0.0),
             reflex_delay: Delay::new(steps_of(model.human.stretch_reflex.delay_s, h), 0.0),
             reflex_lp: [0.0; 2],
+            reflex_alpha: 1.0
+                - (-model.human.stretch_reflex.cutoff_rad_s * model.integration.step_s).exp(),
             theta_delay: Delay::new(
                 steps_of(model.sensors.encoder.terms.delay_s, h),
                 model.human.rest_angle_rad,
@@ -544,7 +548,7 @@ impl Plant {
         }
         let stretch_rate = self.x[self.layout.w_h] - self.drive.omega_eq_rad_s;
         let v = self.reflex_delay.push(stretch_rate);
-        let a = 1.0 - (-r.cutoff_rad_s * self.model.integration.step_s).exp();
+        let a = self.reflex_alpha;
         self.reflex_lp[0] += a * (v - self.reflex_lp[0]);
         self.reflex_lp[1] += a * (self.reflex_lp[0] - self.reflex_lp[1]);
     }

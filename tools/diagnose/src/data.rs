@@ -150,30 +150,31 @@ pub struct Dataset {
 impl Dataset {
     /// The experiments present, sorted.
     pub fn experiments(&self) -> Vec<u32> {
-        let mut e: Vec<u32> = self.conditions.iter().map(|c| c.experiment).collect();
-        e.sort_unstable();
-        e.dedup();
-        e
+        sorted_unique(self.conditions.iter().map(|c| c.experiment))
     }
 
     /// The experiments with a human impedance observation (`S_h` or
     /// `S_h-e`): only their `K_h`, `H_h` can be fitted.
     pub fn impedance_experiments(&self) -> Vec<u32> {
-        let mut e: Vec<u32> = self
-            .observations
-            .iter()
-            .filter(|o| matches!(o.tf, Tf::Sh | Tf::She))
-            .map(|o| self.conditions[o.window].experiment)
-            .collect();
-        e.sort_unstable();
-        e.dedup();
-        e
+        sorted_unique(
+            self.observations
+                .iter()
+                .filter(|o| matches!(o.tf, Tf::Sh | Tf::She))
+                .map(|o| self.conditions[o.window].experiment),
+        )
     }
 
     /// Observations of one transfer function.
     pub fn of(&self, tf: Tf) -> impl Iterator<Item = &Observation> {
         self.observations.iter().filter(move |o| o.tf == tf)
     }
+}
+
+fn sorted_unique(it: impl Iterator<Item = u32>) -> Vec<u32> {
+    let mut e: Vec<u32> = it.collect();
+    e.sort_unstable();
+    e.dedup();
+    e
 }
 
 /// Settings of the data reduction.

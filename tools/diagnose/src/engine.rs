@@ -29,7 +29,7 @@ use num_complex::Complex64;
 use serde::Serialize;
 use statrs::distribution::{ChiSquared, ContinuousCDF};
 
-use crate::data::{Condition, Dataset, Observation, Tf};
+use crate::data::{Dataset, Observation, Tf};
 use crate::fit::{fit, lack_of_fit_chi2, lack_of_fit_p, rss, sigma_floor, Fitted};
 use crate::model::{Param, Physics};
 use crate::terms::Term;
@@ -545,7 +545,6 @@ fn time_rows(d: &Dataset, nominal: &Physics, fin: &Physics) -> Vec<TimeRow> {
     }
     acc.into_iter()
         .map(|((experiment, channel), rows)| {
-            let n = rows.len() as f64;
             let avg = |k: usize| {
                 let v: Vec<f64> = rows
                     .iter()
@@ -558,7 +557,6 @@ fn time_rows(d: &Dataset, nominal: &Physics, fin: &Physics) -> Vec<TimeRow> {
                     v.iter().sum::<f64>() / v.len() as f64
                 }
             };
-            let _ = n;
             TimeRow {
                 experiment,
                 channel,
@@ -928,9 +926,4 @@ pub fn diagnose(
         refit_physics: base.physics,
         final_physics: current.physics,
     })
-}
-
-/// The condition of a window, for callers that predict (plots).
-pub fn condition(d: &Dataset, window: usize) -> Option<&Condition> {
-    d.conditions.get(window)
 }

@@ -422,7 +422,6 @@ impl Physics {
         }
     }
 
-    #[allow(clippy::needless_lifetimes)]
     fn s_cuff(&self, w: f64, c: &Condition) -> Complex64 {
         let k = self.k.get(&c.experiment).copied().unwrap_or(0.0);
         let h = self.h.get(&c.experiment).copied().unwrap_or(0.0);

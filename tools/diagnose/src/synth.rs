@@ -61,9 +61,11 @@ impl Default for SynthSettings {
 pub fn synthesize(model: &PlantModel, periods: &[SynthPeriod], s: &SynthSettings) -> Recording {
     let mut plant = Plant::new(model);
     let g = &model.gravity;
-    let arm_mgl = s
-        .ctrl_arm_mgl_nm
-        .unwrap_or(g.g_m_s2 * g.arm_mass_kg * g.arm_com_m * f64::from(u8::from(g.enabled)));
+    let arm_mgl = s.ctrl_arm_mgl_nm.unwrap_or(if g.enabled {
+        g.g_m_s2 * g.arm_mass_kg * g.arm_com_m
+    } else {
+        0.0
+    });
     let lever = model.exo.load_lever_arm_m;
     let gg = if g.enabled { g.g_m_s2 } else { 0.0 };
     let h = model.integration.step_s;
