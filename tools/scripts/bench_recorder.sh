@@ -37,14 +37,34 @@ sed -e "s|\"plants/|\"$root/configs/plants/|" \
     -e "s|^experiments = \[1, 7\]|experiments = [1, 2, 3, 4, 5, 6, 7, 8, 9]|" \
     -e "/^periods = /d" \
     "$root/configs/default.toml" >"$cfg"
-# The control path in SCHED_FIFO with locked memory, as on an exo computer
-# (refusals are warned in the log); EXO_BENCH_REALTIME=0 leaves it out.
+# The control path in SCHED_FIFO with locked memory on a CPU of its own, as
+# on an exo computer (refusals are warned in the log): plant simulator,
+# driver and controller on the last CPU (EXO_BENCH_RT_CPU), everything else
+# -- the supervisor, identifier, recorder and `exo fit` -- confined to the
+# other CPUs. EXO_BENCH_REALTIME=0 leaves all of this out.
+#
+# Why the CPU of its own: this machine's kernel is not preemptible
+# (PREEMPT_NONE) and hands freed memory back to its host (free page
+# reporting), so a process that allocates and frees hundreds of MB holds
+# its CPU inside the kernel for milliseconds; measured here, a plain
+# Python loop allocating 400 MB made the SCHED_FIFO control path miss its
+# 5 ms deadline when it shared CPUs with it, and never when it did not.
+ncpu=$(nproc)
+rt_cpu=${EXO_BENCH_RT_CPU:-$((ncpu - 1))}
+other_cpus=$(seq -s, 0 $((ncpu - 1)) | tr ',' '\n' | grep -vx "$rt_cpu" | paste -sd,)
+confine=()
 if [ "${EXO_BENCH_REALTIME:-1}" != 0 ]; then
     printf '\n[realtime]\nsched_fifo_priority = 80\nlock_memory = true\n' >>"$cfg"
+    if [ -n "$other_cpus" ]; then
+        printf 'plant_sim_cpu = %s\nsensor_driver_cpu = %s\ncontroller_cpu = %s\n' \
+            "$rt_cpu" "$rt_cpu" "$rt_cpu" >>"$cfg"
+        confine=(taskset -c "$other_cpus")
+    fi
 fi
 
-echo "recorder bench: ${rate} Hz for ${duration} s, exo fit on $# recording(s) alongside"
-"$exo" run "$cfg" --no-report >"$work/run.log" 2>&1 &
+echo "recorder bench: ${rate} Hz for ${duration} s, exo fit on $# recording(s) alongside" \
+    "(control path on CPU $rt_cpu${other_cpus:+, the rest on CPUs $other_cpus})"
+"${confine[@]}" "$exo" run "$cfg" --no-report >"$work/run.log" 2>&1 &
 run_pid=$!
 
 # The recorder's process, once the supervisor has started it.
@@ -68,7 +88,7 @@ fits=0
 fit_s=0
 while kill -0 "$run_pid" 2>/dev/null; do
     f0=$(date +%s%N)
-    "$exo" fit "$@" --json >/dev/null 2>&1 || true
+    "${confine[@]}" "$exo" fit "$@" --json >/dev/null 2>&1 || true
     f1=$(date +%s%N)
     if kill -0 "$run_pid" 2>/dev/null; then
         fits=$((fits + 1))

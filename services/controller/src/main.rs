@@ -18,7 +18,7 @@ use exo_messages::{
     ActuatorCommand, ControlMode, ImpedanceEstimate, OperatorCommand, ProtocolState, SensorSample,
 };
 use exo_service_kit::channels::Channel;
-use exo_service_kit::ipc::Ipc;
+use exo_service_kit::ipc::{settle_connections, Ipc, REALTIME_SETTLE};
 use exo_service_kit::{init_logging, request_realtime, RealtimeRequest, ServiceArgs, StopFlag};
 use tracing::{error, info, warn};
 
@@ -74,6 +74,18 @@ fn run(args: ServiceArgs) -> Result<()> {
         );
     }
     let lockstep = cfg.run.timing == TimingMode::Lockstep;
+    if !lockstep {
+        settle_connections(
+            &[
+                &sensor_in,
+                &command_out,
+                &protocol_out,
+                &operator_in,
+                &estimate_in,
+            ],
+            REALTIME_SETTLE,
+        )?;
+    }
     let wait = Duration::from_secs_f64(
         if lockstep {
             cfg.safety.lockstep_timeout_ms

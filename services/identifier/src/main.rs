@@ -11,7 +11,7 @@ use exo_config::RunConfig;
 use exo_identifier::{Event, Identifier, IdentifierSettings};
 use exo_messages::{ActuatorCommand, FrfPoint, ImpedanceEstimate, ProtocolState, SensorSample};
 use exo_service_kit::channels::Channel;
-use exo_service_kit::ipc::{Ipc, MAX_BUFFER};
+use exo_service_kit::ipc::{Ipc, MAX_BUFFER, OFF_PATH_COALESCE};
 use exo_service_kit::{init_logging, ServiceArgs, StopFlag};
 use tracing::{error, info, warn};
 
@@ -91,7 +91,9 @@ fn run(args: ServiceArgs) -> Result<()> {
                 Event::Warning(w) => warn!("identifier: {w}"),
             }
         }
-        if !got {
+        if got {
+            std::thread::sleep(OFF_PATH_COALESCE);
+        } else {
             sensor_in.wait(Duration::from_millis(20))?;
         }
     }

@@ -17,7 +17,7 @@ use exo_config::{ProtocolMode, RunConfig, TimingMode};
 use exo_messages::{BusMotorCommand, BusSensorFrame, ProtocolPhase, ProtocolState};
 use exo_plant_sim::{Plant, PlantModel, PostureDrive};
 use exo_service_kit::channels::Channel;
-use exo_service_kit::ipc::Ipc;
+use exo_service_kit::ipc::{settle_connections, Ipc, REALTIME_SETTLE_PLANT};
 use exo_service_kit::{
     init_logging, monotonic_ns, request_realtime, sleep_until_ns, RealtimeRequest, ServiceArgs,
     StopFlag,
@@ -102,6 +102,9 @@ fn run(args: ServiceArgs) -> Result<()> {
     let max_ticks = cfg.run.max_sim_time_s.map(|t| (t / period_s).ceil() as u64);
     let mut tau_motor = 0.0;
     let mut missed_deadlines = 0u64;
+    if cfg.run.timing == TimingMode::Realtime {
+        settle_connections(&[&bus_out, &motor_in, &protocol_in], REALTIME_SETTLE_PLANT)?;
+    }
     let wall_start = monotonic_ns();
     info!(
         "plant-sim: {:?} at {} Hz, step {} s, subject {}, model {}",

@@ -9,7 +9,7 @@ use std::time::Duration;
 use exo_messages::{BusMotorCommand, BusSensorFrame};
 use exo_sensor_driver::{HardwareBus, RawFrame};
 use exo_service_kit::channels::Channel;
-use exo_service_kit::ipc::{Inbox, Ipc, IpcError, Outbox};
+use exo_service_kit::ipc::{Connect, Inbox, Ipc, IpcError, Outbox};
 
 /// The plant simulator's bus: `BusSensorFrame`s in, `BusMotorCommand`s out,
 /// over iceoryx2. The simulator re-sends a frame it got no answer to (a
@@ -34,6 +34,13 @@ impl SimulatorBus {
             last: None,
             motor_seq: 0,
         })
+    }
+}
+
+impl SimulatorBus {
+    /// Its two ports, to connect before real-time control starts.
+    pub fn ports(&self) -> [&dyn Connect; 2] {
+        [&self.frames, &self.motor]
     }
 }
 

@@ -4,21 +4,8 @@ use exo_config::{RigSettings, SafeState};
 
 use crate::calibration::{Calibration, VelocityFilter};
 
-/// Status bits of a calibrated sample (`SensorSample.status`).
-pub mod status {
-    /// The encoder reading was invalid.
-    pub const ENCODER_FAULT: u32 = 1 << 0;
-    /// The cuff force/torque reading was NaN or infinite.
-    pub const FT_FAULT: u32 = 1 << 1;
-    /// The SEA deflection reading was invalid.
-    pub const SEA_FAULT: u32 = 1 << 2;
-    /// The bus frame itself carried a fault flag.
-    pub const BUS_FAULT: u32 = 1 << 3;
-    /// The driver is in its latched safe state.
-    pub const SAFE_STATE: u32 = 1 << 4;
-    /// All bits that mean "do not trust this sample".
-    pub const FAULT_MASK: u32 = ENCODER_FAULT | FT_FAULT | SEA_FAULT | BUS_FAULT;
-}
+/// Status bits of a calibrated sample: the message's own (`SensorSample.status`).
+pub use exo_messages::status;
 
 /// One raw frame from the hardware bus.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
@@ -149,9 +136,12 @@ impl Driver {
     /// Converts a raw frame. Non-finite readings never leave the driver: the
     /// last good value is kept and a fault bit is set instead.
     pub fn on_frame(&mut self, f: &RawFrame) -> CalibratedSample {
+        let mut st = 0;
+        if self.current_frame.is_some_and(|last| f.seq > last + 1) {
+            st |= status::FRAMES_SKIPPED;
+        }
         self.current_frame = Some(f.seq);
         self.answered = false;
-        let mut st = 0;
         if f.status != 0 {
             st |= status::BUS_FAULT;
         }
@@ -278,6 +268,16 @@ mod tests {
         );
         assert_eq!(d.on_command(1, 1.0), None, "already answered");
         assert_eq!(d.on_deadline(), None);
+    }
+
+    #[test]
+    fn a_gap_in_the_frames_is_flagged_on_the_sample_after_it() {
+        let mut d = Driver::new(&rig(), 1000.0, SafeState::GravityOnly, 10.0, 4.5);
+        let flags: Vec<u32> = [1, 2, 5, 6]
+            .iter()
+            .map(|&k| d.on_frame(&frame(k)).status & status::FRAMES_SKIPPED)
+            .collect();
+        assert_eq!(flags, [0, 0, status::FRAMES_SKIPPED, 0]);
     }
 
     #[test]

@@ -24,7 +24,7 @@ use exo_config::{BusBackend, RunConfig, TimingMode};
 use exo_messages::{ActuatorCommand, OperatorCommand, ProtocolState, SensorSample};
 use exo_sensor_driver::{Calibration, Driver, HardwareBus};
 use exo_service_kit::channels::Channel;
-use exo_service_kit::ipc::{Inbox, Ipc, Outbox};
+use exo_service_kit::ipc::{settle_connections, Inbox, Ipc, Outbox, REALTIME_SETTLE};
 
 use crate::backends::SimulatorBus;
 use crate::replay::ReplayBus;
@@ -95,6 +95,20 @@ fn run(args: ServiceArgs) -> Result<()> {
     match cfg.bus.backend {
         BusBackend::Simulator => {
             let mut bus = SimulatorBus::open(&ipc, cfg.lockstep_spin())?;
+            if !lockstep {
+                let [frames, motor] = bus.ports();
+                settle_connections(
+                    &[
+                        frames,
+                        motor,
+                        &ports.sample_out,
+                        &ports.command_in,
+                        &ports.protocol_in,
+                        &ports.operator_in,
+                    ],
+                    REALTIME_SETTLE,
+                )?;
+            }
             info!(
                 "sensor-driver: {} bus, {:?}, command deadline {:?}, safe state {:?}",
                 bus.name(),

@@ -25,13 +25,24 @@ pub mod status {
     pub const SATURATED: u32 = 1 << 6;
     /// The sample was replayed from a recording, not measured.
     pub const REPLAY: u32 = 1 << 7;
+    /// Bus frames just before this one never reached the driver (it fell
+    /// behind and its bus buffer overflowed): the gap in `seq` before this
+    /// sample is the control path's, not a loss of whoever records it.
+    pub const FRAMES_SKIPPED: u32 = 1 << 8;
     /// Bits that mean "do not act on this sample" (the driver's own mask). [`STALE`]
     /// is not among them: how many stale samples in a row to tolerate is the
     /// consumer's decision.
     pub const FAULT_MASK: u32 = ENCODER_FAULT | FT_FAULT | SEA_FAULT | BUS_FAULT;
     /// Every bit with a meaning.
-    pub const KNOWN: u32 =
-        ENCODER_FAULT | FT_FAULT | SEA_FAULT | BUS_FAULT | SAFE_STATE | STALE | SATURATED | REPLAY;
+    pub const KNOWN: u32 = ENCODER_FAULT
+        | FT_FAULT
+        | SEA_FAULT
+        | BUS_FAULT
+        | SAFE_STATE
+        | STALE
+        | SATURATED
+        | REPLAY
+        | FRAMES_SKIPPED;
 }
 
 /// A calibrated sensor sample, one per control tick.
@@ -148,6 +159,7 @@ mod tests {
             status::STALE,
             status::SATURATED,
             status::REPLAY,
+            status::FRAMES_SKIPPED,
         ];
         let mut seen = 0u32;
         for b in all {

@@ -15,6 +15,7 @@ use iceoryx2::port::listener::Listener;
 use iceoryx2::port::notifier::Notifier;
 use iceoryx2::port::publisher::Publisher;
 use iceoryx2::port::subscriber::Subscriber;
+use iceoryx2::port::update_connections::UpdateConnections;
 use iceoryx2::prelude::*;
 use thiserror::Error;
 
@@ -28,6 +29,14 @@ pub const CONFIG_ENV: &str = "EXO_ICEORYX2_CONFIG";
 
 /// Deepest subscriber buffer a channel allows (the recorder's).
 pub const MAX_BUFFER: usize = 8192;
+
+/// How long a process off the real-time path (identifier, recorder) sleeps
+/// after a pass that found samples, so that it takes them in batches rather
+/// than waking once per sample: at 1 kHz, or at tens of kHz in lockstep,
+/// one wake-up per sample costs the real-time path CPU time on a two-core
+/// machine. A millisecond's samples are far below the [`MAX_BUFFER`] a
+/// subscriber holds.
+pub const OFF_PATH_COALESCE: Duration = Duration::from_millis(1);
 
 /// An IPC error, naming the service or file.
 #[derive(Debug, Error)]
@@ -191,6 +200,24 @@ impl Ipc {
         Ok(Some((name, factory)))
     }
 
+    /// How many subscribers `ch` has now, whoever they are.
+    pub fn subscriber_count<T: Debug + ZeroCopySend + Copy + 'static>(
+        &self,
+        ch: Channel,
+    ) -> Result<usize, IpcError> {
+        let (_, f) = self.pubsub::<T>(ch)?;
+        Ok(f.dynamic_config().number_of_subscribers())
+    }
+
+    /// How many publishers `ch` has now.
+    pub fn publisher_count<T: Debug + ZeroCopySend + Copy + 'static>(
+        &self,
+        ch: Channel,
+    ) -> Result<usize, IpcError> {
+        let (_, f) = self.pubsub::<T>(ch)?;
+        Ok(f.dynamic_config().number_of_publishers())
+    }
+
     /// A publisher on `ch` and, where the channel has one, its wake-up notifier.
     pub fn outbox<T: Debug + ZeroCopySend + Copy + 'static>(
         &self,
@@ -248,6 +275,7 @@ impl Ipc {
             listener,
             fd,
             spin: Duration::ZERO,
+            undrained: std::cell::Cell::new(0),
         })
     }
 }
@@ -278,6 +306,67 @@ impl<T: Debug + ZeroCopySend + Copy + 'static> Outbox<T> {
     }
 }
 
+/// A port whose shared-memory connections to its peers can be brought up
+/// to date on demand.
+pub trait Connect {
+    /// Builds the connections to peers that appeared since the last call.
+    ///
+    /// iceoryx2 does this by itself on the next send or receive, but a
+    /// connection that the peer is building at the same moment makes the
+    /// port wait (up to `global.creation-timeout`) until the peer has
+    /// finished: a real-time process whose peer is an ordinary process
+    /// starved of CPU then waits on it (priority inversion, measured: the
+    /// control path missed its 5 ms deadline at start-up while `exo fit`
+    /// ran beside it). The real-time processes therefore connect during
+    /// [`settle_connections`], before their deadlines start.
+    fn connect(&self) -> Result<(), IpcError>;
+}
+
+impl<T: Debug + ZeroCopySend + Copy + 'static> Connect for Outbox<T> {
+    fn connect(&self) -> Result<(), IpcError> {
+        self.publisher
+            .update_connections()
+            .map_err(|e| port_err("update connections", &self.name, e))?;
+        if let Some(n) = &self.notifier {
+            n.update_connections()
+                .map_err(|e| port_err("update connections", &self.name, e))?;
+        }
+        Ok(())
+    }
+}
+
+impl<T: Debug + ZeroCopySend + Copy + 'static> Connect for Inbox<T> {
+    fn connect(&self) -> Result<(), IpcError> {
+        self.subscriber
+            .update_connections()
+            .map_err(|e| port_err("update connections", &self.name, e))
+    }
+}
+
+/// How long the real-time processes connect to their peers before their
+/// loops start: the sensor driver and the controller this long, the plant
+/// simulator (whose first tick starts the clock) [`REALTIME_SETTLE_PLANT`].
+pub const REALTIME_SETTLE: Duration = Duration::from_millis(500);
+/// The plant simulator's settle time: longer than the others', so they are
+/// listening when its first frame comes.
+pub const REALTIME_SETTLE_PLANT: Duration = Duration::from_millis(700);
+
+/// Connects `ports` to their peers for `duration`, every 5 ms, so that a
+/// real-time loop started afterwards finds every connection built (see
+/// [`Connect`]). Called once before the loop, never per tick.
+pub fn settle_connections(ports: &[&dyn Connect], duration: Duration) -> Result<(), IpcError> {
+    let start = std::time::Instant::now();
+    loop {
+        for p in ports {
+            p.connect()?;
+        }
+        if start.elapsed() >= duration {
+            return Ok(());
+        }
+        std::thread::sleep(Duration::from_millis(5));
+    }
+}
+
 /// A subscriber and its wake-up listener.
 pub struct Inbox<T: Debug + ZeroCopySend + Copy + 'static> {
     name: String,
@@ -285,7 +374,15 @@ pub struct Inbox<T: Debug + ZeroCopySend + Copy + 'static> {
     listener: Option<Listener<Svc>>,
     fd: Option<i32>,
     spin: Duration,
+    /// Samples taken by polling whose wake-ups are still queued.
+    undrained: std::cell::Cell<u32>,
 }
+
+/// A polling receiver leaves the wake-ups of the samples it took queued and
+/// drains them only before it sleeps or after this many: each drain is a
+/// system call, and a queue of a few dozen datagrams is far from filling
+/// the socket.
+const MAX_UNDRAINED: u32 = 32;
 
 impl<T: Debug + ZeroCopySend + Copy + 'static> Inbox<T> {
     /// The next sample, if one is waiting.
@@ -307,12 +404,16 @@ impl<T: Debug + ZeroCopySend + Copy + 'static> Inbox<T> {
     /// and the notifications are then drained with `try_wait`. Channels
     /// without an event sleep a tenth of `timeout`.
     pub fn wait(&self, timeout: Duration) -> Result<(), IpcError> {
+        // Wake-ups of samples already taken would end the sleep at once:
+        // drain them first, then look for samples, then sleep (a sample
+        // published after the look wakes the sleep).
+        self.drain_wake_ups()?;
         if self
             .subscriber
             .has_samples()
             .map_err(|e| port_err("has_samples", &self.name, e))?
         {
-            return self.drain_wake_ups();
+            return Ok(());
         }
         match self.fd {
             Some(fd) => {
@@ -343,6 +444,7 @@ impl<T: Debug + ZeroCopySend + Copy + 'static> Inbox<T> {
     }
 
     fn drain_wake_ups(&self) -> Result<(), IpcError> {
+        self.undrained.set(0);
         if let Some(l) = &self.listener {
             l.try_wait(|_| {})
                 .map_err(|e| port_err("try_wait", &self.name, e))?;
@@ -374,7 +476,13 @@ impl<T: Debug + ZeroCopySend + Copy + 'static> Inbox<T> {
             while start.elapsed() < spin {
                 std::thread::yield_now();
                 if let Some(v) = self.try_recv()? {
-                    self.drain_wake_ups()?;
+                    let n = self.undrained.get() + 1;
+                    if n >= MAX_UNDRAINED {
+                        self.drain_wake_ups()?;
+                        self.undrained.set(0);
+                    } else {
+                        self.undrained.set(n);
+                    }
                     return Ok(Some(v));
                 }
             }

@@ -13,7 +13,9 @@ use exo_messages::ProtocolState;
 use exo_service_kit::channels::Channel;
 use exo_service_kit::collect::Collector;
 
-use crate::supervisor::{config_args, sibling_program, supervise, Logs, Role, ServiceSpec};
+use crate::supervisor::{
+    config_args, sibling_program, supervise, Logs, Ready, ReadyProbe, Role, ServiceSpec,
+};
 
 /// Arguments of `exo run`.
 #[derive(Debug, Args)]
@@ -73,11 +75,20 @@ pub fn services_of(
                 args.push("--output".into());
                 args.push(r.display().to_string());
             }
+            let probe = match name {
+                "recorder" => Some(ReadyProbe::SubscribesBusMotor),
+                "identifier" => Some(ReadyProbe::PublishesEstimate),
+                _ => None,
+            };
             out.push(ServiceSpec {
                 name,
                 program: sibling_program(bin)?,
                 args,
                 role,
+                ready: probe.map(|probe| Ready {
+                    instance: cfg.run.instance.clone(),
+                    probe,
+                }),
             });
         }
     }

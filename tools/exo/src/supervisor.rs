@@ -35,6 +35,63 @@ pub struct ServiceSpec {
     pub args: Vec<String>,
     /// Role.
     pub role: Role,
+    /// For an off-path service: how to tell it has opened all its ports.
+    pub ready: Option<Ready>,
+}
+
+/// How the supervisor tells that an off-path service has opened every port
+/// it will use, so the real-time path can start after it: the real-time
+/// processes then build their connections to it while nothing has a
+/// deadline (see `exo_service_kit::ipc::Connect`).
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Ready {
+    /// The run's iceoryx2 instance.
+    pub instance: String,
+    /// What to look for.
+    pub probe: ReadyProbe,
+}
+
+/// The port a service opens last.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum ReadyProbe {
+    /// One more subscriber on the bus motor channel (the recorder's last tap).
+    SubscribesBusMotor,
+    /// A publisher on the estimate channel (the identifier's last port).
+    PublishesEstimate,
+}
+
+/// How long the supervisor waits for the off-path services before it
+/// starts the real-time path anyway (with a warning).
+const READY_PATIENCE: Duration = Duration::from_secs(10);
+
+impl Ready {
+    fn count(&self, ipc: &exo_service_kit::ipc::Ipc) -> Result<usize> {
+        use exo_service_kit::channels::Channel;
+        Ok(match self.probe {
+            ReadyProbe::SubscribesBusMotor => {
+                ipc.subscriber_count::<exo_messages::BusMotorCommand>(Channel::BusMotor)?
+            }
+            ReadyProbe::PublishesEstimate => {
+                ipc.publisher_count::<exo_messages::ImpedanceEstimate>(Channel::IdentifierEstimate)?
+            }
+        })
+    }
+}
+
+/// Off-path services started and not yet seen ready: (name, probe, node, count before start).
+type Pending = Vec<(&'static str, Ready, exo_service_kit::ipc::Ipc, usize)>;
+
+fn wait_ready(pending: &mut Pending, stop: &AtomicBool) {
+    let start = Instant::now();
+    while !pending.is_empty() && start.elapsed() < READY_PATIENCE && !stop.load(Ordering::Relaxed) {
+        pending.retain(|(_, r, ipc, before)| r.count(ipc).map_or(true, |n| n <= *before));
+        std::thread::sleep(Duration::from_millis(5));
+    }
+    for (name, ..) in pending.drain(..) {
+        eprintln!(
+            "exo: warning: {name} has not opened its ports after {READY_PATIENCE:?}; starting the real-time path anyway"
+        );
+    }
 }
 
 const MAX_RESTARTS: u32 = 3;
@@ -212,7 +269,23 @@ pub fn supervise_checked(
             .context("installing signal handlers")?;
     }
     let mut running: Vec<Running> = Vec::new();
+    let mut pending: Pending = Vec::new();
     for spec in services {
+        // The real-time path starts once the off-path services before it
+        // have opened their ports.
+        if spec.role != Role::Restartable {
+            wait_ready(&mut pending, &stop);
+        }
+        if let Some(r) = &spec.ready {
+            let node = format!("exo_sup_{}_{}", std::process::id(), pending.len());
+            let probe = exo_service_kit::ipc::Ipc::open(&node, &r.instance, None)
+                .map_err(anyhow::Error::from)
+                .and_then(|ipc| Ok((r.count(&ipc)?, ipc)));
+            match probe {
+                Ok((before, ipc)) => pending.push((spec.name, r.clone(), ipc, before)),
+                Err(e) => eprintln!("exo: warning: cannot watch {} start: {e:#}", spec.name),
+            }
+        }
         let tail = Tail::default();
         match spawn(&spec, logs, &tail) {
             Ok(child) => running.push(Running {
@@ -271,6 +344,19 @@ pub fn supervise_checked(
             }
         }
         if let Err(e) = on_tick() {
+            // Quiet runs kept the services' logs back: give the error the
+            // real-time path's last lines, which say why.
+            let e = match logs {
+                Logs::Quiet => {
+                    let tails: String = running
+                        .iter()
+                        .filter(|r| r.spec.role != Role::Restartable)
+                        .map(|r| format!("\n{}{}", r.spec.name, r.last_lines()))
+                        .collect();
+                    anyhow::anyhow!("{e:#}\nthe real-time path's logs:{tails}")
+                }
+                Logs::Forward => e,
+            };
             break 'supervise Err(e);
         }
         std::thread::sleep(Duration::from_millis(20));
