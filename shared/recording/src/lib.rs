@@ -30,7 +30,7 @@ pub mod writer;
 use std::path::Path;
 
 pub use cdr::{CdrError, FieldValue, Recordable};
-pub use reader::{read_recording, read_recording_bytes, Recording};
+pub use reader::{read_recording, read_recording_bytes, read_recording_topics, Recording};
 pub use schema::{contract, TopicSchema};
 pub use writer::{
     RecordingWriter, CONFIG_ATTACHMENT, DEFAULT_CHUNK_BYTES, DROPS_METADATA, RUN_METADATA, SOFTWARE,

@@ -133,6 +133,15 @@ pub fn read_recording(path: &Path) -> Result<Recording, RecordingError> {
     read_recording_bytes(&path.display().to_string(), &bytes)
 }
 
+/// [`read_recording`], decoding only the contract topics in `topics` (e.g.
+/// `exo fit` needs neither the bus topics nor the identifier's estimates,
+/// half of a recording's messages). Every channel is still checked against
+/// the contract; the other topics' vectors stay empty.
+pub fn read_recording_topics(path: &Path, topics: &[&str]) -> Result<Recording, RecordingError> {
+    let bytes = std::fs::read(path).map_err(|e| RecordingError::io(path, e))?;
+    read_bytes(&path.display().to_string(), &bytes, Some(topics))
+}
+
 /// Where a contract message goes.
 trait Stored: Recordable {
     fn slot(rec: &mut Recording) -> &mut Vec<Self>;
@@ -223,6 +232,8 @@ impl Problems {
 
 struct State<'s> {
     source: &'s str,
+    /// Contract topics to decode (`None`: all).
+    only: Option<&'s [&'s str]>,
     schemas: HashMap<u16, SchemaInfo>,
     channels: HashMap<u16, ChannelUse>,
     rec: Recording,
@@ -297,6 +308,9 @@ impl State<'_> {
                 "topic {}: schema `{}` has no text; decoded with the contract's fields",
                 c.topic, s.name
             ));
+            if self.only.is_some_and(|only| !only.contains(&row.topic)) {
+                return Ok(ChannelUse::Ignore);
+            }
             return Ok(ChannelUse::Decode(decoder, None));
         }
         let m = schema::match_fields(&row, &s.text).map_err(|detail| {
@@ -313,6 +327,10 @@ impl State<'_> {
                 "topic {}: fields of the file's schema that the contract does not have there are ignored: {ignored}",
                 c.topic
             ));
+        }
+        if self.only.is_some_and(|only| !only.contains(&row.topic)) {
+            // Checked against the contract like any other, but not wanted.
+            return Ok(ChannelUse::Ignore);
         }
         Ok(ChannelUse::Decode(decoder, Some(m.n_fields)))
     }
@@ -601,32 +619,11 @@ fn chunk_body<'d>(header: &ChunkHeader, data: &Cow<'d, [u8]>) -> Result<Cow<'d, 
     Ok(body)
 }
 
-/// CRC-32 (IEEE 802.3, as zlib and MCAP use).
+/// CRC-32 (IEEE 802.3, as zlib and MCAP use). `crc32fast` uses the CPU's
+/// carry-less multiply where it has one: the bytewise table this replaced
+/// took 46 % of `exo fit`'s time.
 fn crc32(data: &[u8]) -> u32 {
-    const TABLE: [u32; 256] = {
-        let mut t = [0u32; 256];
-        let mut i = 0;
-        while i < 256 {
-            let mut c = i as u32;
-            let mut k = 0;
-            while k < 8 {
-                c = if c & 1 != 0 {
-                    0xEDB8_8320 ^ (c >> 1)
-                } else {
-                    c >> 1
-                };
-                k += 1;
-            }
-            t[i] = c;
-            i += 1;
-        }
-        t
-    };
-    let mut c = !0u32;
-    for &b in data {
-        c = TABLE[((c ^ u32::from(b)) & 0xFF) as usize] ^ (c >> 8);
-    }
-    !c
+    crc32fast::hash(data)
 }
 
 /// Reads a recording from memory. `source` names it in warnings and errors.
@@ -635,6 +632,14 @@ fn crc32(data: &[u8]) -> u32 {
 /// contract (schema name, encodings, fields); every other problem is a
 /// warning in [`Recording::warnings`] (see the module documentation).
 pub fn read_recording_bytes(source: &str, bytes: &[u8]) -> Result<Recording, RecordingError> {
+    read_bytes(source, bytes, None)
+}
+
+fn read_bytes<'s>(
+    source: &'s str,
+    bytes: &[u8],
+    only: Option<&'s [&'s str]>,
+) -> Result<Recording, RecordingError> {
     if bytes.len() < mcap::MAGIC.len() || bytes[..mcap::MAGIC.len()] != mcap::MAGIC[..] {
         return Err(RecordingError::NotMcap {
             file: source.to_string(),
@@ -642,6 +647,7 @@ pub fn read_recording_bytes(source: &str, bytes: &[u8]) -> Result<Recording, Rec
     }
     let mut st = State {
         source,
+        only,
         schemas: HashMap::new(),
         channels: HashMap::new(),
         rec: Recording {

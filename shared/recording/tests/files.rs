@@ -73,6 +73,25 @@ fn every_message_round_trips_through_a_file() {
 }
 
 #[test]
+fn a_topic_selection_decodes_only_those_topics_and_the_same_values() {
+    let dir = TempDir::new("topics");
+    let path = dir.join("sel.mcap");
+    let mut w = RecordingWriter::create_with_chunk_bytes(&path, 4096).unwrap();
+    let e = write_to(&mut w, 500);
+    w.finish().unwrap();
+    let all = read_recording(&path).unwrap();
+    let sel = read_recording_topics(&path, &[SensorSample::TOPIC, ProtocolState::TOPIC]).unwrap();
+    assert_eq!(sel.sensor, all.sensor);
+    assert_eq!(sel.protocol, all.protocol);
+    assert_eq!(sel.sensor.len(), e.sensor.len());
+    assert!(sel.command.is_empty() && sel.bus_sensor.is_empty() && sel.estimate.is_empty());
+    // Every topic is still listed (and was checked against the contract).
+    assert_eq!(sel.topics, all.topics);
+    assert_eq!(sel.metadata, all.metadata);
+    assert!(sel.warnings.is_empty(), "{:?}", sel.warnings);
+}
+
+#[test]
 fn create_makes_the_directory_and_a_topic_without_messages_is_listed() {
     let dir = TempDir::new("create");
     let path = dir.join("a/b/c.mcap");

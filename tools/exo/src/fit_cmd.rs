@@ -10,8 +10,8 @@ use std::path::{Path, PathBuf};
 use anyhow::{bail, Context, Result};
 use clap::Args;
 use exo_identifier::{Event, Identifier, IdentifierSettings};
-use exo_messages::{FrfPoint, ProtocolState};
-use exo_recording::{read_recording, Recording};
+use exo_messages::{ActuatorCommand, FrfPoint, ProtocolState, SensorSample};
+use exo_recording::{read_recording_topics, Recordable, Recording};
 
 use crate::analysis::{analyse, AnalysisSettings, ExperimentData, FitReport, SubjectData};
 
@@ -135,7 +135,17 @@ pub fn identify(
 
 /// Reads and identifies one recording.
 pub fn load(path: &Path, a: &FitArgs) -> Result<Loaded> {
-    let recording = read_recording(path)?;
+    // Fitting and reporting use these four; decoding the bus topics and the
+    // estimates too would double the memory and time spent per file.
+    let recording = read_recording_topics(
+        path,
+        &[
+            SensorSample::TOPIC,
+            ActuatorCommand::TOPIC,
+            ProtocolState::TOPIC,
+            FrfPoint::TOPIC,
+        ],
+    )?;
     let r = &recording;
     let subject = r.meta("subject").map(str::to_string).unwrap_or_else(|| {
         path.file_stem()
