@@ -22,6 +22,13 @@ fn one_experiment_runs_end_to_end_through_the_launcher() {
     let commands = sc.collect::<ActuatorCommand>(Channel::Command);
     let out = exo(&["run", sc.config.to_str().unwrap()]);
     assert!(out.status.success(), "exo run failed:\n{}", stderr(&out));
+    // The launcher saw the identifier and the recorder open their ports
+    // before it started the real-time path (it warns when it gives up).
+    assert!(
+        !stderr(&out).contains("has not opened its ports"),
+        "{}",
+        stderr(&out)
+    );
     let protocol = protocol.finish();
     let commands = commands.finish();
     // Every phase of period 1 of experiment 1 was reported, with Table I's sine.

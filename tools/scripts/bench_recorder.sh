@@ -106,6 +106,8 @@ echo "exo run exit status: $rc"
 grep -E "recorder: [0-9]+ messages" "$work/run.log" | sed 's/^/  /' || echo "  (no recorder summary: see the log below)"
 grep -E "sequence gaps" "$work/run.log" | sed 's/^/  /' || true
 grep -E "missed|fault|safe state|deadline|realtime|SCHED" "$work/run.log" | grep -v "sequence gaps" | sed 's/^/  /' | head -20 || true
+# The plant's final count of missed real-time deadlines (past the cut above).
+grep -E "plant-sim: [0-9]+ missed real-time deadlines" "$work/run.log" | sed 's/^/  /' || true
 awk -v c="$cpu_s" -v w="$wall_s" 'BEGIN{printf "  recorder CPU: %.1f s over %.1f s of its life (%.2f %% of one core)\n", c, w, 100*c/w}'
 echo "  exo fit alongside: $fits complete fits, $(awk -v n="$fits" -v s="$fit_s" 'BEGIN{if(n>0) printf "%.2f", s/n/1000; else print "-"}') s each"
 if [ "$rc" -ne 0 ]; then

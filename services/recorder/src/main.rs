@@ -207,7 +207,7 @@ fn run(args: ServiceArgs) -> Result<()> {
         .collect();
     if dropped > 0 || discarded > 0 {
         warn!(
-            "recorder: {dropped} samples missed (sequence gaps; {discarded} of them discarded with the writer behind)"
+            "recorder: {dropped} samples missed (sequence gaps); {discarded} received but discarded with the writer behind"
         );
     }
     info!(

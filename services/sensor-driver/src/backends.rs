@@ -35,9 +35,7 @@ impl SimulatorBus {
             motor_seq: 0,
         })
     }
-}
 
-impl SimulatorBus {
     /// Its two ports, to connect before real-time control starts.
     pub fn ports(&self) -> [&dyn Connect; 2] {
         [&self.frames, &self.motor]

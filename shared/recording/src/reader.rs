@@ -265,6 +265,16 @@ impl State<'_> {
         if !self.rec.topics.iter().any(|t| t == row.topic) {
             self.rec.topics.push(row.topic.to_string());
         }
+        // A topic outside the selection is checked against the contract like
+        // any other, then ignored.
+        let wanted = self.only.is_none_or(|only| only.contains(&row.topic));
+        let decode = |n_fields| {
+            if wanted {
+                ChannelUse::Decode(decoder, n_fields)
+            } else {
+                ChannelUse::Ignore
+            }
+        };
         let Some(s) = self.schemas.get(&c.schema_id) else {
             return Err(RecordingError::WrongSchema {
                 file,
@@ -308,10 +318,7 @@ impl State<'_> {
                 "topic {}: schema `{}` has no text; decoded with the contract's fields",
                 c.topic, s.name
             ));
-            if self.only.is_some_and(|only| !only.contains(&row.topic)) {
-                return Ok(ChannelUse::Ignore);
-            }
-            return Ok(ChannelUse::Decode(decoder, None));
+            return Ok(decode(None));
         }
         let m = schema::match_fields(&row, &s.text).map_err(|detail| {
             RecordingError::IncompatibleSchema {
@@ -328,11 +335,7 @@ impl State<'_> {
                 c.topic
             ));
         }
-        if self.only.is_some_and(|only| !only.contains(&row.topic)) {
-            // Checked against the contract like any other, but not wanted.
-            return Ok(ChannelUse::Ignore);
-        }
-        Ok(ChannelUse::Decode(decoder, Some(m.n_fields)))
+        Ok(decode(Some(m.n_fields)))
     }
 
     fn message(&mut self, channel_id: u16, log_time: u64, data: &[u8]) {

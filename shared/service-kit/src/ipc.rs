@@ -200,22 +200,17 @@ impl Ipc {
         Ok(Some((name, factory)))
     }
 
-    /// How many subscribers `ch` has now, whoever they are.
-    pub fn subscriber_count<T: Debug + ZeroCopySend + Copy + 'static>(
+    /// How many publishers and subscribers `ch` has now, whoever they are.
+    pub fn port_counts<T: Debug + ZeroCopySend + Copy + 'static>(
         &self,
         ch: Channel,
-    ) -> Result<usize, IpcError> {
+    ) -> Result<PortCounts, IpcError> {
         let (_, f) = self.pubsub::<T>(ch)?;
-        Ok(f.dynamic_config().number_of_subscribers())
-    }
-
-    /// How many publishers `ch` has now.
-    pub fn publisher_count<T: Debug + ZeroCopySend + Copy + 'static>(
-        &self,
-        ch: Channel,
-    ) -> Result<usize, IpcError> {
-        let (_, f) = self.pubsub::<T>(ch)?;
-        Ok(f.dynamic_config().number_of_publishers())
+        let d = f.dynamic_config();
+        Ok(PortCounts {
+            publishers: d.number_of_publishers(),
+            subscribers: d.number_of_subscribers(),
+        })
     }
 
     /// A publisher on `ch` and, where the channel has one, its wake-up notifier.
@@ -278,6 +273,15 @@ impl Ipc {
             undrained: std::cell::Cell::new(0),
         })
     }
+}
+
+/// How many ports a publish-subscribe channel has ([`Ipc::port_counts`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct PortCounts {
+    /// Publishers.
+    pub publishers: usize,
+    /// Subscribers.
+    pub subscribers: usize,
 }
 
 /// A publisher and its wake-up notifier.

@@ -69,10 +69,12 @@ impl Ready {
         use exo_service_kit::channels::Channel;
         Ok(match self.probe {
             ReadyProbe::SubscribesBusMotor => {
-                ipc.subscriber_count::<exo_messages::BusMotorCommand>(Channel::BusMotor)?
+                ipc.port_counts::<exo_messages::BusMotorCommand>(Channel::BusMotor)?
+                    .subscribers
             }
             ReadyProbe::PublishesEstimate => {
-                ipc.publisher_count::<exo_messages::ImpedanceEstimate>(Channel::IdentifierEstimate)?
+                ipc.port_counts::<exo_messages::ImpedanceEstimate>(Channel::IdentifierEstimate)?
+                    .publishers
             }
         })
     }
