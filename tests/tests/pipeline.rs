@@ -229,6 +229,65 @@ fn same_seed_gives_bit_identical_runs() {
     }
 }
 
+/// The driver measures its own sensor → controller → driver round trip and
+/// writes it on exit when asked: every frame after the first (whose command
+/// arms the watchdog) is one round trip, and the percentiles are ordered.
+/// In lockstep the count is exact; the durations are not asserted.
+#[test]
+fn the_driver_reports_its_control_round_trip() {
+    let sc = Scenario::new("rtt", SHORT_RUN);
+    sc.edit("[run]\n", "[run]\nmax_sim_time_s = 2.0\n");
+    let report = sc.dir.join("round-trip.json");
+    let samples = sc.collect::<SensorSample>(Channel::Sensor);
+    let mut procs = [
+        sc.spawn("exo-plant-sim", &[]),
+        sc.spawn(
+            "exo-sensor-driver",
+            &[
+                "--round-trip-report",
+                report.to_str().unwrap(),
+                "--round-trip-warmup-s",
+                "0",
+            ],
+        ),
+        sc.spawn("exo-controller", &[]),
+    ];
+    let status = wait_exit(&mut procs[0], Duration::from_secs(120), "lockstep plant");
+    assert!(status.success(), "{}", sc.log("exo-plant-sim"));
+    for p in procs.iter_mut().skip(1) {
+        terminate(p);
+    }
+    let mut s = samples.finish();
+    s.dedup_by_key(|x| x.seq);
+    let log = sc.log("exo-sensor-driver");
+    let text = std::fs::read_to_string(&report)
+        .unwrap_or_else(|e| panic!("{}: {e}\n{log}", report.display()));
+    let r: serde_json::Value = serde_json::from_str(&text).unwrap();
+    assert_eq!(s.len(), 2000, "frames 0..2000 in 2 s at 1 kHz");
+    assert_eq!(r["count"].as_u64(), Some(s.len() as u64 - 1), "{text}");
+    assert_eq!(r["skipped"].as_u64(), Some(0));
+    let ns = |k: &str| r[k].as_u64().unwrap_or_else(|| panic!("{k} in {text}"));
+    assert!(ns("p50_ns") > 0);
+    assert!(ns("p50_ns") <= ns("p99_ns") && ns("p99_ns") <= ns("p999_ns"));
+    assert!(ns("p999_ns") <= ns("max_ns") + ns("max_ns") / 1000);
+    assert!(log.contains("control round trip"), "{log}");
+}
+
+/// The driver refuses a negative warm-up before it starts, naming the argument.
+#[test]
+fn the_driver_names_a_bad_round_trip_warmup() {
+    let sc = Scenario::new("rttbad", SHORT_RUN);
+    let mut p = sc.spawn("exo-sensor-driver", &["--round-trip-warmup-s=-1"]);
+    let status = wait_exit(&mut p, Duration::from_secs(30), "driver");
+    assert!(!status.success());
+    assert!(
+        sc.log("exo-sensor-driver")
+            .contains("--round-trip-warmup-s"),
+        "{}",
+        sc.log("exo-sensor-driver")
+    );
+}
+
 /// Real-time mode runs the same pipeline on the wall clock (nothing timed is
 /// asserted: the machine is shared; the run must simply complete cleanly).
 #[test]

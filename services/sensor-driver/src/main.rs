@@ -14,6 +14,7 @@
 //! `safety.lockstep_timeout_ms` of wall time and the safe torque is applied
 //! at that same simulated tick.
 
+use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
 use anyhow::{bail, Context, Result};
@@ -22,13 +23,17 @@ mod replay;
 
 use exo_config::{BusBackend, RunConfig, TimingMode};
 use exo_messages::{ActuatorCommand, OperatorCommand, ProtocolState, SensorSample};
-use exo_sensor_driver::{Calibration, Driver, HardwareBus};
+use exo_sensor_driver::{Calibration, Driver, HardwareBus, RoundTrip};
 use exo_service_kit::channels::Channel;
 use exo_service_kit::ipc::{settle_connections, Inbox, Ipc, Outbox, REALTIME_SETTLE};
+use exo_service_kit::latency::fmt_us;
 
 use crate::backends::SimulatorBus;
 use crate::replay::ReplayBus;
-use exo_service_kit::{init_logging, request_realtime, RealtimeRequest, ServiceArgs, StopFlag};
+use clap::Parser;
+use exo_service_kit::{
+    init_logging, monotonic_ns, request_realtime, RealtimeRequest, ServiceArgs, StopFlag,
+};
 use tracing::{error, info};
 
 const RESEND_AFTER: Duration = Duration::from_millis(200);
@@ -36,15 +41,38 @@ const STARTUP_PATIENCE: Duration = Duration::from_secs(60);
 /// `OperatorCommandKind::ResetFault`.
 const OPERATOR_RESET_FAULT: u32 = 1;
 
+/// Command line of `exo-sensor-driver`: every service's, plus the round-trip report.
+#[derive(Debug, Parser)]
+#[command(name = "exo-sensor-driver")]
+struct DriverArgs {
+    #[command(flatten)]
+    service: ServiceArgs,
+    /// On exit, write the control round trip's percentiles (JSON: sample
+    /// published → its command received, ns) to FILE.
+    #[arg(long, value_name = "FILE")]
+    round_trip_report: Option<PathBuf>,
+    /// Seconds after the first round trip left out of the round-trip
+    /// statistics (connection set-up, page faults, cold caches).
+    #[arg(long, value_name = "SECONDS", default_value_t = 2.0)]
+    round_trip_warmup_s: f64,
+}
+
 fn main() {
     init_logging("sensor-driver");
-    if let Err(e) = run(ServiceArgs::from_command_line()) {
+    if let Err(e) = run(DriverArgs::parse()) {
         error!("{e:#}");
         std::process::exit(1);
     }
 }
 
-fn run(args: ServiceArgs) -> Result<()> {
+fn run(driver_args: DriverArgs) -> Result<()> {
+    let args = &driver_args.service;
+    if !(driver_args.round_trip_warmup_s.is_finite() && driver_args.round_trip_warmup_s >= 0.0) {
+        bail!(
+            "--round-trip-warmup-s must be a finite number of seconds ≥ 0, not {}",
+            driver_args.round_trip_warmup_s
+        );
+    }
     let cfg = RunConfig::from_file(&args.config)?;
     let stop = StopFlag::install()?;
     let ipc = Ipc::open(
@@ -116,7 +144,17 @@ fn run(args: ServiceArgs) -> Result<()> {
                 deadline,
                 cfg.safety.safe_state
             );
-            serve(&mut bus, &mut driver, &ports, timing, &stop)?;
+            let mut round_trip = RoundTrip::new(driver_args.round_trip_warmup_s);
+            let served = serve(
+                &mut bus,
+                &mut driver,
+                &ports,
+                timing,
+                &stop,
+                &mut round_trip,
+            );
+            report_round_trip(&round_trip, driver_args.round_trip_report.as_deref())?;
+            served?;
         }
         BusBackend::Replay => {
             let file = cfg
@@ -174,6 +212,7 @@ fn serve<B: HardwareBus>(
     ports: &Ports,
     timing: Timing,
     stop: &StopFlag,
+    round_trip: &mut RoundTrip,
 ) -> Result<()> {
     let mut armed = false;
     let mut reported_latch = false;
@@ -202,6 +241,8 @@ fn serve<B: HardwareBus>(
             status: s.status,
             _pad: 0,
         };
+        let was_armed = armed;
+        let sent_ns = monotonic_ns();
         ports.sample_out.send(sample)?;
         let started = Instant::now();
         let mut last_send = started;
@@ -217,8 +258,12 @@ fn serve<B: HardwareBus>(
                 .min(Duration::from_millis(20));
             if let Some(cmd) = ports.command_in.recv_timeout(remaining)? {
                 if cmd.sensor_seq == frame.seq {
+                    let received_ns = monotonic_ns();
                     armed = true;
                     if let Some(o) = driver.on_command(cmd.sensor_seq, cmd.tau_d) {
+                        if was_armed && driver.latched().is_none() {
+                            round_trip.record(sent_ns, received_ns);
+                        }
                         break o;
                     }
                 }
@@ -253,6 +298,31 @@ fn serve<B: HardwareBus>(
             reported_latch = true;
         }
         bus.write(frame.seq, frame.stamp_ns, out.tau_motor_nm, true)?;
+    }
+    Ok(())
+}
+
+/// Logs the round-trip percentiles and, if asked, writes them to `file` (JSON).
+fn report_round_trip(round_trip: &RoundTrip, file: Option<&Path>) -> Result<()> {
+    let report = round_trip.report();
+    match &report {
+        Some(r) => info!(
+            "sensor-driver: control round trip (sample published → its command received) \
+             over {} ticks in {:.1} s: p50 {} µs, p99 {} µs, p99.9 {} µs, max {} µs",
+            r.latency.count,
+            r.window_s,
+            fmt_us(r.latency.p50_ns),
+            fmt_us(r.latency.p99_ns),
+            fmt_us(r.latency.p999_ns),
+            fmt_us(r.latency.max_ns)
+        ),
+        None => info!("sensor-driver: no control round trip recorded after the warm-up"),
+    }
+    if let Some(path) = file {
+        let text =
+            serde_json::to_string_pretty(&report).context("serialising the round-trip report")?;
+        std::fs::write(path, text + "\n")
+            .with_context(|| format!("writing the round-trip report {}", path.display()))?;
     }
     Ok(())
 }

@@ -6,6 +6,7 @@
 pub mod channels;
 pub mod collect;
 pub mod ipc;
+pub mod latency;
 
 use std::path::PathBuf;
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -190,9 +191,91 @@ pub fn request_realtime(who: &str, req: RealtimeRequest) -> RealtimeGrant {
     g
 }
 
+/// The CPUs the calling thread may run on.
+pub fn allowed_cpus() -> std::io::Result<Vec<usize>> {
+    // SAFETY: a zeroed cpu_set_t is valid; sched_getaffinity fills it and
+    // CPU_ISSET reads within it.
+    unsafe {
+        let mut set: libc::cpu_set_t = std::mem::zeroed();
+        if libc::sched_getaffinity(0, std::mem::size_of::<libc::cpu_set_t>(), &mut set) != 0 {
+            return Err(std::io::Error::last_os_error());
+        }
+        Ok((0..libc::CPU_SETSIZE as usize)
+            .filter(|&c| libc::CPU_ISSET(c, &set))
+            .collect())
+    }
+}
+
+/// Keeps the calling thread, and every thread and process it starts
+/// afterwards, off the CPUs `keep_off` (those of the control path): it is
+/// confined to the CPUs it may use now less those. Returns the CPUs it is
+/// now confined to, or `None` when that would leave none (or `keep_off`
+/// names none it uses), in which case nothing changes. A child may still
+/// pin itself anywhere (`request_realtime`), which is how the control path
+/// takes the CPUs kept free for it.
+pub fn keep_off_cpus(keep_off: &[usize]) -> std::io::Result<Option<Vec<usize>>> {
+    let now = allowed_cpus()?;
+    let rest: Vec<usize> = now
+        .iter()
+        .copied()
+        .filter(|c| !keep_off.contains(c))
+        .collect();
+    if rest.is_empty() || rest.len() == now.len() {
+        return Ok(None);
+    }
+    // SAFETY: a zeroed cpu_set_t is valid; every CPU in `rest` came from
+    // sched_getaffinity, so CPU_SET stays within the set.
+    unsafe {
+        let mut set: libc::cpu_set_t = std::mem::zeroed();
+        for &c in &rest {
+            libc::CPU_SET(c, &mut set);
+        }
+        if libc::sched_setaffinity(0, std::mem::size_of::<libc::cpu_set_t>(), &set) != 0 {
+            return Err(std::io::Error::last_os_error());
+        }
+    }
+    Ok(Some(rest))
+}
+
 #[cfg(test)]
 mod realtime_tests {
     use super::*;
+
+    #[test]
+    fn keeping_off_cpus_confines_the_thread_to_the_rest_or_changes_nothing() {
+        // On a thread of its own, so the test harness's threads keep theirs.
+        std::thread::spawn(|| {
+            let all = allowed_cpus().unwrap();
+            assert!(!all.is_empty());
+            // Keeping off every CPU would leave none: nothing changes.
+            assert_eq!(keep_off_cpus(&all).unwrap(), None);
+            assert_eq!(allowed_cpus().unwrap(), all);
+            // Keeping off a CPU not in use changes nothing either.
+            assert_eq!(keep_off_cpus(&[usize::MAX]).unwrap(), None);
+            if all.len() >= 2 {
+                let rest = keep_off_cpus(&all[..1]).unwrap().unwrap();
+                assert_eq!(rest, all[1..].to_vec());
+                assert_eq!(allowed_cpus().unwrap(), rest);
+                // What the thread starts afterwards inherits the confinement.
+                let inner = std::thread::spawn(|| allowed_cpus().unwrap())
+                    .join()
+                    .unwrap();
+                assert_eq!(inner, rest);
+                // And may still pin itself to a CPU kept off.
+                let g = request_realtime(
+                    "test",
+                    RealtimeRequest {
+                        cpu: Some(all[0]),
+                        ..Default::default()
+                    },
+                );
+                assert!(g.pinned, "{:?}", g.refusals);
+                assert_eq!(allowed_cpus().unwrap(), vec![all[0]]);
+            }
+        })
+        .join()
+        .unwrap();
+    }
 
     #[test]
     fn nothing_asked_nothing_granted_or_refused() {

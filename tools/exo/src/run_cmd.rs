@@ -5,7 +5,7 @@ use std::path::PathBuf;
 
 use anyhow::{Context, Result};
 use clap::Args;
-use exo_config::RunConfig;
+use exo_config::{RunConfig, TimingMode};
 
 use std::time::Instant;
 
@@ -192,6 +192,7 @@ pub fn run_config(config: &std::path::Path, logs: Logs) -> Result<Option<PathBuf
         cfg.run.timing,
         cfg.run.rate_hz
     );
+    keep_off_the_control_path(&cfg);
     let mut progress = Progress::start(&cfg.run.instance)?;
     let outcome = supervise(services, logs, || progress.poll())
         .with_context(|| format!("run of {}", config.display()));
@@ -201,6 +202,43 @@ pub fn run_config(config: &std::path::Path, logs: Logs) -> Result<Option<PathBuf
         eprintln!("exo: recording {}", r.display());
     }
     Ok(recording)
+}
+
+/// In real time with the driver or the controller pinned (`[realtime]`),
+/// confines the launcher, and so every process it starts, to the other
+/// CPUs: the identifier, the recorder and the launcher's own log forwarding
+/// then never share a CPU with the control path, which pins itself back
+/// onto its CPUs. On a kernel that is not preemptible, a process in a long
+/// system call holds its CPU whatever the control path's priority
+/// (BENCHMARKS.md, "Recorder under load"). Must run before the launcher
+/// starts any thread.
+fn keep_off_the_control_path(cfg: &RunConfig) {
+    let Some(rt) = cfg
+        .realtime
+        .filter(|_| cfg.run.timing == TimingMode::Realtime)
+    else {
+        return;
+    };
+    let mut control: Vec<usize> = [rt.sensor_driver_cpu, rt.controller_cpu]
+        .into_iter()
+        .flatten()
+        .collect();
+    control.dedup();
+    if control.is_empty() {
+        return;
+    }
+    match exo_service_kit::keep_off_cpus(&control) {
+        Ok(Some(rest)) => eprintln!(
+            "exo: control path on CPU {control:?}; launcher, identifier and recorder on CPU {rest:?}"
+        ),
+        Ok(None) => eprintln!(
+            "exo: warning: no CPU left besides the control path's {control:?}; \
+             the identifier and the recorder share them"
+        ),
+        Err(e) => eprintln!(
+            "exo: warning: could not keep the launcher off the control path's CPUs {control:?}: {e}"
+        ),
+    }
 }
 
 /// Runs `exo run`: the processes, then (when the run was recorded) the fit

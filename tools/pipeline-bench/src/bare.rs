@@ -5,7 +5,7 @@
 //! plant in real time (absolute deadlines, `clock_nanosleep`), or back to
 //! back ("flat out", like lockstep), and stamps the answer on receipt.
 
-use std::ffi::OsStr;
+use std::ffi::{OsStr, OsString};
 use std::os::unix::net::UnixListener;
 use std::path::Path;
 use std::time::Duration;
@@ -17,9 +17,11 @@ use exo_service_kit::ipc::Ipc;
 use exo_service_kit::{monotonic_ns, sleep_until_ns};
 
 use crate::link::{Answer, Got, Probe, Rx, Tx, UdsLink};
+use crate::placement::{on_own_thread, place_this_thread, role_flags, Placement};
 use crate::procs::Fleet;
 use crate::roles::accept_within;
 use crate::stats::Latency;
+use exo_service_kit::RealtimeRequest;
 
 /// How long the start-up handshake may take.
 const HANDSHAKE_PATIENCE: Duration = Duration::from_secs(30);
@@ -49,14 +51,19 @@ pub enum Pace {
 }
 
 /// Sends probes through `tx` and times their answers from `rx`.
+/// The probing thread takes the placement `bench` first (after the
+/// stand-ins were started, so that they do not inherit it).
+#[allow(clippy::too_many_arguments)]
 fn probe_loop<P: Probe, A: Answer>(
     tx: &mut impl Tx<P>,
     rx: &mut impl Rx<A>,
     pace: Pace,
+    bench: RealtimeRequest,
     warmup: Duration,
     measure: Duration,
     fleet: &mut Fleet,
 ) -> Result<LoopStats> {
+    place_this_thread("bench", bench);
     // Handshake: probe 0 until it is answered (the peers may still be starting).
     let t = monotonic_ns();
     'handshake: loop {
@@ -75,7 +82,7 @@ fn probe_loop<P: Probe, A: Answer>(
         }
     }
 
-    let mut round_trip = Latency::new()?;
+    let mut round_trip = Latency::new();
     let mut late_ticks = 0u64;
     let start = monotonic_ns();
     let record_from = start + warmup.as_nanos() as u64;
@@ -132,7 +139,14 @@ fn probe_loop<P: Probe, A: Answer>(
     })
 }
 
-fn role_args<'a>(role: &'a str, transport: &'a str, rest: &'a [&'a OsStr]) -> Vec<&'a OsStr> {
+/// The command line of a stand-in: its role, transport, `rest`, and the
+/// placement flags `placed`.
+fn role_args<'a>(
+    role: &'a str,
+    transport: &'a str,
+    rest: &'a [&'a OsStr],
+    placed: &'a [OsString],
+) -> Vec<&'a OsStr> {
     let mut v: Vec<&OsStr> = vec![
         "--role".as_ref(),
         role.as_ref(),
@@ -140,7 +154,32 @@ fn role_args<'a>(role: &'a str, transport: &'a str, rest: &'a [&'a OsStr]) -> Ve
         transport.as_ref(),
     ];
     v.extend_from_slice(rest);
+    v.extend(placed.iter().map(OsString::as_os_str));
     v
+}
+
+/// Who plays whom in a bare loop, and where each runs.
+struct Cast {
+    /// The bench's probing thread (the driver of a ping-pong, the plant of a loop).
+    bench: RealtimeRequest,
+    /// Flags of the stand-in driver (loops only).
+    driver: Vec<OsString>,
+    /// Flags of the stand-in controller.
+    controller: Vec<OsString>,
+}
+
+impl Cast {
+    fn new(shape: Shape, placement: Option<&Placement>) -> Self {
+        let p = placement.copied().unwrap_or_default();
+        Cast {
+            bench: match shape {
+                Shape::PingPong => p.driver,
+                Shape::ThreeProcess => p.plant,
+            },
+            driver: role_flags(&p.driver),
+            controller: role_flags(&p.controller),
+        }
+    }
 }
 
 /// Shape of a bare loop.
@@ -154,11 +193,31 @@ pub enum Shape {
 }
 
 /// A bare loop over iceoryx2 on the channels (and service settings) of the
-/// pipeline, under a fresh instance.
+/// pipeline, under a fresh instance; with `placement`, every process and
+/// the bench's probing thread placed as the pipeline's would be.
+#[allow(clippy::too_many_arguments)]
 pub fn iceoryx2(
     exe: &Path,
     shape: Shape,
     pace: Pace,
+    placement: Option<&Placement>,
+    warmup: Duration,
+    measure: Duration,
+    dir: &Path,
+    tag: &str,
+) -> Result<LoopStats> {
+    let cast = Cast::new(shape, placement);
+    on_own_thread(tag, || {
+        iceoryx2_here(exe, shape, pace, &cast, warmup, measure, dir, tag)
+    })
+}
+
+#[allow(clippy::too_many_arguments)]
+fn iceoryx2_here(
+    exe: &Path,
+    shape: Shape,
+    pace: Pace,
+    cast: &Cast,
     warmup: Duration,
     measure: Duration,
     dir: &Path,
@@ -176,9 +235,11 @@ pub fn iceoryx2(
             fleet.spawn(
                 &format!("{tag}-controller"),
                 exe,
-                &role_args("controller", "iox", &rest),
+                &role_args("controller", "iox", &rest, &cast.controller),
             )?;
-            probe_loop(&mut tx, &mut rx, pace, warmup, measure, &mut fleet)?
+            probe_loop(
+                &mut tx, &mut rx, pace, cast.bench, warmup, measure, &mut fleet,
+            )?
         }
         Shape::ThreeProcess => {
             let mut tx = ipc.outbox::<BusSensorFrame>(Channel::BusSensor)?;
@@ -186,14 +247,16 @@ pub fn iceoryx2(
             fleet.spawn(
                 &format!("{tag}-controller"),
                 exe,
-                &role_args("controller", "iox", &rest),
+                &role_args("controller", "iox", &rest, &cast.controller),
             )?;
             fleet.spawn(
                 &format!("{tag}-driver"),
                 exe,
-                &role_args("driver", "iox", &rest),
+                &role_args("driver", "iox", &rest, &cast.driver),
             )?;
-            probe_loop(&mut tx, &mut rx, pace, warmup, measure, &mut fleet)?
+            probe_loop(
+                &mut tx, &mut rx, pace, cast.bench, warmup, measure, &mut fleet,
+            )?
         }
     };
     let trouble = fleet.stop();
@@ -208,11 +271,30 @@ fn bind(path: &Path) -> Result<UnixListener> {
     UnixListener::bind(path).with_context(|| format!("binding {}", path.display()))
 }
 
-/// A bare loop over Unix-domain stream sockets.
+/// A bare loop over Unix-domain stream sockets; `placement` as for [`iceoryx2`].
+#[allow(clippy::too_many_arguments)]
 pub fn unix_socket(
     exe: &Path,
     shape: Shape,
     pace: Pace,
+    placement: Option<&Placement>,
+    warmup: Duration,
+    measure: Duration,
+    dir: &Path,
+    tag: &str,
+) -> Result<LoopStats> {
+    let cast = Cast::new(shape, placement);
+    on_own_thread(tag, || {
+        unix_socket_here(exe, shape, pace, &cast, warmup, measure, dir, tag)
+    })
+}
+
+#[allow(clippy::too_many_arguments)]
+fn unix_socket_here(
+    exe: &Path,
+    shape: Shape,
+    pace: Pace,
+    cast: &Cast,
     warmup: Duration,
     measure: Duration,
     dir: &Path,
@@ -227,7 +309,12 @@ pub fn unix_socket(
             fleet.spawn(
                 &format!("{tag}-controller"),
                 exe,
-                &role_args("controller", "uds", &["--connect".as_ref(), plant]),
+                &role_args(
+                    "controller",
+                    "uds",
+                    &["--connect".as_ref(), plant],
+                    &cast.controller,
+                ),
             )?;
             "controller"
         }
@@ -246,6 +333,7 @@ pub fn unix_socket(
                         "--listen".as_ref(),
                         ctrl_path.as_os_str(),
                     ],
+                    &cast.driver,
                 ),
             )?;
             // The driver binds its own socket before connecting to ours.
@@ -256,6 +344,7 @@ pub fn unix_socket(
                     "controller",
                     "uds",
                     &["--connect".as_ref(), ctrl_path.as_os_str()],
+                    &cast.controller,
                 ),
             )?;
             "driver"
@@ -268,10 +357,10 @@ pub fn unix_socket(
     let mut tx = rx.try_clone()?;
     let stats = match shape {
         Shape::PingPong => probe_loop::<SensorSample, ActuatorCommand>(
-            &mut tx, &mut rx, pace, warmup, measure, &mut fleet,
+            &mut tx, &mut rx, pace, cast.bench, warmup, measure, &mut fleet,
         )?,
         Shape::ThreeProcess => probe_loop::<BusSensorFrame, BusMotorCommand>(
-            &mut tx, &mut rx, pace, warmup, measure, &mut fleet,
+            &mut tx, &mut rx, pace, cast.bench, warmup, measure, &mut fleet,
         )?,
     };
     // Closing the socket lets the stand-ins finish on their own.

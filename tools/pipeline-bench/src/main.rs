@@ -10,13 +10,21 @@
 //! Rows (each `--seconds` long after `--warmup-seconds`, one after the other):
 //!
 //! * `pipeline-rt`: the real `exo-plant-sim`, `exo-sensor-driver` and
-//!   `exo-controller` in real time at `--rate-hz`. Two intervals, measured
-//!   one after the other on the same processes: the plant's frame stamp
-//!   (taken right before it publishes the `BusSensorFrame`) to the receipt,
-//!   by the bench waiting on that channel's wake-up, of the driver's
-//!   `BusMotorCommand` for that frame (the full plant → driver → controller
-//!   → driver → plant round trip), and of the controller's `ActuatorCommand`
-//!   (plant → driver → controller → subscriber).
+//!   `exo-controller` in real time at `--rate-hz`, three runs one after the
+//!   other:
+//!   - `pipeline-rt-round-trip`, the sensor → controller → driver round
+//!     trip, measured by the driver itself (`--round-trip-report`): from
+//!     just before it publishes a `SensorSample` to just after it receives
+//!     the `ActuatorCommand` answering it: the interval the ping-pong
+//!     measures, with no observer added to the loop. The target compares
+//!     this row's p99 with `iox-pingpong`'s.
+//!   - `pipeline-rt-loop`: the plant's frame stamp (taken right before it
+//!     publishes the `BusSensorFrame`) to the receipt, by the bench waiting
+//!     on that channel's wake-up, of the driver's `BusMotorCommand` for
+//!     that frame (the full plant → driver → controller → driver → plant
+//!     loop: the simulated bus's two hand-overs as well).
+//!   - `pipeline-rt-command`: the same stamp to the controller's
+//!     `ActuatorCommand` (plant → driver → controller → subscriber).
 //! * `pipeline-lockstep`: the same processes in lockstep, flat out: simulated
 //!   time per wall time (the real-time factor) and control ticks per second.
 //! * `iox-pingpong`, `iox-loop`: bench ↔ stand-in controller, and bench →
@@ -27,6 +35,13 @@
 //!   (blocking reads).
 //! * `iox-loop-flat`, `uds-loop-flat`: the three-process loops back to back.
 //!
+//! The run file (`--config`, default `configs/realtime.toml`) gives the
+//! pipeline its settings and its real-time placement (`[realtime]`: CPU per
+//! process, SCHED_FIFO, locked memory); the paced baselines run under the
+//! same placement, the bench's probing thread taking the place of the
+//! process it plays (`placement`). The flat-out rows are lockstep's
+//! analogues and are not placed.
+//!
 //! The stand-ins do a few multiplications, not the services' work (see
 //! `roles`). Percentiles come from an HDR histogram (3 significant digits);
 //! the maximum is exact. Child processes are stopped and reaped after each
@@ -35,6 +50,7 @@
 mod bare;
 mod link;
 mod pipeline;
+mod placement;
 mod procs;
 mod roles;
 mod stats;
@@ -48,8 +64,10 @@ use serde_json::json;
 
 use crate::bare::{Pace, Shape};
 use crate::pipeline::Observe;
+use crate::placement::Placement;
 use crate::roles::{Role, RoleArgs, Transport};
 use crate::stats::{fmt_us, load_average_1min, verdict, Goal, Latency, Summary};
+use exo_service_kit::RealtimeRequest;
 
 /// Target: pipeline p99 at most this multiple of the bare iceoryx2 ping-pong p99.
 const TARGET_P99_RATIO: f64 = 3.0;
@@ -107,7 +125,9 @@ struct Cli {
     /// Print the results as JSON instead of a table.
     #[arg(long)]
     json: bool,
-    /// The run file the pipeline's configuration is derived from (default: configs/default.toml).
+    /// The run file the pipeline's configuration is derived from; its
+    /// `[realtime]` placement is also given to the paced baselines
+    /// (default: configs/realtime.toml; configs/default.toml places nothing).
     #[arg(long, value_name = "FILE")]
     config: Option<PathBuf>,
     /// Keep the run files and the processes' logs (in the temporary directory printed at the end).
@@ -135,6 +155,15 @@ struct Cli {
     /// Internal: the socket the stand-in driver listens on.
     #[arg(long, hide = true)]
     listen: Option<PathBuf>,
+    /// Internal: pin the stand-in to this CPU.
+    #[arg(long, hide = true)]
+    cpu: Option<usize>,
+    /// Internal: run the stand-in in SCHED_FIFO at this priority.
+    #[arg(long, hide = true)]
+    fifo_priority: Option<i32>,
+    /// Internal: lock the stand-in's memory.
+    #[arg(long, hide = true)]
+    lock_memory: bool,
 }
 
 /// One line of the result table.
@@ -170,8 +199,12 @@ impl Row {
         }
     }
 
-    fn latency(mut self, l: &Latency, rate: f64) -> Self {
-        self.summary = l.summary();
+    fn latency(self, l: &Latency, rate: f64) -> Self {
+        self.summary(l.summary(), rate)
+    }
+
+    fn summary(mut self, s: Option<Summary>, rate: f64) -> Self {
+        self.summary = s;
         self.rate_per_s = Some(rate);
         self
     }
@@ -207,6 +240,11 @@ fn main() {
             instance: cli.instance.clone(),
             connect: cli.connect.clone(),
             listen: cli.listen.clone(),
+            realtime: RealtimeRequest {
+                sched_fifo_priority: cli.fifo_priority,
+                lock_memory: cli.lock_memory,
+                cpu: cli.cpu,
+            },
         };
         if let Err(e) = roles::run_role(&args) {
             eprintln!("exo-pipeline-bench --role {role:?}: {e:#}");
@@ -248,8 +286,15 @@ fn run(cli: &Cli) -> Result<bool> {
     let base = cli
         .config
         .clone()
-        .unwrap_or_else(|| exo_config::configs_dir().join("default.toml"));
+        .unwrap_or_else(|| exo_config::configs_dir().join("realtime.toml"));
+    let base = base
+        .canonicalize()
+        .with_context(|| format!("--config {}", base.display()))?;
     let exe = std::env::current_exe().context("locating the bench executable")?;
+    let placement = Placement::of(
+        &exo_config::RunConfig::from_file(&base)
+            .with_context(|| format!("--config {}", base.display()))?,
+    );
     let kinds: Vec<RowKind> = if cli.rows.is_empty() {
         ALL_ROWS.to_vec()
     } else {
@@ -275,7 +320,7 @@ fn run(cli: &Cli) -> Result<bool> {
         eprintln!("exo-pipeline-bench: {kind:?} …");
         let load_before = load_average_1min();
         let mut new_rows = run_kind(
-            kind, &exe, &bins, &base, cli, period_ns, warmup, measure, &dir,
+            kind, &exe, &bins, &base, &placement, cli, period_ns, warmup, measure, &dir,
         );
         let load_after = load_average_1min();
         for r in &mut new_rows {
@@ -295,6 +340,8 @@ fn run(cli: &Cli) -> Result<bool> {
             "seconds_per_row": cli.seconds,
             "warmup_seconds": cli.warmup_seconds,
             "cpus": std::thread::available_parallelism().map(|n| n.get()).ok(),
+            "run_file": base.display().to_string(),
+            "placement": placement.describe(),
             "rows": rows.iter().map(Row::json).collect::<Vec<_>>(),
             "targets": targets.iter().map(|t| json!({
                 "name": t.name, "measured": t.measured, "target": t.target,
@@ -303,7 +350,7 @@ fn run(cli: &Cli) -> Result<bool> {
         });
         println!("{}", serde_json::to_string_pretty(&v)?);
     } else {
-        print_table(&rows, &targets, cli);
+        print_table(&rows, &targets, cli, &base, &placement);
     }
     if all_ok && !cli.keep_logs {
         let _ = std::fs::remove_dir_all(&dir);
@@ -324,6 +371,7 @@ fn run_kind(
     exe: &Path,
     bins: &[PathBuf],
     base: &Path,
+    placement: &Placement,
     cli: &Cli,
     period_ns: u64,
     warmup: Duration,
@@ -365,39 +413,47 @@ fn run_kind(
             "iox-pingpong",
             "bare iceoryx2 ping-pong, 2 processes",
             PROBE_PP,
-            bare::iceoryx2(exe, Shape::PingPong, paced, warmup, measure, dir, "ipp"),
+            bare::iceoryx2(exe, Shape::PingPong, paced, Some(placement), warmup, measure, dir, "ipp"),
         )],
         RowKind::IoxLoop => vec![bare(
             "iox-loop",
             "bare iceoryx2 3-process loop",
             PROBE_3P,
-            bare::iceoryx2(exe, Shape::ThreeProcess, paced, warmup, measure, dir, "i3"),
+            bare::iceoryx2(exe, Shape::ThreeProcess, paced, Some(placement), warmup, measure, dir, "i3"),
         )],
         RowKind::UdsPingpong => vec![bare(
             "uds-pingpong",
             "Unix-socket ping-pong, 2 processes",
             PROBE_PP,
-            bare::unix_socket(exe, Shape::PingPong, paced, warmup, measure, dir, "upp"),
+            bare::unix_socket(exe, Shape::PingPong, paced, Some(placement), warmup, measure, dir, "upp"),
         )],
         RowKind::UdsLoop => vec![bare(
             "uds-loop",
             "Unix-socket 3-process loop",
             PROBE_3P,
-            bare::unix_socket(exe, Shape::ThreeProcess, paced, warmup, measure, dir, "u3"),
+            bare::unix_socket(exe, Shape::ThreeProcess, paced, Some(placement), warmup, measure, dir, "u3"),
         )],
         RowKind::IoxLoopFlat => vec![bare(
             "iox-loop-flat",
             "bare iceoryx2 3-process loop, flat out",
             PROBE_3P,
-            bare::iceoryx2(exe, Shape::ThreeProcess, Pace::FlatOut, warmup, measure, dir, "i3f"),
+            bare::iceoryx2(exe, Shape::ThreeProcess, Pace::FlatOut, None, warmup, measure, dir, "i3f"),
         )],
         RowKind::UdsLoopFlat => vec![bare(
             "uds-loop-flat",
             "Unix-socket 3-process loop, flat out",
             PROBE_3P,
-            bare::unix_socket(exe, Shape::ThreeProcess, Pace::FlatOut, warmup, measure, dir, "u3f"),
+            bare::unix_socket(exe, Shape::ThreeProcess, Pace::FlatOut, None, warmup, measure, dir, "u3f"),
         )],
         RowKind::PipelineRt => [
+            (
+                Observe::DriverRoundTrip,
+                Row::new(
+                    "pipeline-rt-round-trip",
+                    "exo pipeline, real time: sensor → controller → driver",
+                    "driver stamps before publishing SensorSample → controller → ActuatorCommand for it received by the driver (its own --round-trip-report; no bench subscriber in the loop)",
+                ),
+            ),
             (
                 Observe::MotorCommand,
                 Row::new(
@@ -419,7 +475,7 @@ fn run_kind(
         .map(|(observe, row)| {
             match pipeline::realtime(bins, base, cli.rate_hz, warmup, measure, dir, observe) {
                 Ok(r) => {
-                    let mut row = row.latency(&r.latency, r.rate_per_s);
+                    let mut row = row.summary(r.latency, r.rate_per_s);
                     if r.frames_unanswered > 0 {
                         row.notes.push(format!(
                             "{} frames whose answer was not seen",
@@ -432,9 +488,9 @@ fn run_kind(
                             r.commands_not_running
                         ));
                     }
-                    if r.driver_latched && observe == Observe::MotorCommand {
+                    if r.driver_latched && observe != Observe::ActuatorCommand {
                         row.invalid = Some(
-                            "the sensor driver latched its safe state: after that its motor commands no longer wait for the controller".to_string(),
+                            "the sensor driver latched its safe state: after that it no longer waits for the controller".to_string(),
                         );
                     }
                     row.notes.extend(summarise_findings(&r.findings));
@@ -506,16 +562,16 @@ fn targets(rows: &[Row]) -> Vec<Target> {
             .map(|s| s.p99_ns as f64)
     };
     let mut out = Vec::new();
-    let ratio = match (p99("pipeline-rt-loop"), p99("iox-pingpong")) {
+    let ratio = match (p99("pipeline-rt-round-trip"), p99("iox-pingpong")) {
         (Some(a), Some(b)) => Some(a / b),
         _ => None,
     };
     let loop_invalid = rows
         .iter()
-        .find(|r| r.key == "pipeline-rt-loop")
+        .find(|r| r.key == "pipeline-rt-round-trip")
         .is_some_and(|r| r.invalid.is_some());
     out.push(Target {
-        name: "pipeline p99 / bare iceoryx2 ping-pong p99",
+        name: "pipeline sensor → controller → driver p99 / bare iceoryx2 ping-pong p99",
         measured: ratio,
         target: TARGET_P99_RATIO,
         verdict: match ratio {
@@ -558,10 +614,15 @@ fn targets(rows: &[Row]) -> Vec<Target> {
     out
 }
 
-fn print_table(rows: &[Row], targets: &[Target], cli: &Cli) {
+fn print_table(rows: &[Row], targets: &[Target], cli: &Cli, base: &Path, placement: &Placement) {
     println!(
         "rate {} Hz, {} s per row after {} s warm-up; latencies in µs",
         cli.rate_hz, cli.seconds, cli.warmup_seconds
+    );
+    println!(
+        "run file {}; real-time placement of the pipeline and the paced baselines: {}",
+        base.display(),
+        placement.describe()
     );
     println!();
     println!("| row | what | n | p50 | p99 | p99.9 | max | rate /s | ×RT | load1 |");

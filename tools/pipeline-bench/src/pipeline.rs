@@ -1,6 +1,7 @@
 //! The real pipeline: `exo-plant-sim`, `exo-sensor-driver` and
-//! `exo-controller` started as processes on a run file derived from
-//! `configs/default.toml`, observed through iceoryx2 like any subscriber.
+//! `exo-controller` started as processes on a run file derived from the
+//! bench's (`configs/realtime.toml` by default), observed through iceoryx2
+//! like any subscriber, or, for the round trip, by the driver itself.
 //!
 //! Time stamps: in real time the plant stamps each `BusSensorFrame` with
 //! `CLOCK_MONOTONIC` (`exo_service_kit::monotonic_ns`) immediately before
@@ -11,6 +12,7 @@
 //! itself: `monotonic_ns()` (the same clock, same machine) right after its
 //! subscriber hands it the answer.
 
+use std::ffi::OsStr;
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
@@ -20,9 +22,10 @@ use exo_messages::{ActuatorCommand, BusMotorCommand, ProtocolState};
 use exo_service_kit::channels::Channel;
 use exo_service_kit::ipc::Ipc;
 use exo_service_kit::monotonic_ns;
+use serde::Deserialize;
 
 use crate::procs::Fleet;
-use crate::stats::Latency;
+use crate::stats::{Latency, Summary};
 
 /// The service binaries, in start order.
 pub const SERVICES: [&str; 3] = ["exo-controller", "exo-sensor-driver", "exo-plant-sim"];
@@ -131,9 +134,19 @@ pub fn write_config(cfg: &RunConfig, path: &Path) -> Result<RunConfig> {
     Ok(RunConfig::from_file(path)?)
 }
 
-fn spawn_services(fleet: &mut Fleet, bins: &[PathBuf], config: &Path) -> Result<()> {
+/// Starts the services on `config`; the sensor driver also gets `driver_extra`.
+fn spawn_services(
+    fleet: &mut Fleet,
+    bins: &[PathBuf],
+    config: &Path,
+    driver_extra: &[&OsStr],
+) -> Result<()> {
     for (name, bin) in SERVICES.iter().zip(bins) {
-        fleet.spawn(name, bin, &["--config".as_ref(), config.as_os_str()])?;
+        let mut args: Vec<&OsStr> = vec!["--config".as_ref(), config.as_os_str()];
+        if *name == "exo-sensor-driver" {
+            args.extend_from_slice(driver_extra);
+        }
+        fleet.spawn(name, bin, &args)?;
     }
     Ok(())
 }
@@ -152,9 +165,15 @@ fn log_findings(fleet: &Fleet) -> Vec<String> {
     out
 }
 
-/// Which answer the real-time observer subscribes to.
+/// What the real-time run measures, and how.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Observe {
+    /// The driver's own round trip, sample published → its command
+    /// received (`exo-sensor-driver --round-trip-report`): sensor →
+    /// controller → driver, the interval a ping-pong measures. No bench
+    /// subscriber is in the loop; the bench only polls `ProtocolState`
+    /// (no wake-up) to see the loop start.
+    DriverRoundTrip,
     /// The driver's `BusMotorCommand` (the full loop, as the plant sees it).
     MotorCommand,
     /// The controller's `ActuatorCommand` (as the driver sees it).
@@ -163,11 +182,12 @@ pub enum Observe {
 
 /// What one real-time run of the pipeline measured.
 pub struct RealtimeResult {
-    /// Frame stamp → answer received by a waiting subscriber (ns).
-    pub latency: Latency,
+    /// The measured interval's percentiles (ns); `None` if none was measured.
+    pub latency: Option<Summary>,
     /// Answers per second in the window.
     pub rate_per_s: f64,
-    /// Frames in the window whose answer the observer never saw.
+    /// Frames in the window whose answer the observer never saw (not
+    /// counted for [`Observe::DriverRoundTrip`]).
     pub frames_unanswered: u64,
     /// Commands in the window not in normal operation (command observer).
     pub commands_not_running: u64,
@@ -193,6 +213,7 @@ pub fn realtime(
     observe: Observe,
 ) -> Result<RealtimeResult> {
     let tag = match observe {
+        Observe::DriverRoundTrip => "d",
         Observe::MotorCommand => "m",
         Observe::ActuatorCommand => "c",
     };
@@ -203,7 +224,11 @@ pub fn realtime(
         &config,
     )?;
     let ipc = Ipc::open("bench_observer", &instance, None)?;
+    if observe == Observe::DriverRoundTrip {
+        return driver_round_trip(bins, &ipc, &config, warmup, measure, dir);
+    }
     let (motor_in, command_in) = match observe {
+        Observe::DriverRoundTrip => (None, None),
         Observe::MotorCommand => (
             Some(ipc.inbox::<BusMotorCommand>(Channel::BusMotor, 64)?),
             None,
@@ -232,7 +257,7 @@ pub fn realtime(
         Ok(())
     };
     let mut fleet = Fleet::new(dir);
-    spawn_services(&mut fleet, bins, &config)?;
+    spawn_services(&mut fleet, bins, &config, &[])?;
 
     // Started: the first answer observed.
     let t = Instant::now();
@@ -247,7 +272,7 @@ pub fn realtime(
         }
     }
 
-    let mut latency = Latency::new()?;
+    let mut latency = Latency::new();
     let mut frames_unanswered = 0u64;
     let mut commands_not_running = 0u64;
     let mut last_frame: Option<u64> = None;
@@ -284,15 +309,94 @@ pub fn realtime(
     }
     let mut findings = fleet.stop();
     findings.extend(log_findings(&fleet));
-    let driver_latched = findings
-        .iter()
-        .any(|f| f.starts_with("exo-sensor-driver") && f.contains("latched"));
     Ok(RealtimeResult {
         rate_per_s: latency.count() as f64 / measure.as_secs_f64(),
-        latency,
+        latency: latency.summary(),
+        driver_latched: driver_latched(&findings),
         frames_unanswered,
         commands_not_running,
-        driver_latched,
+        findings,
+    })
+}
+
+/// Whether the driver's log says it latched its safe state.
+fn driver_latched(findings: &[String]) -> bool {
+    findings
+        .iter()
+        .any(|f| f.starts_with("exo-sensor-driver") && f.contains("latched"))
+}
+
+/// The driver's round-trip report (`exo-sensor-driver --round-trip-report`).
+#[derive(Debug, Deserialize)]
+struct DriverReport {
+    window_s: f64,
+    #[serde(flatten)]
+    latency: Summary,
+}
+
+/// [`Observe::DriverRoundTrip`]: runs the services for the warm-up (which
+/// the driver leaves out of its statistics) and the measured window, stops
+/// them, and reads the driver's report. The bench adds nothing to the loop:
+/// it polls `ProtocolState` (no wake-up event) to see the loop start.
+fn driver_round_trip(
+    bins: &[PathBuf],
+    ipc: &Ipc,
+    config: &Path,
+    warmup: Duration,
+    measure: Duration,
+    dir: &Path,
+) -> Result<RealtimeResult> {
+    let protocol_in = ipc.inbox::<ProtocolState>(Channel::Protocol, 64)?;
+    let report_path = dir.join("pipeline-realtime-round-trip.json");
+    let _ = std::fs::remove_file(&report_path);
+    let warmup_s = warmup.as_secs_f64().to_string();
+    let mut fleet = Fleet::new(dir);
+    spawn_services(
+        &mut fleet,
+        bins,
+        config,
+        &[
+            "--round-trip-report".as_ref(),
+            report_path.as_os_str(),
+            "--round-trip-warmup-s".as_ref(),
+            warmup_s.as_ref(),
+        ],
+    )?;
+    let t = Instant::now();
+    while protocol_in.try_recv()?.is_none() {
+        std::thread::sleep(LOCKSTEP_POLL);
+        fleet.check_alive()?;
+        if t.elapsed() > START_PATIENCE {
+            bail!("the pipeline published no protocol state within {START_PATIENCE:?}");
+        }
+    }
+    let end = Instant::now() + warmup + measure;
+    while Instant::now() < end {
+        std::thread::sleep(LIVENESS_EVERY.min(end.saturating_duration_since(Instant::now())));
+        fleet.check_alive()?;
+        while protocol_in.try_recv()?.is_some() {}
+    }
+    let mut findings = fleet.stop();
+    findings.extend(log_findings(&fleet));
+    let text = std::fs::read_to_string(&report_path).with_context(|| {
+        format!(
+            "the sensor driver wrote no round-trip report {}",
+            report_path.display()
+        )
+    })?;
+    let report: Option<DriverReport> = serde_json::from_str(&text)
+        .with_context(|| format!("reading the round-trip report {}", report_path.display()))?;
+    let (latency, rate_per_s) = match report {
+        Some(r) if r.window_s > 0.0 => (Some(r.latency), r.latency.count as f64 / r.window_s),
+        Some(r) => (Some(r.latency), 0.0),
+        None => (None, 0.0),
+    };
+    Ok(RealtimeResult {
+        latency,
+        rate_per_s,
+        frames_unanswered: 0,
+        commands_not_running: 0,
+        driver_latched: driver_latched(&findings),
         findings,
     })
 }
@@ -336,7 +440,7 @@ pub fn lockstep(
     let ipc = Ipc::open("bench_observer", &instance, None)?;
     let protocol_in = ipc.inbox::<ProtocolState>(Channel::Protocol, 64)?;
     let mut fleet = Fleet::new(dir);
-    spawn_services(&mut fleet, bins, &config)?;
+    spawn_services(&mut fleet, bins, &config, &[])?;
 
     // Latest (wall ns, simulated ns) seen, after draining the subscriber.
     // Sleeps one poll interval first.

@@ -14,7 +14,7 @@ use anyhow::{bail, Context, Result};
 use exo_messages::{ActuatorCommand, BusMotorCommand, BusSensorFrame, SensorSample};
 use exo_service_kit::channels::Channel;
 use exo_service_kit::ipc::Ipc;
-use exo_service_kit::StopFlag;
+use exo_service_kit::{request_realtime, RealtimeRequest, StopFlag};
 
 use crate::link::{Got, Rx, Tx, UdsLink};
 
@@ -213,12 +213,20 @@ pub struct RoleArgs {
     pub connect: Option<std::path::PathBuf>,
     /// Socket the driver listens on for its controller (uds).
     pub listen: Option<std::path::PathBuf>,
+    /// CPU and scheduling of the process whose place the stand-in takes
+    /// (`crate::placement`).
+    pub realtime: RealtimeRequest,
 }
 
 /// Runs a stand-in until the bench stops it (SIGTERM; the bench also
 /// arranges SIGTERM on its own death) or closes its socket.
 pub fn run_role(a: &RoleArgs) -> Result<()> {
     let stop = StopFlag::install().context("installing the signal handlers")?;
+    if a.realtime != RealtimeRequest::default() {
+        for r in request_realtime("stand-in", a.realtime).refusals {
+            eprintln!("exo-pipeline-bench --role {:?}: {r}", a.role);
+        }
+    }
     match a.transport {
         Transport::Iox => {
             let instance = a
