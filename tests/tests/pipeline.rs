@@ -324,3 +324,33 @@ fn realtime_mode_runs_and_stops_cleanly() {
         "wall-clock stamps go forward"
     );
 }
+
+/// In real time with the control path pinned, `exo run` keeps itself (and
+/// so the identifier it starts) off the control path's CPU, and says where
+/// everything runs. Nothing timed is asserted.
+#[test]
+fn the_launcher_keeps_off_the_control_path_cpus() {
+    let sc = Scenario::new(
+        "keepoff",
+        &[
+            ("timing = \"lockstep\"", "timing = \"realtime\""),
+            ("periods = [1, 4, 7]", "periods = [1]"),
+            ("recorder = true", "recorder = false"),
+        ],
+    );
+    sc.edit("[run]\n", "[run]\nmax_sim_time_s = 0.5\n");
+    sc.append("\n[realtime]\nplant_sim_cpu = 0\nsensor_driver_cpu = 0\ncontroller_cpu = 0\n");
+    let out = exo(&["run", sc.config.to_str().unwrap()]);
+    let err = stderr(&out);
+    assert!(out.status.success(), "{err}");
+    let cpus = exo_service_kit::allowed_cpus().unwrap();
+    let rest: Vec<usize> = cpus.iter().copied().filter(|&c| c != 0).collect();
+    let expected = if rest.is_empty() {
+        "no CPU left besides the control path's [0]".to_string()
+    } else if rest.len() == cpus.len() {
+        "the launcher was already confined to other CPUs".to_string()
+    } else {
+        format!("control path on CPU [0]; launcher, identifier and recorder on CPU {rest:?}")
+    };
+    assert!(err.contains(&expected), "expected `{expected}` in:\n{err}");
+}

@@ -206,22 +206,34 @@ pub fn allowed_cpus() -> std::io::Result<Vec<usize>> {
     }
 }
 
+/// What [`keep_off_cpus`] did.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum KeptOff {
+    /// Confined to these CPUs (those it could use, less the ones kept off).
+    Confined(Vec<usize>),
+    /// It used none of the CPUs to keep off: nothing changed.
+    AlreadyOff,
+    /// It could use no other CPU: nothing changed.
+    NoneLeft,
+}
+
 /// Keeps the calling thread, and every thread and process it starts
 /// afterwards, off the CPUs `keep_off` (those of the control path): it is
-/// confined to the CPUs it may use now less those. Returns the CPUs it is
-/// now confined to, or `None` when that would leave none (or `keep_off`
-/// names none it uses), in which case nothing changes. A child may still
-/// pin itself anywhere (`request_realtime`), which is how the control path
+/// confined to the CPUs it may use now less those. A child may still pin
+/// itself anywhere (`request_realtime`), which is how the control path
 /// takes the CPUs kept free for it.
-pub fn keep_off_cpus(keep_off: &[usize]) -> std::io::Result<Option<Vec<usize>>> {
+pub fn keep_off_cpus(keep_off: &[usize]) -> std::io::Result<KeptOff> {
     let now = allowed_cpus()?;
     let rest: Vec<usize> = now
         .iter()
         .copied()
         .filter(|c| !keep_off.contains(c))
         .collect();
-    if rest.is_empty() || rest.len() == now.len() {
-        return Ok(None);
+    if rest.is_empty() {
+        return Ok(KeptOff::NoneLeft);
+    }
+    if rest.len() == now.len() {
+        return Ok(KeptOff::AlreadyOff);
     }
     // SAFETY: a zeroed cpu_set_t is valid; every CPU in `rest` came from
     // sched_getaffinity, so CPU_SET stays within the set.
@@ -234,7 +246,7 @@ pub fn keep_off_cpus(keep_off: &[usize]) -> std::io::Result<Option<Vec<usize>>> 
             return Err(std::io::Error::last_os_error());
         }
     }
-    Ok(Some(rest))
+    Ok(KeptOff::Confined(rest))
 }
 
 #[cfg(test)]
@@ -248,12 +260,14 @@ mod realtime_tests {
             let all = allowed_cpus().unwrap();
             assert!(!all.is_empty());
             // Keeping off every CPU would leave none: nothing changes.
-            assert_eq!(keep_off_cpus(&all).unwrap(), None);
+            assert_eq!(keep_off_cpus(&all).unwrap(), KeptOff::NoneLeft);
             assert_eq!(allowed_cpus().unwrap(), all);
             // Keeping off a CPU not in use changes nothing either.
-            assert_eq!(keep_off_cpus(&[usize::MAX]).unwrap(), None);
+            assert_eq!(keep_off_cpus(&[usize::MAX]).unwrap(), KeptOff::AlreadyOff);
             if all.len() >= 2 {
-                let rest = keep_off_cpus(&all[..1]).unwrap().unwrap();
+                let KeptOff::Confined(rest) = keep_off_cpus(&all[..1]).unwrap() else {
+                    panic!("not confined");
+                };
                 assert_eq!(rest, all[1..].to_vec());
                 assert_eq!(allowed_cpus().unwrap(), rest);
                 // What the thread starts afterwards inherits the confinement.

@@ -12,6 +12,7 @@ use std::time::Instant;
 use exo_messages::ProtocolState;
 use exo_service_kit::channels::Channel;
 use exo_service_kit::collect::Collector;
+use exo_service_kit::KeptOff;
 
 use crate::supervisor::{
     config_args, sibling_program, supervise, Logs, Ready, ReadyProbe, Role, ServiceSpec,
@@ -228,10 +229,13 @@ fn keep_off_the_control_path(cfg: &RunConfig) {
         return;
     }
     match exo_service_kit::keep_off_cpus(&control) {
-        Ok(Some(rest)) => eprintln!(
+        Ok(KeptOff::Confined(rest)) => eprintln!(
             "exo: control path on CPU {control:?}; launcher, identifier and recorder on CPU {rest:?}"
         ),
-        Ok(None) => eprintln!(
+        Ok(KeptOff::AlreadyOff) => eprintln!(
+            "exo: control path on CPU {control:?}; the launcher was already confined to other CPUs"
+        ),
+        Ok(KeptOff::NoneLeft) => eprintln!(
             "exo: warning: no CPU left besides the control path's {control:?}; \
              the identifier and the recorder share them"
         ),
