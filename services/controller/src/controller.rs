@@ -78,6 +78,16 @@ pub struct Tick {
     pub protocol: ProtocolPoint,
 }
 
+impl Tick {
+    /// Whether the protocol's time is over: in `Done`, or past its end with
+    /// a fault latched (which holds the safe state instead of `Done`, and
+    /// would otherwise keep the run going with nothing left to do; the
+    /// driver holds its own safe state once the controller stops).
+    pub fn protocol_over(&self) -> bool {
+        self.protocol.done && self.mode != Mode::Run
+    }
+}
+
 /// The controller.
 #[derive(Debug, Clone)]
 pub struct Controller {
@@ -429,6 +439,28 @@ mod tests {
         assert_eq!(t.tau_amplification_nm, 0.0);
         k.reset_fault();
         assert_eq!(k.tick(&sample(12, 0.3, 1.0)).mode, Mode::Run);
+    }
+
+    #[test]
+    fn a_latched_run_is_over_when_the_protocol_is() {
+        let c = cfg();
+        let mut k = Controller::from_config(&c).unwrap();
+        let end = (k.protocol().duration_s() * c.run.rate_hz).ceil() as u64;
+        k.tick(&sample(0, 0.3, 0.0));
+        let t = k.tick(&sample(1, 0.3, f64::NAN));
+        assert_eq!(t.mode, Mode::SafeGravityOnly);
+        assert!(!t.protocol_over());
+        let t = k.tick(&sample(end - 10, 0.3, 0.0));
+        assert!(!t.protocol_over(), "before the end");
+        let t = k.tick(&sample(end + 10, 0.3, 0.0));
+        assert_eq!(t.mode, Mode::SafeGravityOnly, "still latched");
+        assert!(t.protocol_over());
+        // Unlatched, the end is `Done`.
+        let mut k = Controller::from_config(&c).unwrap();
+        assert!(!k.tick(&sample(0, 0.3, 0.0)).protocol_over());
+        let t = k.tick(&sample(end + 10, 0.3, 0.0));
+        assert_eq!(t.mode, Mode::Done);
+        assert!(t.protocol_over());
     }
 
     #[test]

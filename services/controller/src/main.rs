@@ -105,6 +105,7 @@ fn run(args: ServiceArgs) -> Result<()> {
     let mut last_protocol = (u32::MAX, u32::MAX, u32::MAX);
     let mut last_protocol_tick = 0u64;
     let mut reported: Option<Fault> = None;
+    let mut latched_at: Option<u64> = None;
     let mut done_ticks = 0u64;
     let mut idle_since = Instant::now();
     // The sample deadline is armed once the stream is established (0.1 s of
@@ -225,18 +226,25 @@ fn run(args: ServiceArgs) -> Result<()> {
         if tick.fault != reported {
             if let Some(f) = tick.fault {
                 error!("controller: safe state latched at sample {}: {f}", s.seq);
+                latched_at = Some(s.seq);
             }
             reported = tick.fault;
         }
-        if tick.mode == Mode::Done {
+        if tick.protocol_over() {
             done_ticks += 1;
             if done_ticks >= (rate / 10.0) as u64 {
-                info!(
-                    "controller: protocol done at sim {:.1} s (wall {:.1} s, {:.0}× real time)",
-                    tick.t_s,
-                    wall_start.elapsed().as_secs_f64(),
-                    tick.t_s / wall_start.elapsed().as_secs_f64().max(1e-9)
-                );
+                match (tick.mode, latched_at) {
+                    (Mode::Done, _) | (_, None) => info!(
+                        "controller: protocol done at sim {:.1} s (wall {:.1} s, {:.0}× real time)",
+                        tick.t_s,
+                        wall_start.elapsed().as_secs_f64(),
+                        tick.t_s / wall_start.elapsed().as_secs_f64().max(1e-9)
+                    ),
+                    (_, Some(at)) => warn!(
+                        "controller: protocol over at sim {:.1} s with the safe state latched since sample {at}: what came after ran without excitation or amplification",
+                        tick.t_s
+                    ),
+                }
                 break;
             }
         }

@@ -46,8 +46,8 @@ use exo_impedance::{
     FrfPoint as FitPoint, ImpedanceModel, ModelComparison, ModelFit, PowerLawFit, StiffnessRange,
 };
 use exo_messages::{
-    status, ActuatorCommand, FrfPoint, ImpedanceEstimate, ProtocolPhase, ProtocolState,
-    SensorSample,
+    status, ActuatorCommand, ControlMode, FrfPoint, ImpedanceEstimate, ProtocolPhase,
+    ProtocolState, SensorSample,
 };
 
 /// False-rejection probability of the F-tests (the paper's 5 %; the level
@@ -59,6 +59,18 @@ pub const MIN_WINDOW_SAMPLES: usize = 16;
 
 /// Status bits that discard an analysis window.
 pub const REJECT_BITS: u32 = status::FAULT_MASK | status::SAFE_STATE;
+
+/// Controller modes that discard an analysis window: a latched safe state
+/// (no excitation, no amplification), whatever the samples' status says.
+/// `Idle` is not among them: writers that leave `mode` unset write 0.
+pub const REJECT_MODES: [ControlMode; 3] = [
+    ControlMode::SafeGravityOnly,
+    ControlMode::SafeZeroTorque,
+    ControlMode::FaultLatched,
+];
+
+/// The command ring's flag for a command in one of [`REJECT_MODES`].
+const COMMAND_IN_SAFE_STATE: u32 = 1;
 
 /// Which FRF the models are fitted to.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
@@ -430,7 +442,10 @@ impl Identifier {
     /// A controller command (`τ_d` for `τ_s/τ_d`, `τ_gravity` to remove
     /// gravity from `τ_s`). Allocation-free.
     pub fn on_command(&mut self, c: &ActuatorCommand) {
-        self.command.push(c.stamp_ns, [c.tau_d, c.tau_gravity], 0);
+        let safe = REJECT_MODES.iter().any(|m| m.as_u32() == c.mode);
+        let flags = if safe { COMMAND_IN_SAFE_STATE } else { 0 };
+        self.command
+            .push(c.stamp_ns, [c.tau_d, c.tau_gravity], flags);
     }
 
     /// A protocol state (every tick or only on change). Allocation-free,
@@ -518,6 +533,16 @@ impl Identifier {
         if let Some((stamp, flags)) = rejected {
             out.push(Event::Warning(format!(
                 "{what}: sample at {stamp} ns has status {flags:#x} (fault or safe state); window discarded"
+            )));
+            return;
+        }
+        if let Some((stamp, _, _)) = self
+            .command
+            .window(w.start_ns, end)
+            .find(|(_, _, flags)| flags & COMMAND_IN_SAFE_STATE != 0)
+        {
+            out.push(Event::Warning(format!(
+                "{what}: the controller was in a latched safe state at {stamp} ns (no excitation); window discarded"
             )));
             return;
         }

@@ -13,8 +13,8 @@ use exo_impedance::{
     f_critical, fractional_order, Complex64, DynamicStiffness, PowerLaw, StiffnessRange,
 };
 use exo_messages::{
-    status, ActuatorCommand, FrfPoint, ImpedanceEstimate, ProtocolPhase, ProtocolState,
-    SensorSample,
+    status, ActuatorCommand, ControlMode, FrfPoint, ImpedanceEstimate, ProtocolPhase,
+    ProtocolState, SensorSample,
 };
 
 /// `M_e` of the default settings with the 4.5 kg load: 0.1 + 4.5 · 0.45² kg·m².
@@ -109,6 +109,8 @@ struct Faults {
     status: Option<(ProtocolPhase, usize, u32)>,
     /// Tick within the analysis phase whose τ_c is NaN.
     nan_at: Option<usize>,
+    /// `(phase, tick within the phase, mode)` of one command.
+    mode: Option<(ProtocolPhase, usize, ControlMode)>,
 }
 
 impl Stream {
@@ -260,6 +262,11 @@ impl Stream {
                     tau_c
                 };
                 let stamp = self.tick * 1_000_000;
+                let mode = match faults.mode {
+                    Some((fp, fk, m)) if fp == phase && fk == k => m.as_u32(),
+                    // Left unset (Idle), as some writers leave it.
+                    _ => 0,
+                };
                 let c = ActuatorCommand {
                     seq: self.tick,
                     stamp_ns: stamp,
@@ -267,6 +274,7 @@ impl Stream {
                     tau_d,
                     tau_gravity: tau_g,
                     tau_bias: bias,
+                    mode,
                     ..Default::default()
                 };
                 let s = SensorSample {
@@ -492,12 +500,16 @@ fn three_experiments_give_the_power_law_and_eq_f() {
 }
 
 #[test]
-fn a_faulted_or_safe_state_sample_discards_only_its_window() {
+fn a_faulted_or_safe_state_sample_or_command_discards_only_its_window() {
     let human = brief_human();
     let mut st = Stream::new().with(IdentifierSettings::default(), Delivery::EveryTick, true);
     let fault = |phase, k, bits| Faults {
         status: Some((phase, k, bits)),
-        nan_at: None,
+        ..Default::default()
+    };
+    let mode = |phase, k, m| Faults {
+        mode: Some((phase, k, m)),
+        ..Default::default()
     };
     let plan = [
         Faults::default(),
@@ -508,9 +520,14 @@ fn a_faulted_or_safe_state_sample_discards_only_its_window() {
         // STALE and SATURATED are not rejections.
         fault(ProtocolPhase::Analysis, 10, status::STALE),
         Faults {
-            status: None,
             nan_at: Some(2500),
+            ..Default::default()
         },
+        // The controller's latched safe state, seen only in its command.
+        mode(ProtocolPhase::Analysis, 700, ControlMode::SafeGravityOnly),
+        // Outside the window, or in normal operation: no rejection.
+        mode(ProtocolPhase::Settling, 700, ControlMode::FaultLatched),
+        mode(ProtocolPhase::Analysis, 700, ControlMode::Run),
     ];
     for (i, f) in plan.into_iter().enumerate() {
         let n = i as u32 + 1;
@@ -519,7 +536,7 @@ fn a_faulted_or_safe_state_sample_discards_only_its_window() {
     }
     let sink = &st.sinks[0];
     let periods: Vec<u32> = sink.frf().iter().map(|p| p.period).collect();
-    assert_eq!(periods, vec![1, 3, 5]);
+    assert_eq!(periods, vec![1, 3, 5, 8, 9]);
     let w = sink.warnings();
     assert!(
         w.iter()
@@ -536,9 +553,15 @@ fn a_faulted_or_safe_state_sample_discards_only_its_window() {
             .any(|w| w.contains("period 6") && w.contains("tau_c") && w.contains("no FRF point")),
         "{w:?}"
     );
+    assert!(
+        w.iter().any(|w| w.contains("period 7")
+            && w.contains("latched safe state")
+            && w.contains("discarded")),
+        "{w:?}"
+    );
     // Points keep consecutive sequence numbers.
     let seqs: Vec<u64> = sink.frf().iter().map(|p| p.seq).collect();
-    assert_eq!(seqs, vec![0, 1, 2]);
+    assert_eq!(seqs, vec![0, 1, 2, 3, 4]);
 }
 
 #[test]

@@ -6,7 +6,7 @@
 //! against the simulator and for fast tests; the benchmark of concealed
 //! effects (`exo diagnose-bench`) records the real processes instead.
 
-use exo_messages::{ActuatorCommand, ProtocolState, SensorSample};
+use exo_messages::{ActuatorCommand, ControlMode, ProtocolState, SensorSample};
 use exo_plant_sim::{HumanDrive, Plant, PlantModel};
 use exo_recording::Recording;
 
@@ -142,6 +142,7 @@ pub fn synthesize(model: &PlantModel, periods: &[SynthPeriod], s: &SynthSettings
                 tau_gravity: tau_g,
                 tau_bias: tau_b,
                 tau_excitation: tau_x,
+                mode: ControlMode::Run.as_u32(),
                 ..Default::default()
             });
             for _ in 0..sub {
