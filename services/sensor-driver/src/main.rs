@@ -153,8 +153,13 @@ fn run(driver_args: DriverArgs) -> Result<()> {
                 &stop,
                 &mut round_trip,
             );
-            report_round_trip(&round_trip, driver_args.round_trip_report.as_deref())?;
+            // The loop's own error comes first; the report's is logged then.
+            let reported = report_round_trip(&round_trip, driver_args.round_trip_report.as_deref());
+            if let (Err(e), Err(_)) = (&reported, &served) {
+                error!("{e:#}");
+            }
             served?;
+            reported?;
         }
         BusBackend::Replay => {
             let file = cfg
