@@ -19,7 +19,9 @@ use exo_messages::{
 };
 use exo_service_kit::channels::Channel;
 use exo_service_kit::ipc::{settle_connections, Ipc, REALTIME_SETTLE};
-use exo_service_kit::{init_logging, request_realtime, RealtimeRequest, ServiceArgs, StopFlag};
+use exo_service_kit::{
+    init_logging, request_realtime, RealtimeProcess, RealtimeRequest, ServiceArgs, StopFlag,
+};
 use tracing::{error, info, warn};
 
 const OPERATOR_RESET_FAULT: u32 = 1;
@@ -63,14 +65,10 @@ fn run(args: ServiceArgs) -> Result<()> {
     let operator_in = ipc.inbox::<OperatorCommand>(Channel::Operator, 16)?;
     let estimate_in = ipc.inbox::<ImpedanceEstimate>(Channel::IdentifierEstimate, 16)?;
     let mut controller = Controller::from_config(&cfg)?;
-    if let (TimingMode::Realtime, Some(rt)) = (cfg.run.timing, cfg.realtime) {
+    if cfg.run.timing == TimingMode::Realtime {
         request_realtime(
             "controller",
-            RealtimeRequest {
-                sched_fifo_priority: rt.sched_fifo_priority,
-                lock_memory: rt.lock_memory,
-                cpu: rt.controller_cpu,
-            },
+            RealtimeRequest::of(cfg.realtime.as_ref(), RealtimeProcess::Controller),
         );
     }
     let lockstep = cfg.run.timing == TimingMode::Lockstep;

@@ -60,16 +60,10 @@ pub const MIN_WINDOW_SAMPLES: usize = 16;
 /// Status bits that discard an analysis window.
 pub const REJECT_BITS: u32 = status::FAULT_MASK | status::SAFE_STATE;
 
-/// Controller modes that discard an analysis window: a latched safe state
-/// (no excitation, no amplification), whatever the samples' status says.
-/// `Idle` is not among them: writers that leave `mode` unset write 0.
-pub const REJECT_MODES: [ControlMode; 3] = [
-    ControlMode::SafeGravityOnly,
-    ControlMode::SafeZeroTorque,
-    ControlMode::FaultLatched,
-];
-
-/// The command ring's flag for a command in one of [`REJECT_MODES`].
+/// The command ring's flag for a command in a latched safe state
+/// ([`ControlMode::is_safe_state`]): it discards its analysis window (no
+/// excitation, no amplification), whatever the samples' status says. `Idle`
+/// is not one: writers that leave `mode` unset write 0.
 const COMMAND_IN_SAFE_STATE: u32 = 1;
 
 /// Which FRF the models are fitted to.
@@ -442,7 +436,7 @@ impl Identifier {
     /// A controller command (`τ_d` for `τ_s/τ_d`, `τ_gravity` to remove
     /// gravity from `τ_s`). Allocation-free.
     pub fn on_command(&mut self, c: &ActuatorCommand) {
-        let safe = REJECT_MODES.iter().any(|m| m.as_u32() == c.mode);
+        let safe = ControlMode::from_u32(c.mode).is_some_and(ControlMode::is_safe_state);
         let flags = if safe { COMMAND_IN_SAFE_STATE } else { 0 };
         self.command
             .push(c.stamp_ns, [c.tau_d, c.tau_gravity], flags);

@@ -19,8 +19,8 @@ use exo_plant_sim::{Plant, PlantModel, PostureDrive};
 use exo_service_kit::channels::Channel;
 use exo_service_kit::ipc::{settle_connections, Ipc, REALTIME_SETTLE_PLANT};
 use exo_service_kit::{
-    init_logging, monotonic_ns, request_realtime, sleep_until_ns, RealtimeRequest, ServiceArgs,
-    StopFlag,
+    init_logging, monotonic_ns, request_realtime, sleep_until_ns, RealtimeProcess, RealtimeRequest,
+    ServiceArgs, StopFlag,
 };
 use tracing::{info, warn};
 
@@ -61,14 +61,10 @@ fn run(args: ServiceArgs) -> Result<()> {
     let protocol_in = ipc.inbox::<ProtocolState>(Channel::Protocol, 64)?;
 
     let mut plant = Plant::new(&model);
-    if let (TimingMode::Realtime, Some(rt)) = (cfg.run.timing, cfg.realtime) {
+    if cfg.run.timing == TimingMode::Realtime {
         request_realtime(
             "plant-sim",
-            RealtimeRequest {
-                sched_fifo_priority: rt.sched_fifo_priority,
-                lock_memory: rt.lock_memory,
-                cpu: rt.plant_sim_cpu,
-            },
+            RealtimeRequest::of(cfg.realtime.as_ref(), RealtimeProcess::PlantSim),
         );
     }
     let voluntary = match (cfg.protocol.mode, cfg.voluntary) {

@@ -32,7 +32,8 @@ use crate::backends::SimulatorBus;
 use crate::replay::ReplayBus;
 use clap::Parser;
 use exo_service_kit::{
-    init_logging, monotonic_ns, request_realtime, RealtimeRequest, ServiceArgs, StopFlag,
+    init_logging, monotonic_ns, request_realtime, RealtimeProcess, RealtimeRequest, ServiceArgs,
+    StopFlag,
 };
 use tracing::{error, info};
 
@@ -110,14 +111,10 @@ fn run(driver_args: DriverArgs) -> Result<()> {
         operator_in: ipc.inbox::<OperatorCommand>(Channel::Operator, 16)?,
     };
     let timing = Timing { deadline, lockstep };
-    if let (TimingMode::Realtime, Some(rt)) = (cfg.run.timing, cfg.realtime) {
+    if cfg.run.timing == TimingMode::Realtime {
         request_realtime(
             "sensor-driver",
-            RealtimeRequest {
-                sched_fifo_priority: rt.sched_fifo_priority,
-                lock_memory: rt.lock_memory,
-                cpu: rt.sensor_driver_cpu,
-            },
+            RealtimeRequest::of(cfg.realtime.as_ref(), RealtimeProcess::SensorDriver),
         );
     }
     match cfg.bus.backend {

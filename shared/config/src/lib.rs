@@ -147,8 +147,8 @@ mod subject;
 pub use experiments::{ExperimentSpec, ExperimentTable, ProtocolTiming};
 pub use run::{
     BusBackend, BusSettings, ControllerSettings, LimitSettings, ProtocolMode, ProtocolSettings,
-    ReleaseSettings, RigSettings, RunConfig, RunSettings, SafeState, SafetySettings, ServiceSet,
-    TimingMode, VoluntarySettings, GRAVITY_M_S2,
+    RealtimeSettings, ReleaseSettings, RigSettings, RunConfig, RunSettings, SafeState,
+    SafetySettings, ServiceSet, TimingMode, VoluntarySettings, GRAVITY_M_S2,
 };
 pub use subject::{ReportedPowerLaw, Subject, SubjectExperiment};
 

@@ -115,6 +115,36 @@ pub struct RealtimeRequest {
     pub cpu: Option<usize>,
 }
 
+/// A process of the real-time path, as `[realtime]` names it.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum RealtimeProcess {
+    /// `exo-plant-sim` (`plant_sim_cpu`).
+    PlantSim,
+    /// `exo-sensor-driver` (`sensor_driver_cpu`).
+    SensorDriver,
+    /// `exo-controller` (`controller_cpu`).
+    Controller,
+}
+
+impl RealtimeRequest {
+    /// What a run file's `[realtime]` section asks for `process`; nothing
+    /// without one.
+    pub fn of(rt: Option<&exo_config::RealtimeSettings>, process: RealtimeProcess) -> Self {
+        let Some(rt) = rt else {
+            return RealtimeRequest::default();
+        };
+        RealtimeRequest {
+            sched_fifo_priority: rt.sched_fifo_priority,
+            lock_memory: rt.lock_memory,
+            cpu: match process {
+                RealtimeProcess::PlantSim => rt.plant_sim_cpu,
+                RealtimeProcess::SensorDriver => rt.sensor_driver_cpu,
+                RealtimeProcess::Controller => rt.controller_cpu,
+            },
+        }
+    }
+}
+
 /// What the operating system granted; each refusal is also logged as a warning.
 #[derive(Debug, Clone, Default, PartialEq, Eq)]
 pub struct RealtimeGrant {

@@ -19,7 +19,7 @@ use exo_service_kit::{monotonic_ns, sleep_until_ns};
 use crate::link::{Answer, Got, Probe, Rx, Tx, UdsLink};
 use crate::placement::{on_own_thread, place_this_thread, role_flags, Placement};
 use crate::procs::Fleet;
-use crate::roles::accept_within;
+use crate::roles::{accept_within, Transport};
 use crate::stats::Latency;
 use exo_service_kit::RealtimeRequest;
 
@@ -50,19 +50,17 @@ pub enum Pace {
     FlatOut,
 }
 
-/// Sends probes through `tx` and times their answers from `rx`.
-/// The probing thread takes the placement `bench` first (after the
-/// stand-ins were started, so that they do not inherit it).
-#[allow(clippy::too_many_arguments)]
+/// Sends probes through `tx` and times their answers from `rx`, paced and
+/// timed as `spec` says. The probing thread takes the placement `bench`
+/// first (after the stand-ins were started, so that they do not inherit it).
 fn probe_loop<P: Probe, A: Answer>(
     tx: &mut impl Tx<P>,
     rx: &mut impl Rx<A>,
-    pace: Pace,
+    spec: &LoopSpec,
     bench: RealtimeRequest,
-    warmup: Duration,
-    measure: Duration,
     fleet: &mut Fleet,
 ) -> Result<LoopStats> {
+    let (pace, warmup, measure) = (spec.pace, spec.warmup, spec.measure);
     place_this_thread("bench", bench);
     // Handshake: probe 0 until it is answered (the peers may still be starting).
     let t = monotonic_ns();
@@ -139,23 +137,25 @@ fn probe_loop<P: Probe, A: Answer>(
     })
 }
 
-/// The command line of a stand-in: its role, transport, `rest`, and the
-/// placement flags `placed`.
-fn role_args<'a>(
-    role: &'a str,
-    transport: &'a str,
-    rest: &'a [&'a OsStr],
-    placed: &'a [OsString],
-) -> Vec<&'a OsStr> {
-    let mut v: Vec<&OsStr> = vec![
+/// Starts the stand-in `role` of `spec`'s loop over `transport` with the
+/// arguments `rest` and the placement flags `placed`; named `<tag>-<role>`.
+fn spawn_stand_in(
+    fleet: &mut Fleet,
+    spec: &LoopSpec,
+    role: &str,
+    transport: &str,
+    rest: &[&OsStr],
+    placed: &[OsString],
+) -> Result<()> {
+    let mut args: Vec<&OsStr> = vec![
         "--role".as_ref(),
         role.as_ref(),
         "--transport".as_ref(),
         transport.as_ref(),
     ];
-    v.extend_from_slice(rest);
-    v.extend(placed.iter().map(OsString::as_os_str));
-    v
+    args.extend_from_slice(rest);
+    args.extend(placed.iter().map(OsString::as_os_str));
+    fleet.spawn(&format!("{}-{role}", spec.tag), spec.exe, &args)
 }
 
 /// Who plays whom in a bare loop, and where each runs.
@@ -192,71 +192,63 @@ pub enum Shape {
     ThreeProcess,
 }
 
-/// A bare loop over iceoryx2 on the channels (and service settings) of the
-/// pipeline, under a fresh instance; with `placement`, every process and
-/// the bench's probing thread placed as the pipeline's would be.
-#[allow(clippy::too_many_arguments)]
-pub fn iceoryx2(
-    exe: &Path,
-    shape: Shape,
-    pace: Pace,
+/// One bare loop to run: its shape, pacing and time, where its logs go, and
+/// a tag naming its instance, sockets and stand-ins.
+pub struct LoopSpec<'a> {
+    /// The bench executable (re-run as the stand-ins).
+    pub exe: &'a Path,
+    /// Ping-pong or three-process loop.
+    pub shape: Shape,
+    /// Paced like the plant or flat out.
+    pub pace: Pace,
+    /// Not recorded.
+    pub warmup: Duration,
+    /// Recorded.
+    pub measure: Duration,
+    /// Logs and sockets.
+    pub dir: &'a Path,
+    /// Unique per row.
+    pub tag: &'a str,
+}
+
+/// Runs a bare loop over `transport` on a thread of its own; with
+/// `placement`, every process and the bench's probing thread placed as the
+/// pipeline's would be.
+pub fn run(
+    transport: Transport,
+    spec: &LoopSpec,
     placement: Option<&Placement>,
-    warmup: Duration,
-    measure: Duration,
-    dir: &Path,
-    tag: &str,
 ) -> Result<LoopStats> {
-    let cast = Cast::new(shape, placement);
-    on_own_thread(tag, || {
-        iceoryx2_here(exe, shape, pace, &cast, warmup, measure, dir, tag)
+    let cast = Cast::new(spec.shape, placement);
+    on_own_thread(spec.tag, || match transport {
+        Transport::Iox => iceoryx2(spec, &cast),
+        Transport::Uds => unix_socket(spec, &cast),
     })
 }
 
-#[allow(clippy::too_many_arguments)]
-fn iceoryx2_here(
-    exe: &Path,
-    shape: Shape,
-    pace: Pace,
-    cast: &Cast,
-    warmup: Duration,
-    measure: Duration,
-    dir: &Path,
-    tag: &str,
-) -> Result<LoopStats> {
-    let instance = format!("pb{tag}{}", std::process::id());
+/// A bare loop over iceoryx2 on the channels (and service settings) of the
+/// pipeline, under a fresh instance.
+fn iceoryx2(spec: &LoopSpec, cast: &Cast) -> Result<LoopStats> {
+    let instance = format!("pb{}{}", spec.tag, std::process::id());
     let ipc = Ipc::open("bench_plant", &instance, None)?;
-    let mut fleet = Fleet::new(dir);
-    let inst: &OsStr = instance.as_ref();
-    let rest = ["--instance".as_ref(), inst];
-    let stats = match shape {
+    let mut fleet = Fleet::new(spec.dir);
+    let rest = ["--instance".as_ref(), instance.as_ref()];
+    let controller = |fleet: &mut Fleet| {
+        spawn_stand_in(fleet, spec, "controller", "iox", &rest, &cast.controller)
+    };
+    let stats = match spec.shape {
         Shape::PingPong => {
             let mut tx = ipc.outbox::<SensorSample>(Channel::Sensor)?;
             let mut rx = ipc.inbox::<ActuatorCommand>(Channel::Command, 64)?;
-            fleet.spawn(
-                &format!("{tag}-controller"),
-                exe,
-                &role_args("controller", "iox", &rest, &cast.controller),
-            )?;
-            probe_loop(
-                &mut tx, &mut rx, pace, cast.bench, warmup, measure, &mut fleet,
-            )?
+            controller(&mut fleet)?;
+            probe_loop(&mut tx, &mut rx, spec, cast.bench, &mut fleet)?
         }
         Shape::ThreeProcess => {
             let mut tx = ipc.outbox::<BusSensorFrame>(Channel::BusSensor)?;
             let mut rx = ipc.inbox::<BusMotorCommand>(Channel::BusMotor, 64)?;
-            fleet.spawn(
-                &format!("{tag}-controller"),
-                exe,
-                &role_args("controller", "iox", &rest, &cast.controller),
-            )?;
-            fleet.spawn(
-                &format!("{tag}-driver"),
-                exe,
-                &role_args("driver", "iox", &rest, &cast.driver),
-            )?;
-            probe_loop(
-                &mut tx, &mut rx, pace, cast.bench, warmup, measure, &mut fleet,
-            )?
+            controller(&mut fleet)?;
+            spawn_stand_in(&mut fleet, spec, "driver", "iox", &rest, &cast.driver)?;
+            probe_loop(&mut tx, &mut rx, spec, cast.bench, &mut fleet)?
         }
     };
     let trouble = fleet.stop();
@@ -271,96 +263,49 @@ fn bind(path: &Path) -> Result<UnixListener> {
     UnixListener::bind(path).with_context(|| format!("binding {}", path.display()))
 }
 
-/// A bare loop over Unix-domain stream sockets; `placement` as for [`iceoryx2`].
-#[allow(clippy::too_many_arguments)]
-pub fn unix_socket(
-    exe: &Path,
-    shape: Shape,
-    pace: Pace,
-    placement: Option<&Placement>,
-    warmup: Duration,
-    measure: Duration,
-    dir: &Path,
-    tag: &str,
-) -> Result<LoopStats> {
-    let cast = Cast::new(shape, placement);
-    on_own_thread(tag, || {
-        unix_socket_here(exe, shape, pace, &cast, warmup, measure, dir, tag)
-    })
-}
-
-#[allow(clippy::too_many_arguments)]
-fn unix_socket_here(
-    exe: &Path,
-    shape: Shape,
-    pace: Pace,
-    cast: &Cast,
-    warmup: Duration,
-    measure: Duration,
-    dir: &Path,
-    tag: &str,
-) -> Result<LoopStats> {
-    let mut fleet = Fleet::new(dir);
-    let plant_path = dir.join(format!("{tag}-plant.sock"));
+/// A bare loop over Unix-domain stream sockets.
+fn unix_socket(spec: &LoopSpec, cast: &Cast) -> Result<LoopStats> {
+    let mut fleet = Fleet::new(spec.dir);
+    let plant_path = spec.dir.join(format!("{}-plant.sock", spec.tag));
     let listener = bind(&plant_path)?;
     let plant: &OsStr = plant_path.as_os_str();
-    let peer_name = match shape {
-        Shape::PingPong => {
-            fleet.spawn(
-                &format!("{tag}-controller"),
-                exe,
-                &role_args(
-                    "controller",
-                    "uds",
-                    &["--connect".as_ref(), plant],
-                    &cast.controller,
-                ),
-            )?;
-            "controller"
-        }
+    // The controller answers the bench directly (ping-pong) or the driver,
+    // which binds its own socket before connecting to ours.
+    let (controller_socket, peer_name) = match spec.shape {
+        Shape::PingPong => (plant_path.clone(), "controller"),
         Shape::ThreeProcess => {
-            let ctrl_path = dir.join(format!("{tag}-ctrl.sock"));
+            let ctrl_path = spec.dir.join(format!("{}-ctrl.sock", spec.tag));
             let _ = std::fs::remove_file(&ctrl_path);
-            fleet.spawn(
-                &format!("{tag}-driver"),
-                exe,
-                &role_args(
-                    "driver",
-                    "uds",
-                    &[
-                        "--connect".as_ref(),
-                        plant,
-                        "--listen".as_ref(),
-                        ctrl_path.as_os_str(),
-                    ],
-                    &cast.driver,
-                ),
-            )?;
-            // The driver binds its own socket before connecting to ours.
-            fleet.spawn(
-                &format!("{tag}-controller"),
-                exe,
-                &role_args(
-                    "controller",
-                    "uds",
-                    &["--connect".as_ref(), ctrl_path.as_os_str()],
-                    &cast.controller,
-                ),
-            )?;
-            "driver"
+            let rest = [
+                "--connect".as_ref(),
+                plant,
+                "--listen".as_ref(),
+                ctrl_path.as_os_str(),
+            ];
+            spawn_stand_in(&mut fleet, spec, "driver", "uds", &rest, &cast.driver)?;
+            (ctrl_path, "driver")
         }
     };
+    let rest = ["--connect".as_ref(), controller_socket.as_os_str()];
+    spawn_stand_in(
+        &mut fleet,
+        spec,
+        "controller",
+        "uds",
+        &rest,
+        &cast.controller,
+    )?;
     let stream = accept_within(&listener, HANDSHAKE_PATIENCE, "bench", || {
         fleet.check_alive()
     })?;
     let mut rx = UdsLink::new(stream, peer_name)?;
     let mut tx = rx.try_clone()?;
-    let stats = match shape {
+    let stats = match spec.shape {
         Shape::PingPong => probe_loop::<SensorSample, ActuatorCommand>(
-            &mut tx, &mut rx, pace, cast.bench, warmup, measure, &mut fleet,
+            &mut tx, &mut rx, spec, cast.bench, &mut fleet,
         )?,
         Shape::ThreeProcess => probe_loop::<BusSensorFrame, BusMotorCommand>(
-            &mut tx, &mut rx, pace, cast.bench, warmup, measure, &mut fleet,
+            &mut tx, &mut rx, spec, cast.bench, &mut fleet,
         )?,
     };
     // Closing the socket lets the stand-ins finish on their own.

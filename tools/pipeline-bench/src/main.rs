@@ -379,6 +379,18 @@ fn run_kind(
     dir: &Path,
 ) -> Vec<Row> {
     let paced = Pace::Period(period_ns);
+    let bare_loop = |transport, shape, pace, placement, tag| {
+        let spec = bare::LoopSpec {
+            exe,
+            shape,
+            pace,
+            warmup,
+            measure,
+            dir,
+            tag,
+        };
+        bare::run(transport, &spec, placement)
+    };
     let bare = |key: &'static str,
                 what: &'static str,
                 interval: &'static str,
@@ -413,37 +425,37 @@ fn run_kind(
             "iox-pingpong",
             "bare iceoryx2 ping-pong, 2 processes",
             PROBE_PP,
-            bare::iceoryx2(exe, Shape::PingPong, paced, Some(placement), warmup, measure, dir, "ipp"),
+            bare_loop(Transport::Iox, Shape::PingPong, paced, Some(placement), "ipp"),
         )],
         RowKind::IoxLoop => vec![bare(
             "iox-loop",
             "bare iceoryx2 3-process loop",
             PROBE_3P,
-            bare::iceoryx2(exe, Shape::ThreeProcess, paced, Some(placement), warmup, measure, dir, "i3"),
+            bare_loop(Transport::Iox, Shape::ThreeProcess, paced, Some(placement), "i3"),
         )],
         RowKind::UdsPingpong => vec![bare(
             "uds-pingpong",
             "Unix-socket ping-pong, 2 processes",
             PROBE_PP,
-            bare::unix_socket(exe, Shape::PingPong, paced, Some(placement), warmup, measure, dir, "upp"),
+            bare_loop(Transport::Uds, Shape::PingPong, paced, Some(placement), "upp"),
         )],
         RowKind::UdsLoop => vec![bare(
             "uds-loop",
             "Unix-socket 3-process loop",
             PROBE_3P,
-            bare::unix_socket(exe, Shape::ThreeProcess, paced, Some(placement), warmup, measure, dir, "u3"),
+            bare_loop(Transport::Uds, Shape::ThreeProcess, paced, Some(placement), "u3"),
         )],
         RowKind::IoxLoopFlat => vec![bare(
             "iox-loop-flat",
             "bare iceoryx2 3-process loop, flat out",
             PROBE_3P,
-            bare::iceoryx2(exe, Shape::ThreeProcess, Pace::FlatOut, None, warmup, measure, dir, "i3f"),
+            bare_loop(Transport::Iox, Shape::ThreeProcess, Pace::FlatOut, None, "i3f"),
         )],
         RowKind::UdsLoopFlat => vec![bare(
             "uds-loop-flat",
             "Unix-socket 3-process loop, flat out",
             PROBE_3P,
-            bare::unix_socket(exe, Shape::ThreeProcess, Pace::FlatOut, None, warmup, measure, dir, "u3f"),
+            bare_loop(Transport::Uds, Shape::ThreeProcess, Pace::FlatOut, None, "u3f"),
         )],
         RowKind::PipelineRt => [
             (

@@ -224,11 +224,10 @@ pub fn realtime(
         &config,
     )?;
     let ipc = Ipc::open("bench_observer", &instance, None)?;
-    if observe == Observe::DriverRoundTrip {
-        return driver_round_trip(bins, &ipc, &config, warmup, measure, dir);
-    }
     let (motor_in, command_in) = match observe {
-        Observe::DriverRoundTrip => (None, None),
+        Observe::DriverRoundTrip => {
+            return driver_round_trip(bins, &ipc, &config, warmup, measure, dir)
+        }
         Observe::MotorCommand => (
             Some(ipc.inbox::<BusMotorCommand>(Channel::BusMotor, 64)?),
             None,

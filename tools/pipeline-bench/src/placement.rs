@@ -9,7 +9,7 @@ use std::ffi::OsString;
 
 use anyhow::{anyhow, Result};
 use exo_config::RunConfig;
-use exo_service_kit::{request_realtime, RealtimeRequest};
+use exo_service_kit::{request_realtime, RealtimeProcess, RealtimeRequest};
 
 /// What each process of the loop asks for in real time.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
@@ -26,18 +26,11 @@ impl Placement {
     /// The placement the services of `cfg` take in real time (none unless
     /// `cfg` has a `[realtime]` section).
     pub fn of(cfg: &RunConfig) -> Self {
-        let Some(rt) = cfg.realtime else {
-            return Placement::default();
-        };
-        let with = |cpu| RealtimeRequest {
-            sched_fifo_priority: rt.sched_fifo_priority,
-            lock_memory: rt.lock_memory,
-            cpu,
-        };
+        let rt = cfg.realtime.as_ref();
         Placement {
-            plant: with(rt.plant_sim_cpu),
-            driver: with(rt.sensor_driver_cpu),
-            controller: with(rt.controller_cpu),
+            plant: RealtimeRequest::of(rt, RealtimeProcess::PlantSim),
+            driver: RealtimeRequest::of(rt, RealtimeProcess::SensorDriver),
+            controller: RealtimeRequest::of(rt, RealtimeProcess::Controller),
         }
     }
 
