@@ -38,6 +38,7 @@ fn dataset() -> Vec<Vec<FrfPoint>> {
                     FrfPoint {
                         omega_rad_s: w,
                         value: s + Complex64::new(uniform(), uniform()),
+                        std_dev_nm_per_rad: 0.0,
                     }
                 })
                 .collect()

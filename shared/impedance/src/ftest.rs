@@ -174,13 +174,19 @@ pub struct PaperFTests {
 /// `F_{M1−M3}` and `F_{M2−M3}` pooled over a set of model comparisons (one per
 /// subject-experiment): pass one subject's experiments for `F^sub`, one
 /// experiment's subjects for `F^exp`, or all of them for `F^all`.
+///
+/// The residual sums are the fits' [`crate::ModelFit::chi2`]: the paper's RSS
+/// when the points carry no noise estimate, the noise-weighted RSS when they
+/// do (a deviation from the paper: each group's residual is then measured
+/// in units of its own noise, so experiments with larger torques do not
+/// dominate the pooled statistic).
 pub fn paper_f_tests(comparisons: &[ModelComparison], level: f64) -> Result<PaperFTests> {
     let groups = |reduced: ImpedanceModel| -> Vec<NestedRss> {
         comparisons
             .iter()
             .map(|c| NestedRss {
-                rss_reduced: c.get(reduced).rss,
-                rss_full: c.m3.rss,
+                rss_reduced: c.get(reduced).chi2,
+                rss_full: c.m3.chi2,
                 n_points: c.m3.n_points,
             })
             .collect()

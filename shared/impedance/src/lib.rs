@@ -32,10 +32,14 @@ pub mod ftest;
 pub mod lag_filter;
 pub mod loop_shaping;
 pub mod models;
+pub mod plausibility;
 pub mod power_law;
 
 pub use error::{Result, ScienceError};
-pub use fit::{fit_all, fit_model, FitTarget, FrfPoint, ModelComparison, ModelFit};
+pub use fit::{
+    chi_squared_survival, fit_all, fit_all_with, fit_model, fit_model_with, students_t_quantile,
+    DampingSign, FitTarget, FrfPoint, ModelComparison, ModelFit, CONFIDENCE_LEVEL,
+};
 pub use ftest::{f_critical, nested_f_test, paper_f_tests, FTest, NestedRss, PaperFTests};
 pub use lag_filter::{DiscreteLagFilter, FirstOrderSection, LagFilter, MAX_SECTIONS};
 pub use loop_shaping::{
@@ -45,4 +49,5 @@ pub use loop_shaping::{
 };
 pub use models::{perceived_inertia, DynamicStiffness, ImpedanceModel, ReducedModel, Term};
 pub use num_complex::Complex64;
+pub use plausibility::{check_fit, Implausibility, Joint};
 pub use power_law::{fit_power_law, geometric_mean, PowerLaw, PowerLawFit};

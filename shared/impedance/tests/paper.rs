@@ -267,6 +267,7 @@ fn fits_recover_each_model_exactly_from_noise_free_points() {
                 .map(|&w| FrfPoint {
                     omega_rad_s: w,
                     value: truth.with_added_inertia(extra).response(w),
+                    std_dev_nm_per_rad: 0.0,
                 })
                 .collect();
             let fit = fit_model(model, &pts, target).unwrap();
@@ -334,6 +335,7 @@ fn noisy_points(truth: DynamicStiffness, w0: f64, sigma: f64, seed: u64) -> Vec<
             FrfPoint {
                 omega_rad_s: w,
                 value: s + noise,
+                std_dev_nm_per_rad: 0.0,
             }
         })
         .collect()

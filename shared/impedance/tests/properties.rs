@@ -20,7 +20,7 @@ proptest! {
         let truth = DynamicStiffness { m_kg_m2: m, b_nm_s_per_rad: b, k_nm_per_rad: k, h_nm_per_rad: h };
         let pts: Vec<FrfPoint> = frequencies(w0, n)
             .into_iter()
-            .map(|w| FrfPoint { omega_rad_s: w, value: truth.response(w) })
+            .map(|w| FrfPoint { omega_rad_s: w, value: truth.response(w), std_dev_nm_per_rad: 0.0 })
             .collect();
         let fit = fit_model(ImpedanceModel::M3, &pts, FitTarget::Human).unwrap();
         let scale = truth.to_array().iter().fold(0.0f64, |a, v| a.max(v.abs()));
@@ -41,7 +41,7 @@ proptest! {
         let pts: Vec<FrfPoint> = frequencies(2.0, 10)
             .into_iter()
             .zip(&noise)
-            .map(|(w, (a, c))| FrfPoint { omega_rad_s: w, value: truth.response(w) + Complex64::new(*a, *c) })
+            .map(|(w, (a, c))| FrfPoint { omega_rad_s: w, value: truth.response(w) + Complex64::new(*a, *c), std_dev_nm_per_rad: 0.0 })
             .collect();
         let cmp = fit_all(&pts, FitTarget::Human).unwrap();
         prop_assert!(cmp.m3.rss <= cmp.m1.rss * (1.0 + 1e-9) + 1e-12);
