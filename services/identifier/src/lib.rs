@@ -17,9 +17,11 @@
 //!   arriving a little after their samples do not matter.
 //!   - A sine period (`omega > 0`): single-frequency correlation over whole
 //!     cycles ([`exo_impedance::frf::SineCorrelator`]) gives one
-//!     [`FrfPoint`]: `S_h = τ_c/θ_e`, `S_{h-e/α} = τ̃_s/θ_e` (gravity removed
-//!     from `τ_s` with the controller's `tau_gravity`), `τ_s/τ_d`, coherence
-//!     and relative noise of `S_h`.
+//!     [`FrfPoint`]: `S_h = τ_c/θ_e` with its coherence and relative noise;
+//!     the actuator side `S_h-e = τ̃_s/θ_e = S_h + M_e s²` (gravity removed
+//!     from `τ_s` with the controller's `tau_gravity`) with its own noise;
+//!     `S_{h-e/α} = S_h + (M_e/α) s²` re-created from `S_h` (text after
+//!     eq. Sh3); and `τ_s/τ_d`.
 //!   - Broadband (`omega = 0`): Welch H1 with coherence over the excited
 //!     band, summarised in up to [`IdentifierSettings::broadband_points`]
 //!     log-spaced points.
@@ -28,8 +30,9 @@
 //!   ([`status::SAFE_STATE`]) anywhere in the window discards the window
 //!   (a warning, no point); samples outside analysis windows are not checked.
 //! - After each window the experiment's points are refitted with M1, M2 and
-//!   M3 ([`FitSource`]: `S_{h-e/α}` with the known `M_e/α` removed, as the
-//!   paper fits, or `S_h` directly) and one [`ImpedanceEstimate`] per model
+//!   M3 ([`FitSource`]: `S_h`, as the paper estimates its parameters, or
+//!   the actuator side with the whole `M_e` removed), each point weighted by
+//!   its measured noise, and one [`ImpedanceEstimate`] per model
 //!   is produced, with `F_{M1−M3}`, `F_{M2−M3}` and the critical value at
 //!   [`F_TEST_LEVEL`]. A model with too few points for a residual degree of
 //!   freedom is skipped with a warning. Across experiments, M2's `(K, H)`
@@ -42,11 +45,12 @@ use std::collections::BTreeMap;
 
 use exo_impedance::frf::{average_bins, band_groups, sine_ratio, welch_h1, SineCorrelator};
 use exo_impedance::{
-    fit_model, fit_power_law, fractional_order, paper_f_tests, Complex64, FitTarget,
-    FrfPoint as FitPoint, ImpedanceModel, ModelComparison, ModelFit, PowerLawFit, StiffnessRange,
+    exo_inertia_kg_m2, fit_model_with, fit_power_law, fractional_order, paper_f_tests,
+    recreate_coupled, Complex64, DampingSign, FitTarget, FrfPoint as FitPoint, ImpedanceModel,
+    ModelComparison, ModelFit, PowerLawFit, StiffnessRange,
 };
 use exo_messages::{
-    status, ActuatorCommand, ControlMode, FrfPoint, ImpedanceEstimate, ProtocolPhase,
+    status, ActuatorCommand, ControlMode, FitModel, FrfPoint, ImpedanceEstimate, ProtocolPhase,
     ProtocolState, SensorSample,
 };
 
@@ -57,6 +61,48 @@ pub const F_TEST_LEVEL: f64 = 0.05;
 /// Samples an analysis window needs at the least.
 pub const MIN_WINDOW_SAMPLES: usize = 16;
 
+/// α as the fit uses it: a protocol's α ≤ 0 (or not finite) means "not
+/// set" and is taken as 1 (no amplification).
+pub fn effective_alpha(alpha: f64) -> f64 {
+    if alpha.is_finite() && alpha > 0.0 {
+        alpha
+    } else {
+        1.0
+    }
+}
+
+/// Why one model of [`fit_models`] was not fitted.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum ModelFitError {
+    /// Fewer points than one residual degree of freedom needs (`2n − p ≥ 1`).
+    #[error("needs {needed} FRF points for a residual degree of freedom")]
+    TooFewPoints {
+        /// Points needed.
+        needed: usize,
+    },
+    /// The fit itself failed (singular design, bad data).
+    #[error(transparent)]
+    Science(#[from] exo_impedance::ScienceError),
+}
+
+/// M1, M2 and M3 fitted to the same points, each on its own: a model with
+/// too few points for a residual degree of freedom (standard errors,
+/// F-tests) is not fitted, and says how many it needs. Used by the online
+/// refit and by `exo fit`, so both fit the same way.
+pub fn fit_models(
+    points: &[FitPoint],
+    target: FitTarget,
+    damping: DampingSign,
+) -> [Result<ModelFit, ModelFitError>; 3] {
+    ImpedanceModel::ALL.map(|model| {
+        let needed = model.n_params() / 2 + 1;
+        if points.len() < needed {
+            return Err(ModelFitError::TooFewPoints { needed });
+        }
+        Ok(fit_model_with(model, points, target, damping)?)
+    })
+}
+
 /// Status bits that discard an analysis window.
 pub const REJECT_BITS: u32 = status::FAULT_MASK | status::SAFE_STATE;
 
@@ -66,17 +112,58 @@ pub const REJECT_BITS: u32 = status::FAULT_MASK | status::SAFE_STATE;
 /// is not one: writers that leave `mode` unset write 0.
 const COMMAND_IN_SAFE_STATE: u32 = 1;
 
-/// Which FRF the models are fitted to.
+/// Which measured FRF the models' parameters are estimated from.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
 pub enum FitSource {
-    /// `S_{h-e/α} = τ̃_s/θ_e`, with the known `M_e/α` removed before the fit
-    /// (the paper's fit, eqs. M1–M3; `M_e` from the rig settings and the
-    /// protocol's load, α from the protocol; α ≤ 0 is taken as 1).
+    /// `S_h = τ_c/θ_e` (eqs. Sh1–Sh3), as the paper does "to take advantage
+    /// of the clean human cuff sensor signal": needs neither `M_e` nor α, and
+    /// no exoskeleton dynamics enter the estimate.
     #[default]
-    Coupled,
-    /// `S_h = τ_c/θ_e` directly (eqs. Sh1–Sh3): the cuff's own measurement,
-    /// needing neither `M_e` nor α (e.g. recordings without actuator torque).
-    Human,
+    CuffTorque,
+    /// The actuator side `(τ_s − τ_gravity)/θ_e = S_h + M_e s²`, with the
+    /// whole `M_e` removed (`M_e` from the rig settings and the protocol's
+    /// load). Its high-frequency points are dominated by `M_e ω²` and carry
+    /// the SEA sensor's noise; kept for rigs whose cuff is not trusted.
+    ActuatorTorque,
+}
+
+impl FitSource {
+    /// The name used on the command line and in reports.
+    pub fn name(self) -> &'static str {
+        match self {
+            FitSource::CuffTorque => "cuff",
+            FitSource::ActuatorTorque => "actuator",
+        }
+    }
+
+    /// The fit target of this source for an exoskeleton of inertia `m_e_kg_m2`.
+    pub fn target(self, m_e_kg_m2: f64) -> FitTarget {
+        match self {
+            FitSource::CuffTorque => FitTarget::Human,
+            FitSource::ActuatorTorque => FitTarget::ActuatorSide { m_e_kg_m2 },
+        }
+    }
+
+    /// The points this source fits, each with its measured noise
+    /// `σ = noise_rel · |S|` (0 when not measured: then the fit is unweighted).
+    pub fn fit_points(self, points: &[FrfPoint]) -> Vec<FitPoint> {
+        points
+            .iter()
+            .map(|p| {
+                let (re, im, rel) = match self {
+                    FitSource::CuffTorque => (p.s_h_re, p.s_h_im, p.noise_rel),
+                    FitSource::ActuatorTorque => (p.s_he_re, p.s_he_im, p.s_he_noise_rel),
+                };
+                let sigma = rel * Complex64::new(re, im).norm();
+                let sigma = if sigma.is_finite() && sigma > 0.0 {
+                    sigma
+                } else {
+                    0.0
+                };
+                FitPoint::new(p.omega, re, im).with_std_dev(sigma)
+            })
+            .collect()
+    }
 }
 
 /// Where eq. f's stiffness range comes from.
@@ -109,8 +196,10 @@ pub struct IdentifierSettings {
     pub k_range_source: KRangeSource,
     /// Bounds the recommended f is clamped to (within `[0, 1)`).
     pub f_bounds: [f64; 2],
-    /// Which FRF the models are fitted to.
+    /// Which measured FRF the parameters are estimated from.
     pub fit_source: FitSource,
+    /// Sign constraint on the damping terms of the fits.
+    pub damping: DampingSign,
     /// Welch segment length (samples, a power of two ≥ 16) for broadband windows.
     pub welch_segment: usize,
     /// Points a broadband window is summarised into.
@@ -136,7 +225,8 @@ impl Default for IdentifierSettings {
             k_range_nm_per_rad: [10.03, 108.33],
             k_range_source: KRangeSource::Settings,
             f_bounds: [0.0, 0.9],
-            fit_source: FitSource::Coupled,
+            fit_source: FitSource::CuffTorque,
+            damping: DampingSign::Free,
             welch_segment: 4096,
             broadband_points: 20,
             min_coherence: 0.6,
@@ -491,9 +581,9 @@ impl Identifier {
         }
     }
 
-    /// `M_e = arm + load · lever²` (kg·m²).
+    /// `M_e` with `load_kg` on the arm (kg·m²).
     fn m_e(&self, load_kg: f64) -> f64 {
-        self.s.arm_inertia_kg_m2 + load_kg * self.s.load_lever_arm_m.powi(2)
+        exo_inertia_kg_m2(self.s.arm_inertia_kg_m2, load_kg, self.s.load_lever_arm_m)
     }
 
     fn finish(&mut self, out: &mut Vec<Event>) {
@@ -556,9 +646,13 @@ impl Identifier {
         };
         let Some(new_points) = new_points else { return };
         self.settings_of.insert(p.experiment, (p.alpha, p.load_kg));
+        let (m_e, alpha) = (self.m_e(p.load_kg), effective_alpha(p.alpha));
         for mut pt in new_points {
             pt.seq = self.frf_seq;
             pt.stamp_ns = end;
+            let s_hea =
+                recreate_coupled(Complex64::new(pt.s_h_re, pt.s_h_im), pt.omega, m_e, alpha);
+            (pt.s_hea_re, pt.s_hea_im) = (s_hea.re, s_hea.im);
             if let Err(e) = pt.validate() {
                 out.push(Event::Warning(format!(
                     "{what}: FRF point at {:.3} rad/s not published: {e}",
@@ -573,11 +667,15 @@ impl Identifier {
         self.refit(p.experiment, p.period, end, out);
     }
 
-    /// Warns about samples without their own command.
-    fn command_coverage(what: &str, exact: usize, count: usize, out: &mut Vec<Event>) {
+    /// Warns about samples without their own command, when the fit uses the
+    /// actuator side (the cuff's `S_h` needs no command).
+    fn command_coverage(&self, what: &str, exact: usize, count: usize, out: &mut Vec<Event>) {
+        if self.s.fit_source != FitSource::ActuatorTorque {
+            return;
+        }
         if exact == 0 {
             out.push(Event::Warning(format!(
-                "{what}: no command answers the window's samples: S_h-e/α uses τ_s with its gravity part, and τ_s/τ_d is not estimated"
+                "{what}: no command answers the window's samples: the actuator side (τ_s − τ_gravity)/θ_e keeps τ_s's gravity part"
             )));
         } else if exact < count * 9 / 10 {
             out.push(Event::Warning(format!(
@@ -626,7 +724,7 @@ impl Identifier {
             }
             count += 1;
         }
-        Self::command_coverage(what, exact, count, out);
+        self.command_coverage(what, exact, count, out);
         let t_end = secs(end);
         let [a_theta, a_tau_c, a_tau_s, a_tau_s_raw] = match sine.finish(Some(t_end)) {
             Ok(a) => a,
@@ -635,7 +733,7 @@ impl Identifier {
                 return None;
             }
         };
-        let (s_h, s_hea) = match (
+        let (s_h, s_he) = match (
             sine_ratio(&a_theta, &a_tau_c),
             sine_ratio(&a_theta, &a_tau_s),
         ) {
@@ -674,8 +772,9 @@ impl Identifier {
             omega: p.omega,
             s_h_re: s_h.ratio.re,
             s_h_im: s_h.ratio.im,
-            s_hea_re: s_hea.ratio.re,
-            s_hea_im: s_hea.ratio.im,
+            s_he_re: s_he.ratio.re,
+            s_he_im: s_he.ratio.im,
+            s_he_noise_rel: s_he.noise_rel,
             sea_re: sea.re,
             sea_im: sea.im,
             coherence: s_h.coherence,
@@ -718,7 +817,7 @@ impl Identifier {
             td.push(tau_d);
             last = stamp;
         }
-        Self::command_coverage(what, exact, n, out);
+        self.command_coverage(what, exact, n, out);
         // The rate of the window's own stamps (a recording may not say its rate).
         let span_s = (last - origin) as f64 * 1e-9;
         let rate = if n > 1 && span_s > 0.0 {
@@ -757,7 +856,7 @@ impl Identifier {
             .filter_map(|g| {
                 let b = average_bins(&h_c, g)?;
                 // τ_s/θ_e and τ_s/τ_d averaged over the same bins as τ_c/θ_e.
-                let s_hea = average_bins(&h_s, g).map_or(zero, |b| b.h);
+                let s_he = average_bins(&h_s, g);
                 let sea = sea
                     .as_deref()
                     .and_then(|s| average_bins(s, g))
@@ -768,8 +867,9 @@ impl Identifier {
                     omega: b.omega_rad_s,
                     s_h_re: b.h.re,
                     s_h_im: b.h.im,
-                    s_hea_re: s_hea.re,
-                    s_hea_im: s_hea.im,
+                    s_he_re: s_he.map_or(0.0, |b| b.h.re),
+                    s_he_im: s_he.map_or(0.0, |b| b.h.im),
+                    s_he_noise_rel: s_he.map_or(0.0, |b| b.noise_rel()),
                     sea_re: sea.re,
                     sea_im: sea.im,
                     coherence: b.coherence,
@@ -795,48 +895,30 @@ impl Identifier {
         let Some(points) = self.points.get(&experiment) else {
             return;
         };
-        let (alpha, load) = self
+        let (_, load) = self
             .settings_of
             .get(&experiment)
             .copied()
             .unwrap_or((1.0, 0.0));
-        let (pts, target): (Vec<FitPoint>, FitTarget) = match self.s.fit_source {
-            FitSource::Coupled => (
-                points
-                    .iter()
-                    .map(|p| FitPoint::new(p.omega, p.s_hea_re, p.s_hea_im))
-                    .collect(),
-                FitTarget::Coupled {
-                    m_e_kg_m2: self.m_e(load),
-                    alpha: if alpha > 0.0 { alpha } else { 1.0 },
-                },
-            ),
-            FitSource::Human => (
-                points
-                    .iter()
-                    .map(|p| FitPoint::new(p.omega, p.s_h_re, p.s_h_im))
-                    .collect(),
-                FitTarget::Human,
-            ),
-        };
+        let pts = self.s.fit_source.fit_points(points);
+        let target = self.s.fit_source.target(self.m_e(load));
         let n = pts.len();
         let head = format!("experiment {experiment} after {n} FRF point(s)");
         let mut fits: [Option<ModelFit>; 3] = [None; 3];
         let mut skipped = Vec::new();
-        for (slot, model) in fits.iter_mut().zip(ImpedanceModel::ALL) {
-            // One residual degree of freedom (standard errors): 2n − p ≥ 1.
-            let needed = model.n_params() / 2 + 1;
-            if n < needed {
-                skipped.push(format!(
+        for ((slot, model), fit) in
+            fits.iter_mut()
+                .zip(ImpedanceModel::ALL)
+                .zip(fit_models(&pts, target, self.s.damping))
+        {
+            match fit {
+                Ok(f) => *slot = Some(f),
+                Err(ModelFitError::TooFewPoints { needed }) => skipped.push(format!(
                     "{} ({} parameters) needs {needed} points",
                     model.name(),
                     model.n_params()
-                ));
-                continue;
-            }
-            match fit_model(model, &pts, target) {
-                Ok(f) => *slot = Some(f),
-                Err(e) => out.push(Event::Warning(format!(
+                )),
+                Err(ModelFitError::Science(e)) => out.push(Event::Warning(format!(
                     "{head}: {} not fitted: {e}",
                     model.name()
                 ))),
@@ -899,10 +981,11 @@ impl Identifier {
                 period,
                 n_points: n as u32,
                 model: match model {
-                    ImpedanceModel::M1 => 1,
-                    ImpedanceModel::M2 => 2,
-                    ImpedanceModel::M3 => 3,
-                },
+                    ImpedanceModel::M1 => FitModel::M1,
+                    ImpedanceModel::M2 => FitModel::M2,
+                    ImpedanceModel::M3 => FitModel::M3,
+                }
+                .as_u32(),
                 k_h: k,
                 k_h_se: se.k_nm_per_rad.abs(),
                 h_h: h,

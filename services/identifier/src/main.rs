@@ -9,7 +9,9 @@ use std::time::Duration;
 use anyhow::Result;
 use exo_config::RunConfig;
 use exo_identifier::{Event, Identifier, IdentifierSettings};
-use exo_messages::{ActuatorCommand, FrfPoint, ImpedanceEstimate, ProtocolState, SensorSample};
+use exo_messages::{
+    ActuatorCommand, FitModel, FrfPoint, ImpedanceEstimate, ProtocolState, SensorSample,
+};
 use exo_service_kit::channels::Channel;
 use exo_service_kit::ipc::{Ipc, MAX_BUFFER, OFF_PATH_COALESCE};
 use exo_service_kit::{init_logging, ServiceArgs, StopFlag};
@@ -79,10 +81,15 @@ fn run(args: ServiceArgs) -> Result<()> {
                     frf_out.send(p)?;
                 }
                 Event::Estimate(e) => {
-                    if e.model == 2 {
+                    if FitModel::from_u32(e.model) == Some(FitModel::M2) {
+                        let f_test = if e.f_critical > 0.0 {
+                            format!("F(M1−M3) = {:.1} (critical {:.2})", e.f_m1_m3, e.f_critical)
+                        } else {
+                            "no F-tests yet (M3 needs 3 points)".to_string()
+                        };
                         info!(
-                            "identifier: experiment {} M2 after {} points: K = {:.2}, H = {:.2} Nm/rad, R² = {:.3}; F(M1−M3) = {:.1} (critical {:.2}){}",
-                            e.experiment, e.n_points, e.k_h, e.h_h, e.r2, e.f_m1_m3, e.f_critical,
+                            "identifier: experiment {} M2 after {} points: K = {:.2} ± {:.2}, H = {:.2} ± {:.2} Nm/rad, M_h = {:.3} ± {:.3} kg·m², R² = {:.3}; {f_test}{}",
+                            e.experiment, e.n_points, e.k_h, e.k_h_se, e.h_h, e.h_h_se, e.m_h, e.m_h_se, e.r2,
                             if e.recommended_f > 0.0 { format!("; recommended f = {:.3}", e.recommended_f) } else { String::new() }
                         );
                     }

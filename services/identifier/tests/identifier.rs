@@ -205,7 +205,10 @@ impl Stream {
         noise_nm: f64,
         faults: Faults,
     ) {
-        let s_hea = s_h - M_E / alpha * omega * omega;
+        // The SEA moves the human and the whole exoskeleton,
+        // M_e θ̈ = τ_s − τ_c − τ_g, whatever α: τ̃_s/θ_e = S_h + M_e s².
+        let _ = alpha;
+        let s_he = s_h - M_E * omega * omega;
         let schedule = [
             (ProtocolPhase::RampIn, 5.0),
             (ProtocolPhase::Settling, 5.0),
@@ -242,14 +245,14 @@ impl Stream {
                 let tau_g = GRAVITY_NM * theta.sin();
                 let bias = 4.0 * ramp;
                 let tau_c = (s_h * x).im + noise_nm * self.gauss();
-                let tau_s = (s_hea * x).im + tau_g + bias + noise_nm * self.gauss();
+                let tau_s = (s_he * x).im + tau_g + bias + noise_nm * self.gauss();
                 // The command the SEA tracked: τ_s = G(jω) τ_d at ω, with
                 // gravity's slope about the posture in the tracked torque.
                 let slope = GRAVITY_NM * (POSTURE_RAD + 0.05 * ramp).cos();
-                let tau_d = (s_hea * x).im
+                let tau_d = (s_he * x).im
                     + tau_g
                     + bias
-                    + ((1.0 / sea(omega) - 1.0) * (s_hea + slope) * x).im;
+                    + ((1.0 / sea(omega) - 1.0) * (s_he + slope) * x).im;
                 let mut st = 0;
                 if let Some((fp, fk, bits)) = faults.status {
                     if fp == phase && fk == k {
@@ -322,7 +325,7 @@ fn ten_periods_give_ten_points_and_the_m2_fit_recovers_k_and_h() {
         .with(IdentifierSettings::default(), Delivery::EveryTick, true)
         .with(
             IdentifierSettings {
-                fit_source: FitSource::Human,
+                fit_source: FitSource::ActuatorTorque,
                 ..IdentifierSettings::default()
             },
             Delivery::EveryTick,
@@ -348,15 +351,24 @@ fn ten_periods_give_ten_points_and_the_m2_fit_recovers_k_and_h() {
             p.noise_rel
         );
         assert!(p.coherence > 0.99, "{}", p.coherence);
-        // S_h-e/α has the same noise on τ_s, so the same absolute error
-        // scale; gravity (13.9 Nm/rad if left in) must be gone.
-        let hea = Complex64::new(p.s_hea_re, p.s_hea_im);
-        let truth_hea = truth - M_E / alpha * p.omega * p.omega;
+        // The actuator side has the same noise on τ_s, so the same
+        // absolute error scale; gravity (13.9 Nm/rad if left in) must be gone,
+        // and the whole M_e is in it.
+        let he = Complex64::new(p.s_he_re, p.s_he_im);
+        let truth_he = truth - M_E * p.omega * p.omega;
         assert!(
-            (hea - truth_hea).norm() < 4.0 * p.noise_rel * truth.norm(),
-            "ω {}: S_h-e/α {hea} vs {truth_hea}",
+            (he - truth_he).norm() < 4.0 * p.noise_rel * truth.norm(),
+            "ω {}: S_h-e {he} vs {truth_he}",
             p.omega
         );
+        assert!(
+            p.s_he_noise_rel > 0.0
+                && p.s_he_noise_rel * he.norm() < 4.0 * p.noise_rel * truth.norm()
+        );
+        // S_h-e/α is re-created from S_h with M_e/α, not measured.
+        let hea = Complex64::new(p.s_hea_re, p.s_hea_im);
+        let want = got - Complex64::new(M_E / alpha * p.omega * p.omega, 0.0);
+        assert!((hea - want).norm() < 1e-9 * want.norm(), "{hea} vs {want}");
         // τ_s/τ_d: noise only on τ_s, |τ_d| ≥ 0.4 Nm at these frequencies:
         // standard error below σ·√(4·2.6/3000)/0.4 ≈ 3e-3.
         let g = Complex64::new(p.sea_re, p.sea_im);
@@ -567,7 +579,13 @@ fn a_faulted_or_safe_state_sample_or_command_discards_only_its_window() {
 #[test]
 fn without_commands_gravity_stays_in_tau_s_and_a_warning_says_so() {
     let human = brief_human();
-    let mut st = Stream::new().with(IdentifierSettings::default(), Delivery::EveryTick, false);
+    let settings = IdentifierSettings {
+        fit_source: FitSource::ActuatorTorque,
+        ..IdentifierSettings::default()
+    };
+    let mut st = Stream::new()
+        .with(settings, Delivery::EveryTick, false)
+        .with(IdentifierSettings::default(), Delivery::EveryTick, false);
     let omega = 5.0;
     st.period(
         1,
@@ -581,12 +599,19 @@ fn without_commands_gravity_stays_in_tau_s_and_a_warning_says_so() {
     let sink = &st.sinks[0];
     let p = sink.frf()[0];
     assert!(sink.warnings().iter().any(|w| w.contains("no command")));
+    // Fitting the cuff's S_h needs no command: nothing to warn about.
+    let w = st.sinks[1].warnings();
+    assert!(
+        w.iter()
+            .all(|w| !w.contains("command") && !w.contains("gravity")),
+        "{w:?}"
+    );
     assert_eq!((p.sea_re, p.sea_im), (0.0, 0.0));
     // τ_s keeps 20 sin θ: S_h-e/α gains its slope about the posture,
     // 20 cos(0.85) (posture + the ramped 0.05 rad), to first order in the
     // 0.02 rad excitation (the cubic term of sin changes it by A²/8 = 5e-5).
     let truth_hea = human.response(omega) - M_E * omega * omega;
-    let gain = Complex64::new(p.s_hea_re, p.s_hea_im) - truth_hea;
+    let gain = Complex64::new(p.s_he_re, p.s_he_im) - truth_hea;
     let slope = GRAVITY_NM * (POSTURE_RAD + 0.05).cos();
     assert!((gain - slope).norm() < 1e-3 * slope, "{gain} vs {slope}");
 }
@@ -770,7 +795,7 @@ fn a_broadband_window_gives_several_points() {
             p.noise_rel
         );
         assert!(p.coherence > 0.8, "{}", p.coherence);
-        let hea = Complex64::new(p.s_hea_re, p.s_hea_im);
+        let hea = Complex64::new(p.s_he_re, p.s_he_im);
         let truth_hea = truth - M_E * p.omega * p.omega;
         // Leakage between neighbouring bins matters where S_h-e/α changes
         // fast from one bin to the next (near the coupled resonance, ~5 rad/s,

@@ -47,7 +47,10 @@ pub use loop_shaping::{
     predicted_amplification, proportional_gain, AmplificationLoop, AmplificationPlant, Crossover,
     LoopAnalysis, SeaModel, StiffnessRange,
 };
-pub use models::{perceived_inertia, DynamicStiffness, ImpedanceModel, ReducedModel, Term};
+pub use models::{
+    exo_inertia_kg_m2, perceived_inertia, recreate_coupled, DynamicStiffness, ImpedanceModel,
+    ReducedModel, Term,
+};
 pub use num_complex::Complex64;
 pub use plausibility::{check_fit, Implausibility, Joint};
 pub use power_law::{fit_power_law, geometric_mean, PowerLaw, PowerLawFit};

@@ -190,6 +190,21 @@ impl DynamicStiffness {
     }
 }
 
+/// Exoskeleton inertia `M_e` (kg·m²) with a point load: `arm + load · lever²`
+/// (the arm without load, the load in kg at `lever_m` from the joint). The
+/// one place this sum is written.
+pub fn exo_inertia_kg_m2(arm_kg_m2: f64, load_kg: f64, lever_m: f64) -> f64 {
+    arm_kg_m2 + load_kg * lever_m * lever_m
+}
+
+/// The paper's `S_{h-e/α}(jω) = S_h(jω) + (M_e/α)(jω)²`, re-created from a
+/// measured `S_h` with the known `M_e/α` (text after eq. Sh3): the transfer
+/// function the tables, Bode plots and F-tests show, "to avoid various
+/// corrupting effects in the τ_s signal". Not a measurement.
+pub fn recreate_coupled(s_h: Complex64, omega_rad_s: f64, m_e_kg_m2: f64, alpha: f64) -> Complex64 {
+    s_h - Complex64::new(m_e_kg_m2 / alpha * omega_rad_s * omega_rad_s, 0.0)
+}
+
 /// Perceived inertia `M_{h-e/α} = M_h + M_e/α` (kg·m²) felt by a subject under
 /// amplification `α` (section "Models").
 pub fn perceived_inertia(m_h_kg_m2: f64, m_e_kg_m2: f64, alpha: f64) -> Result<f64> {
@@ -283,6 +298,15 @@ mod tests {
         let she = m.coupled_response(20.0, 1.01, 2.0, w).unwrap();
         assert!((she - sh - Complex64::new(-1.01 / 2.0 * w * w, 0.0)).norm() < 1e-12);
         assert!(perceived_inertia(0.11, 1.01, 0.0).is_err());
+    }
+
+    #[test]
+    fn recreated_coupled_stiffness_adds_the_felt_exo_inertia() {
+        // 0.1 + 4.5 · 0.45² = 1.01125 kg·m² (the paper's P0 with its load).
+        assert!((exo_inertia_kg_m2(0.1, 4.5, 0.45) - 1.01125).abs() < 1e-12);
+        let s_h = Complex64::new(20.0, 6.0);
+        let r = recreate_coupled(s_h, 3.0, 1.0, 4.0);
+        assert_eq!(r, Complex64::new(20.0 - 9.0 / 4.0, 6.0));
     }
 
     #[test]

@@ -11,9 +11,16 @@ use crate::error::{check_finite, check_range, MessageError};
 
 /// One frequency-response point, from one analysis window at one frequency.
 ///
-/// 96 bytes, 8-aligned, no implicit padding.
+/// Three transfer functions at ω, each named for what it is:
+/// - `s_h`: the human alone, `S_h = τ_c/θ_e`, measured (the cuff);
+/// - `s_hea`: the paper's `S_{h-e/α} = S_h + (M_e/α) s²`, **re-created** from
+///   `S_h` with the known `M_e/α` (text after eq. Sh3), not measured;
+/// - `s_he`: the actuator's side, `(τ_s − τ_gravity)/θ_e = S_h + M_e s²`,
+///   measured from the SEA torque (the *whole* `M_e`, whatever α is).
+///
+/// 120 bytes, 8-aligned, no implicit padding.
 #[derive(Debug, Clone, Copy, Default, PartialEq, ZeroCopySend)]
-#[type_name("exo.FrfPoint.v1")]
+#[type_name("exo.FrfPoint.v2")]
 #[repr(C)]
 pub struct FrfPoint {
     /// Sequence number (count) of this point.
@@ -30,9 +37,9 @@ pub struct FrfPoint {
     pub s_h_re: f64,
     /// Human dynamic stiffness `S_h(jω) = τ_c/θ_e`, imaginary part (Nm/rad).
     pub s_h_im: f64,
-    /// Coupled human–exoskeleton stiffness `S_{h-e/α}(jω) = τ_s/θ_e` (S_h + (M_e/α) s²), real part (Nm/rad).
+    /// `S_{h-e/α}(jω) = S_h(jω) − (M_e/α) ω²`, re-created from `S_h` (eqs. M1–M3), real part (Nm/rad).
     pub s_hea_re: f64,
-    /// Coupled human–exoskeleton stiffness `S_{h-e/α}(jω) = τ_s/θ_e` (S_h + (M_e/α) s²), imaginary part (Nm/rad).
+    /// `S_{h-e/α}(jω)`, re-created from `S_h`, imaginary part (Nm/rad).
     pub s_hea_im: f64,
     /// SEA torque tracking `τ_s/τ_d` at ω, real part (dimensionless).
     pub sea_re: f64,
@@ -42,9 +49,15 @@ pub struct FrfPoint {
     pub coherence: f64,
     /// Relative noise of `S_h` (dimensionless): its standard error divided by `|S_h|`.
     pub noise_rel: f64,
+    /// Actuator side `(τ_s − τ_gravity)/θ_e = S_h + M_e s²`, measured, real part (Nm/rad).
+    pub s_he_re: f64,
+    /// Actuator side `(τ_s − τ_gravity)/θ_e`, measured, imaginary part (Nm/rad).
+    pub s_he_im: f64,
+    /// Relative noise of `s_he` (dimensionless): its standard error divided by its magnitude.
+    pub s_he_noise_rel: f64,
 }
 
-crate::impl_message!(FrfPoint, "exo.FrfPoint.v1", |p| [
+crate::impl_message!(FrfPoint, "exo.FrfPoint.v2", |p| [
     "omega" => p.omega,
     "s_h_re" => p.s_h_re,
     "s_h_im" => p.s_h_im,
@@ -54,6 +67,9 @@ crate::impl_message!(FrfPoint, "exo.FrfPoint.v1", |p| [
     "sea_im" => p.sea_im,
     "coherence" => p.coherence,
     "noise_rel" => p.noise_rel,
+    "s_he_re" => p.s_he_re,
+    "s_he_im" => p.s_he_im,
+    "s_he_noise_rel" => p.s_he_noise_rel,
 ]);
 
 impl FrfPoint {
@@ -63,7 +79,8 @@ impl FrfPoint {
         check_finite(M, self.first_non_finite())?;
         check_range(M, "omega", self.omega, f64::MIN_POSITIVE, f64::INFINITY)?;
         check_range(M, "coherence", self.coherence, 0.0, 1.0)?;
-        check_range(M, "noise_rel", self.noise_rel, 0.0, f64::INFINITY)
+        check_range(M, "noise_rel", self.noise_rel, 0.0, f64::INFINITY)?;
+        check_range(M, "s_he_noise_rel", self.s_he_noise_rel, 0.0, f64::INFINITY)
     }
 }
 
@@ -226,7 +243,7 @@ mod tests {
 
     #[test]
     fn frf_point_layout() {
-        assert_eq!(size_of::<FrfPoint>(), 96);
+        assert_eq!(size_of::<FrfPoint>(), 120);
         assert_eq!(align_of::<FrfPoint>(), 8);
         assert_eq!(offset_of!(FrfPoint, seq), 0);
         assert_eq!(offset_of!(FrfPoint, stamp_ns), 8);
@@ -241,6 +258,9 @@ mod tests {
         assert_eq!(offset_of!(FrfPoint, sea_im), 72);
         assert_eq!(offset_of!(FrfPoint, coherence), 80);
         assert_eq!(offset_of!(FrfPoint, noise_rel), 88);
+        assert_eq!(offset_of!(FrfPoint, s_he_re), 96);
+        assert_eq!(offset_of!(FrfPoint, s_he_im), 104);
+        assert_eq!(offset_of!(FrfPoint, s_he_noise_rel), 112);
     }
 
     #[test]

@@ -60,8 +60,22 @@ recordable!(
     "exo_msgs/msg/FrfPoint",
     required = 13,
     [
-        seq, stamp_ns, experiment, period, omega, s_h_re, s_h_im, s_hea_re, s_hea_im, sea_re,
-        sea_im, coherence, noise_rel
+        seq,
+        stamp_ns,
+        experiment,
+        period,
+        omega,
+        s_h_re,
+        s_h_im,
+        s_hea_re,
+        s_hea_im,
+        sea_re,
+        sea_im,
+        coherence,
+        noise_rel,
+        s_he_re,
+        s_he_im,
+        s_he_noise_rel
     ]
 );
 recordable!(

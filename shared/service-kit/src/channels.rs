@@ -86,7 +86,7 @@ pub const CHANNELS: [ChannelInfo; 8] = [
     ChannelInfo {
         channel: Channel::IdentifierFrf,
         suffix: "identifier/frf",
-        payload: "exo.FrfPoint.v1",
+        payload: "exo.FrfPoint.v2",
         publisher: "identifier",
         subscribers: &["recorder"],
         has_event: false,

@@ -8,8 +8,9 @@ use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
 use anyhow::{bail, Context, Result};
-use clap::Args;
-use exo_identifier::{Event, Identifier, IdentifierSettings};
+use clap::{Args, ValueEnum};
+use exo_identifier::{effective_alpha, Event, FitSource, Identifier, IdentifierSettings};
+use exo_impedance::{exo_inertia_kg_m2, DampingSign, Joint};
 use exo_messages::{ActuatorCommand, FrfPoint, ProtocolState, SensorSample};
 use exo_recording::{read_recording_topics, Recordable, Recording};
 
@@ -45,6 +46,41 @@ pub struct FitArgs {
     /// Load lever arm (m) when a recording does not say.
     #[arg(long, default_value_t = 0.45)]
     pub load_lever_arm_m: f64,
+    /// Which measured FRF the parameters are estimated from: `cuff`
+    /// (S_h = τ_c/θ_e, the paper's way) or `actuator` ((τ_s − τ_gravity)/θ_e
+    /// = S_h + M_e s², the whole M_e removed).
+    #[arg(long, value_enum, default_value_t = FitSourceArg::Cuff)]
+    pub fit_source: FitSourceArg,
+    /// Fit with B ≥ 0 and H ≥ 0 (a passive joint) instead of unconstrained.
+    #[arg(long)]
+    pub nonneg_damping: bool,
+    /// The joint (elbow, ankle, knee, wrist), for the plausible human
+    /// inertia; default: the recording's `joint` metadata, else unspecified.
+    #[arg(long, value_parser = parse_joint)]
+    pub joint: Option<Joint>,
+}
+
+/// `--fit-source` on the command line.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum FitSourceArg {
+    /// `S_h = τ_c/θ_e` from the cuff (the paper's estimate).
+    Cuff,
+    /// `(τ_s − τ_gravity)/θ_e` from the SEA torque, the whole `M_e` removed.
+    Actuator,
+}
+
+impl From<FitSourceArg> for FitSource {
+    fn from(a: FitSourceArg) -> Self {
+        match a {
+            FitSourceArg::Cuff => FitSource::CuffTorque,
+            FitSourceArg::Actuator => FitSource::ActuatorTorque,
+        }
+    }
+}
+
+fn parse_joint(s: &str) -> Result<Joint, String> {
+    Joint::parse(s)
+        .ok_or_else(|| format!("`{s}`: expected elbow, ankle, knee, wrist or unspecified"))
 }
 
 impl FitArgs {
@@ -61,6 +97,9 @@ impl FitArgs {
             recorded_frf: false,
             arm_inertia_kg_m2: 0.1,
             load_lever_arm_m: 0.45,
+            fit_source: FitSourceArg::Cuff,
+            nonneg_damping: false,
+            joint: None,
         }
     }
 }
@@ -79,6 +118,10 @@ pub struct Loaded {
     pub rig: (f64, f64),
     /// The recording asks for a fit of `S_h` (no actuator torque).
     pub human_only: bool,
+    /// The lab's name for the condition (metadata `condition`).
+    pub condition: Option<String>,
+    /// The joint the recording says it is of (metadata `joint`).
+    pub joint: Option<Joint>,
 }
 
 fn meta_f64(r: &Recording, key: &str, default: f64) -> Result<f64> {
@@ -187,12 +230,27 @@ pub fn load(path: &Path, a: &FitArgs) -> Result<Loaded> {
         ));
     }
     let human_only = r.meta("fit_target") == Some("human");
-    if r.command.is_empty() && !r.sensor.is_empty() && !human_only {
+    let source = FitSource::from(a.fit_source);
+    if human_only && source == FitSource::ActuatorTorque {
         extra.push(format!(
-            "{}: topic exo/command is missing: τ_s is used with its gravity part, and τ_s/τ_d is not estimated",
+            "{}: no actuator torque in this record (fit_target = human): fitted from the cuff's S_h, not --fit-source actuator",
+            r.source
+        ));
+    } else if r.command.is_empty() && !r.sensor.is_empty() && source == FitSource::ActuatorTorque {
+        extra.push(format!(
+            "{}: topic exo/command is missing: the actuator side keeps τ_s's gravity part",
             r.source
         ));
     }
+    let joint = match r.meta("joint") {
+        None => None,
+        Some(j) => Some(Joint::parse(j).with_context(|| {
+            format!(
+                "{}: metadata exo.joint = {j:?}: expected elbow, ankle, knee, wrist or unspecified",
+                r.source
+            )
+        })?),
+    };
     let (points, mut warnings) = if a.recorded_frf || r.sensor.is_empty() {
         if !r.frf.is_empty() && !a.recorded_frf {
             extra.push(format!(
@@ -214,6 +272,7 @@ pub fn load(path: &Path, a: &FitArgs) -> Result<Loaded> {
                 arm_inertia_kg_m2: arm,
                 load_lever_arm_m: lever,
                 max_window_s: 120.0,
+                fit_source: source,
                 ..IdentifierSettings::default()
             },
         )
@@ -225,6 +284,35 @@ pub fn load(path: &Path, a: &FitArgs) -> Result<Loaded> {
             settings.entry(p.experiment).or_insert((p.alpha, p.load_kg));
         }
     }
+    // α and load not known: say once per recording which values were assumed.
+    let told = |key: &str| r.meta(key) == Some("true");
+    let alpha_unknown: Vec<u32> = settings
+        .iter()
+        .filter(|(n, (alpha, _))| {
+            points.contains_key(*n) && (told("alpha_assumed") || effective_alpha(*alpha) != *alpha)
+        })
+        .map(|(n, _)| *n)
+        .collect();
+    if !alpha_unknown.is_empty() {
+        warnings.push(format!(
+            "{}: α of experiment(s) {alpha_unknown:?} not known; assumed 1 (no amplification): only the re-created S_h-e/α depends on it, not the fitted parameters",
+            r.source
+        ));
+    }
+    if told("load_assumed") && !points.is_empty() {
+        let load = settings.values().next().map_or(0.0, |s| s.1);
+        warnings.push(format!(
+            "{}: the exoskeleton's load was not known; assumed {load} kg (M_e = {} kg·m²){}",
+            r.source,
+            exo_inertia_kg_m2(arm, load, lever),
+            if source == FitSource::ActuatorTorque {
+                ": the actuator-side fit removes this M_e, so M_h carries any error in it"
+            } else {
+                ": only the re-created S_h-e/α depends on it, not the fitted parameters"
+            }
+        ));
+    }
+    let condition = r.meta("condition").map(str::to_string);
     let mut loaded = Loaded {
         recording,
         subject,
@@ -232,6 +320,8 @@ pub fn load(path: &Path, a: &FitArgs) -> Result<Loaded> {
         settings,
         rig: (arm, lever),
         human_only,
+        condition,
+        joint,
     };
     loaded.recording.warnings.extend(warnings);
     Ok(loaded)
@@ -249,11 +339,12 @@ pub fn subject_data(loaded: &[Loaded]) -> Vec<SubjectData> {
             let (alpha, load) = l.settings.get(n).copied().unwrap_or((1.0, 0.0));
             let e = sd.experiments.entry(*n).or_insert_with(|| ExperimentData {
                 experiment: *n,
-                alpha: if alpha > 0.0 { alpha } else { 1.0 },
+                alpha: effective_alpha(alpha),
                 load_kg: load,
-                m_e_kg_m2: l.rig.0 + load * l.rig.1 * l.rig.1,
+                m_e_kg_m2: exo_inertia_kg_m2(l.rig.0, load, l.rig.1),
                 points: Vec::new(),
                 human_only: l.human_only,
+                condition: l.condition.clone(),
             });
             e.points.extend(pts.iter().copied());
         }
@@ -305,10 +396,30 @@ pub fn fit(a: &FitArgs) -> Result<(Vec<Loaded>, FitReport)> {
             warnings.join("\n  ")
         );
     }
+    // The joint: the command line's, else the recordings' (all alike), else unspecified.
+    let joints: std::collections::BTreeSet<&'static str> = loaded
+        .iter()
+        .filter_map(|l| l.joint.map(Joint::name))
+        .collect();
+    let joint = match (a.joint, joints.len()) {
+        (Some(j), _) => j,
+        (None, 1) => loaded.iter().find_map(|l| l.joint).unwrap_or_default(),
+        (None, 0) => Joint::Unspecified,
+        (None, _) => bail!(
+            "the recordings are of different joints ({joints:?}); fit them apart or give --joint"
+        ),
+    };
     let settings = AnalysisSettings {
         level: a.level,
         phase_margin_deg: a.phase_margin_deg,
         k_range_nm_per_rad: a.k_range.as_ref().map(|k| [k[0], k[1]]),
+        fit_source: a.fit_source.into(),
+        damping: if a.nonneg_damping {
+            DampingSign::NonNegative
+        } else {
+            DampingSign::Free
+        },
+        joint,
         ..AnalysisSettings::default()
     };
     let mut report = analyse(&data, &settings)?;
@@ -317,49 +428,84 @@ pub fn fit(a: &FitArgs) -> Result<(Vec<Loaded>, FitReport)> {
     Ok((loaded, report))
 }
 
-/// The human-readable tables.
+/// `value ± half-width` to `digits` decimals, `—` for a term the model lacks.
+fn with_ci(value: f64, ci: Option<f64>, digits: usize, present: bool) -> String {
+    if !present {
+        return "—".into();
+    }
+    match ci {
+        Some(c) => format!("{value:.digits$} ± {c:.digits$}"),
+        None => format!("{value:.digits$}"),
+    }
+}
+
+/// The human-readable tables (intervals are 95 %).
 pub fn tables(r: &FitReport) -> String {
     let mut s = String::new();
     for sub in &r.subjects {
         let _ = writeln!(s, "Subject {}", sub.subject);
         for e in &sub.experiments {
+            let condition = e
+                .condition
+                .as_deref()
+                .map_or(String::new(), |c| format!(" \"{c}\""));
             let _ = writeln!(
                 s,
-                "  experiment {} (α = {}, load {} kg, M_e = {:.4} kg·m²): {} FRF points",
+                "  experiment {}{condition} (α = {}, load {} kg, M_e = {:.4} kg·m²): {} FRF points; parameters from {}",
                 e.experiment,
                 e.alpha,
                 e.load_kg,
                 e.m_e_kg_m2,
-                e.points.len()
+                e.points.len(),
+                match e.fit_source {
+                    "actuator" => "(τ_s − τ_gravity)/θ_e − M_e s²",
+                    _ => "S_h = τ_c/θ_e",
+                }
             );
             let _ = writeln!(
                 s,
-                "    {:>9} {:>10} {:>10} {:>9} {:>9}  {:>10} {:>8}",
-                "ω rad/s", "Re S_h", "Im S_h", "∠S_h °", "γ²", "Re S_h-e/α", "Im"
+                "    {:>9} {:>10} {:>10} {:>9} {:>9} {:>8}  {:>12} {:>8}",
+                "ω rad/s", "Re S_h", "Im S_h", "∠S_h °", "γ²", "σ/|S_h|", "Re S_h-e/α*", "Im"
             );
             for p in &e.points {
                 let _ = writeln!(
                     s,
-                    "    {:>9.3} {:>10.3} {:>10.3} {:>9.2} {:>9.4}  {:>10.3} {:>8.3}",
+                    "    {:>9.3} {:>10.3} {:>10.3} {:>9.2} {:>9.4} {:>8.4}  {:>12.3} {:>8.3}",
                     p.omega,
                     p.s_h[0],
                     p.s_h[1],
                     p.s_h_phase_deg,
                     p.coherence,
-                    p.s_hea[0],
-                    p.s_hea[1]
+                    p.noise_rel,
+                    p.s_h_e_alpha[0],
+                    p.s_h_e_alpha[1]
                 );
             }
             let _ = writeln!(
                 s,
-                "    {:>5} {:>10} {:>10} {:>10} {:>10} {:>8}",
-                "model", "K Nm/rad", "H Nm/rad", "B Nms/rad", "M kg·m²", "R²"
+                "    (* S_h-e/α = S_h − (M_e/α) ω², re-created from S_h as the paper does)"
+            );
+            let _ = writeln!(
+                s,
+                "    {:>5} {:>17} {:>17} {:>19} {:>19} {:>7} {:>7}",
+                "model", "K Nm/rad", "H Nm/rad", "B Nms/rad", "M_h kg·m²", "R²", "χ²/dof"
             );
             for (name, m) in &e.models {
                 let _ = writeln!(
                     s,
-                    "    {:>5} {:>10.3} {:>10.3} {:>10.4} {:>10.4} {:>8.4}",
-                    name, m.k, m.h, m.b, m.m, m.r2
+                    "    {:>5} {:>17} {:>17} {:>19} {:>19} {:>7.4} {:>7}{}",
+                    name,
+                    with_ci(m.k, m.ci95.map(|c| c[0]), 2, true),
+                    with_ci(m.h, m.ci95.map(|c| c[1]), 2, name != &"M1"),
+                    with_ci(m.b, m.ci95.map(|c| c[2]), 4, name != &"M2"),
+                    with_ci(m.m, m.ci95.map(|c| c[3]), 4, true),
+                    m.r2,
+                    m.chi2_per_dof.map_or("—".into(), |c| format!("{c:.2}")),
+                    if m.held_at_zero.is_empty() {
+                        String::new()
+                    } else {
+                        format!("  ({} held at 0)", m.held_at_zero.join(", "))
+                    }
                 );
             }
         }
@@ -426,7 +572,7 @@ pub fn tables(r: &FitReport) -> String {
             .filter_map(|e| {
                 e.models
                     .get("M2")
-                    .map(|m| format!("{}: K {:.2} H {:.2}", e.experiment, m.k, m.h))
+                    .map(|m| format!("{}: K {:.2} H {:.2} M_h {:.3}", e.experiment, m.k, m.h, m.m))
             })
             .collect();
         let _ = writeln!(s, "  {:>8}  {}", sub.subject, row.join(" | "));
@@ -440,34 +586,60 @@ pub fn tables(r: &FitReport) -> String {
     s
 }
 
+/// A free-text CSV cell, quoted.
+fn csv_text(s: Option<&str>) -> String {
+    s.map_or(String::new(), |s| format!("\"{}\"", s.replace('"', "\"\"")))
+}
+
 fn write_csv(dir: &Path, r: &FitReport) -> Result<()> {
     std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
-    let mut frf = String::from("subject,experiment,period,omega_rad_s,s_h_re,s_h_im,s_hea_re,s_hea_im,s_h_phase_deg,coherence,noise_rel\n");
-    let mut models = String::from("subject,experiment,model,K,H,B,M,r2,rss\n");
+    let mut frf = String::from("subject,experiment,condition,period,omega_rad_s,s_h_re,s_h_im,s_h_e_alpha_re,s_h_e_alpha_im,s_h_e_actuator_re,s_h_e_actuator_im,s_h_phase_deg,coherence,noise_rel\n");
+    let mut models = String::from("subject,experiment,condition,model,K,H,B,M,K_ci95,H_ci95,B_ci95,M_ci95,r2,rss,chi2_per_dof\n");
     for s in &r.subjects {
         for e in &s.experiments {
             for p in &e.points {
                 let _ = writeln!(
                     frf,
-                    "{},{},{},{},{},{},{},{},{},{},{}",
+                    "{},{},{},{},{},{},{},{},{},{},{},{},{},{}",
                     s.subject,
                     e.experiment,
+                    csv_text(e.condition.as_deref()),
                     p.period,
                     p.omega,
                     p.s_h[0],
                     p.s_h[1],
-                    p.s_hea[0],
-                    p.s_hea[1],
+                    p.s_h_e_alpha[0],
+                    p.s_h_e_alpha[1],
+                    p.s_h_e_actuator[0],
+                    p.s_h_e_actuator[1],
                     p.s_h_phase_deg,
                     p.coherence,
                     p.noise_rel
                 );
             }
             for (name, m) in &e.models {
+                let ci = m.ci95.map_or(
+                    [String::new(), String::new(), String::new(), String::new()],
+                    |c| c.map(|x| x.to_string()),
+                );
                 let _ = writeln!(
                     models,
-                    "{},{},{},{},{},{},{},{},{}",
-                    s.subject, e.experiment, name, m.k, m.h, m.b, m.m, m.r2, m.rss
+                    "{},{},{},{},{},{},{},{},{},{},{},{},{},{},{}",
+                    s.subject,
+                    e.experiment,
+                    csv_text(e.condition.as_deref()),
+                    name,
+                    m.k,
+                    m.h,
+                    m.b,
+                    m.m,
+                    ci[0],
+                    ci[1],
+                    ci[2],
+                    ci[3],
+                    m.r2,
+                    m.rss,
+                    m.chi2_per_dof.map_or(String::new(), |c| c.to_string())
                 );
             }
         }

@@ -72,16 +72,21 @@ pub fn bode_svg(s: &SubjectReport) -> Result<String> {
         let pts = s.experiments.iter().flat_map(|e| e.points.iter());
         let (w_lo, w_hi) = bounds(pts.clone().map(|p| p.omega));
         let (w_lo, w_hi) = (w_lo / 1.2, w_hi * 1.2);
-        let mags = pts
-            .clone()
-            .map(|p| Complex64::new(p.s_hea[0], p.s_hea[1]).norm().max(1e-6));
+        let mags = pts.clone().map(|p| {
+            Complex64::new(p.s_h_e_alpha[0], p.s_h_e_alpha[1])
+                .norm()
+                .max(1e-6)
+        });
         let (m_lo, m_hi) = bounds(mags.map(|m| m.log10()));
-        let (p_lo, p_hi) =
-            bounds(pts.map(|p| Complex64::new(p.s_hea[0], p.s_hea[1]).arg().to_degrees()));
+        let (p_lo, p_hi) = bounds(pts.map(|p| {
+            Complex64::new(p.s_h_e_alpha[0], p.s_h_e_alpha[1])
+                .arg()
+                .to_degrees()
+        }));
         let mut mag = ChartBuilder::on(&top)
             .caption(
                 format!(
-                    "Subject {}: S_h-e/α = τs/θe, data and M2 (solid), M3 (dashed)",
+                    "Subject {}: S_h-e/α re-created from S_h = τc/θe, and M2 (solid), M3 (dashed)",
                     s.subject
                 ),
                 ("sans-serif", 16),
@@ -116,7 +121,7 @@ pub fn bode_svg(s: &SubjectReport) -> Result<String> {
             let data: Vec<(f64, Complex64)> = e
                 .points
                 .iter()
-                .map(|p| (p.omega, Complex64::new(p.s_hea[0], p.s_hea[1])))
+                .map(|p| (p.omega, Complex64::new(p.s_h_e_alpha[0], p.s_h_e_alpha[1])))
                 .collect();
             mag.draw_series(
                 data.iter()

@@ -359,7 +359,7 @@ pub fn compare(
         let mut experiments = Vec::new();
         let (mut k_in, mut h_in) = (Vec::new(), Vec::new());
         // Phase of S_h the inputs imply, over the same points the table keeps.
-        let mut implied: BTreeMap<String, Vec<f64>> = BTreeMap::new();
+        let mut implied: BTreeMap<u32, Vec<f64>> = BTreeMap::new();
         for e in &fitted.experiments {
             let Some(input) = subject.get(e.experiment) else {
                 failures.push(format!(
@@ -375,13 +375,14 @@ pub fn compare(
             k_in.push(k);
             h_in.push(h);
             let keep = e.points.len().saturating_sub(3);
-            implied.entry(group_of(e.experiment).1).or_default().extend(
-                e.points[..keep].iter().map(|p| {
+            implied
+                .entry(group_of(e.experiment))
+                .or_default()
+                .extend(e.points[..keep].iter().map(|p| {
                     Complex64::new(k - subject.inertia_kg_m2 * p.omega * p.omega, h)
                         .arg()
                         .to_degrees()
-                }),
-            );
+                }));
             let Some(m2) = e.models.get("M2") else {
                 failures.push(format!(
                     "subject {name} experiment {}: M2 not fitted",
@@ -461,7 +462,7 @@ pub fn compare(
         let mut phase = Vec::new();
         if let Some(row) = report.phase_table.iter().find(|r| &r.subject == name) {
             for cell in &row.groups {
-                let Some(v) = implied.get(&cell.experiments).filter(|v| !v.is_empty()) else {
+                let Some(v) = implied.get(&cell.group).filter(|v| !v.is_empty()) else {
                     continue;
                 };
                 let implied_deg = v.iter().sum::<f64>() / v.len() as f64;

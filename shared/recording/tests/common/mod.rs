@@ -96,6 +96,9 @@ pub fn frf(k: u64) -> FrfPoint {
         sea_im: -0.1 - f(k, 1e-3),
         coherence: 0.97 - f(k, 1e-4),
         noise_rel: 0.01 + f(k, 1e-5),
+        s_he_re: 20.0 - f(k, 1.0),
+        s_he_im: 12.5 + f(k, 0.2),
+        s_he_noise_rel: 0.02 + f(k, 1e-5),
     }
 }
 
