@@ -338,6 +338,10 @@ pub enum Event {
     Estimate(ImpedanceEstimate),
     /// Something could not be used or computed, and why.
     Warning(String),
+    /// A note of the online refit (a model not fitted yet, no power law or
+    /// recommended f yet): of interest live, not to a post-hoc analysis
+    /// that fits every experiment itself.
+    RefitNote(String),
 }
 
 /// A fixed-capacity ring of time-stamped values, oldest overwritten.
@@ -918,14 +922,14 @@ impl Identifier {
                     model.name(),
                     model.n_params()
                 )),
-                Err(ModelFitError::Science(e)) => out.push(Event::Warning(format!(
+                Err(ModelFitError::Science(e)) => out.push(Event::RefitNote(format!(
                     "{head}: {} not fitted: {e}",
                     model.name()
                 ))),
             }
         }
         if !skipped.is_empty() {
-            out.push(Event::Warning(format!(
+            out.push(Event::RefitNote(format!(
                 "{head}: not fitted yet: {} (two real equations per point, one left for the residual)",
                 skipped.join(", ")
             )));
@@ -939,7 +943,7 @@ impl Identifier {
                         t.m1_vs_m3.critical,
                     ),
                     Err(e) => {
-                        out.push(Event::Warning(format!("{head}: no F-tests: {e}")));
+                        out.push(Event::RefitNote(format!("{head}: no F-tests: {e}")));
                         (0.0, 0.0, 0.0)
                     }
                 }
@@ -952,7 +956,7 @@ impl Identifier {
                 self.m2.insert(experiment, (k, h));
             } else {
                 self.m2.remove(&experiment);
-                out.push(Event::Warning(format!(
+                out.push(Event::RefitNote(format!(
                     "{head}: M2 gives K = {k:.3}, H = {h:.3} Nm/rad; not used for the power law"
                 )));
             }
@@ -1010,7 +1014,7 @@ impl Identifier {
                     self.estimate_seq += 1;
                     out.push(Event::Estimate(e));
                 }
-                Err(err) => out.push(Event::Warning(format!(
+                Err(err) => out.push(Event::RefitNote(format!(
                     "{head}: {} estimate not published: {err}",
                     model.name()
                 ))),
@@ -1030,7 +1034,7 @@ impl Identifier {
         let pl = match fit_power_law(&ks, &hs) {
             Ok(pl) => pl,
             Err(e) => {
-                out.push(Event::Warning(format!(
+                out.push(Event::RefitNote(format!(
                     "power law over {} experiments not fitted: {e}",
                     ks.len()
                 )));
@@ -1049,7 +1053,7 @@ impl Identifier {
             .and_then(|r| fractional_order(pl.law, r, self.s.phase_margin_deg))
         {
             Ok(f) => self.recommended_f = Some(f.clamp(self.s.f_bounds[0], self.s.f_bounds[1])),
-            Err(e) => out.push(Event::Warning(format!(
+            Err(e) => out.push(Event::RefitNote(format!(
                 "power law β0 = {:.3}, β1 = {:.3}: no recommended f: {e}",
                 pl.law.beta0, pl.law.beta1
             ))),

@@ -96,6 +96,7 @@ fn run(args: ServiceArgs) -> Result<()> {
                     estimate_out.send(e)?;
                 }
                 Event::Warning(w) => warn!("identifier: {w}"),
+                Event::RefitNote(w) => info!("identifier: {w}"),
             }
         }
         if got {

@@ -80,7 +80,7 @@ impl Sink {
         self.events
             .iter()
             .filter_map(|e| match e {
-                Event::Warning(w) => Some(w.as_str()),
+                Event::Warning(w) | Event::RefitNote(w) => Some(w.as_str()),
                 _ => None,
             })
             .collect()

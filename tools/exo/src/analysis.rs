@@ -17,7 +17,8 @@ use anyhow::{bail, Result};
 use exo_identifier::{fit_models, FitSource, ModelFitError};
 use exo_impedance::{
     check_fit, fit_power_law, fractional_order, paper_f_tests, recreate_coupled, Complex64,
-    DampingSign, FTest, ImpedanceModel, Joint, ModelComparison, ModelFit, StiffnessRange,
+    DampingSign, FTest, ImpedanceModel, Implausibility, Joint, ModelComparison, ModelFit,
+    StiffnessRange,
 };
 use serde::Serialize;
 
@@ -67,6 +68,9 @@ pub struct AnalysisSettings {
     pub damping: DampingSign,
     /// The joint, for the plausible human inertia.
     pub joint: Joint,
+    /// Weight each point by its measured noise (false: the paper's
+    /// ordinary least squares).
+    pub weighted: bool,
 }
 
 impl Default for AnalysisSettings {
@@ -79,6 +83,7 @@ impl Default for AnalysisSettings {
             fit_source: FitSource::CuffTorque,
             damping: DampingSign::Free,
             joint: Joint::Unspecified,
+            weighted: true,
         }
     }
 }
@@ -141,6 +146,18 @@ impl ModelRow {
             findings: check_fit(f, joint).iter().map(|x| x.to_string()).collect(),
         }
     }
+}
+
+/// The findings about `f` worth a warning: those beyond their 95 %
+/// interval, and a misfit beyond the noise only for the most general model
+/// fitted (a simpler model's misfit is what the F-tests weigh).
+fn warned_findings(f: &ModelFit, joint: Joint, most_general: bool) -> Vec<String> {
+    check_fit(f, joint)
+        .into_iter()
+        .filter(|x| x.significant())
+        .filter(|x| most_general || !matches!(x, Implausibility::MisfitBeyondNoise { .. }))
+        .map(|x| x.to_string())
+        .collect()
 }
 
 /// One FRF point as reported.
@@ -319,11 +336,13 @@ pub fn fit_experiment(
     s: &AnalysisSettings,
 ) -> [Result<ModelFit, ModelFitError>; 3] {
     let source = source_of(e, s);
-    fit_models(
-        &source.fit_points(&e.points),
-        source.target(e.m_e_kg_m2),
-        s.damping,
-    )
+    let mut points = source.fit_points(&e.points);
+    if !s.weighted {
+        for p in &mut points {
+            p.std_dev_nm_per_rad = 0.0;
+        }
+    }
+    fit_models(&points, source.target(e.m_e_kg_m2), s.damping)
 }
 
 /// The experiment group of the phase table (1-3, 4-6, 7-9) as an index.
@@ -389,14 +408,19 @@ pub fn analyse(data: &[SubjectData], s: &AnalysisSettings) -> Result<FitReport> 
             let mut models = BTreeMap::new();
             let fits = fit_experiment(e, s);
             let mut not_fitted = Vec::new();
+            let most_general = ImpedanceModel::ALL
+                .into_iter()
+                .zip(&fits)
+                .filter(|(_, f)| f.is_ok())
+                .map(|(m, _)| m)
+                .next_back();
             for (model, fit) in ImpedanceModel::ALL.into_iter().zip(&fits) {
                 match fit {
                     Ok(f) => {
-                        let row = ModelRow::new(f, s.joint);
-                        for finding in &row.findings {
+                        for finding in warned_findings(f, s.joint, Some(model) == most_general) {
                             warnings.push(format!("{what}: {model}: {finding}"));
                         }
-                        models.insert(model.name(), row);
+                        models.insert(model.name(), ModelRow::new(f, s.joint));
                     }
                     Err(err) => not_fitted.push(format!(
                         "{model} ({} parameters) not fitted: {err}",

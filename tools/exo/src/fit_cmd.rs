@@ -54,6 +54,10 @@ pub struct FitArgs {
     /// Fit with B ≥ 0 and H ≥ 0 (a passive joint) instead of unconstrained.
     #[arg(long)]
     pub nonneg_damping: bool,
+    /// Ordinary least squares, as the paper fitted, instead of weighting
+    /// each point by its measured noise.
+    #[arg(long)]
+    pub unweighted: bool,
     /// The joint (elbow, ankle, knee, wrist), for the plausible human
     /// inertia; default: the recording's `joint` metadata, else unspecified.
     #[arg(long, value_parser = parse_joint)]
@@ -99,6 +103,7 @@ impl FitArgs {
             load_lever_arm_m: 0.45,
             fit_source: FitSourceArg::Cuff,
             nonneg_damping: false,
+            unweighted: false,
             joint: None,
         }
     }
@@ -165,12 +170,10 @@ pub fn identify(
     }
     id.flush(&mut events);
     for e in events {
-        // The online refits' "not fitted yet" after a window's first points
-        // say nothing here: the analysis fits every experiment's points itself.
+        // The online refits' notes (models not fitted yet, no power law yet)
+        // say nothing here: the analysis fits every experiment itself.
         if let Event::Warning(w) = e {
-            if !w.contains("not fitted yet") {
-                warnings.push(format!("{}: {w}", r.source));
-            }
+            warnings.push(format!("{}: {w}", r.source));
         }
     }
     (id.points().clone(), warnings)
@@ -420,6 +423,7 @@ pub fn fit(a: &FitArgs) -> Result<(Vec<Loaded>, FitReport)> {
             DampingSign::Free
         },
         joint,
+        weighted: !a.unweighted,
         ..AnalysisSettings::default()
     };
     let mut report = analyse(&data, &settings)?;

@@ -1,0 +1,837 @@
+#!/usr/bin/env python3
+"""An independent elbow-exoskeleton identification rig: writes contract recordings.
+
+It simulates the identification protocol of He, Huang, Thomas and Sentis
+(IEEE TNSRE 2020, Table I) with its own physics (numpy only) and writes the
+result as an exo recording (MCAP, ros2msg schemas, CDR; see
+docs/recording-format.md, the contract). Nothing of exo's is used: not the
+Rust simulator, not fit_frf.py, not write_recording.py. It exists so that
+`exo fit` is checked against data exo's own simulator did not write.
+
+    independent_rig.py OUT.mcap --seed N [--subject NAME] [--experiments 1,2,...]
+        [--periods 10] [--truth TRUTH.json] [--noise-scale X] [--random-subject]
+        [--params PARAMS.json] [--damping viscous|two-point] [--twitch S] [--pre-window S]
+        [--writer own|mcap]
+    independent_rig.py --monte-carlo N --out-dir DIR --seed S0 [--experiments 1,3]
+        (N recordings DIR/mc000.mcap, ... with seeds S0+i, plus DIR/truth.json)
+
+Model (linear about the operating point except gravity; rad, Nm, s, kg m^2):
+
+* human: M_h th'' = tau_c - B th' - K (th - th_p(t)) + tau_tw(t), so that
+  tau_c = S_h th + (voluntary terms) with S_h = K - M_h w^2 + j B w. The
+  hysteretic damping H is an equivalent viscous B = H / w_k at the period's
+  excitation frequency w_k: exact at w_k. The arm's natural mode
+  w_n = sqrt(K / (M_h + M_e / alpha)) is then lightly damped when w_k > w_n
+  (the human alone gives zeta down to ~0.05; the SEA lag in the amplification
+  loop takes more away), so it rings after the ramp and the sine's start and
+  some of that ringing is still in the analysis window. For some random
+  subjects in experiments 6, 8, 9 the mode is unstable (named on stderr).
+  --damping two-point adds a Maxwell element so that the loss is H also at
+  w_n, still exactly K - M_h w_k^2 + j H at w_k (see human_realisation).
+  th_p is the subject's posture reference (rest ~0.3 rad -> 45 deg +- 2 deg,
+  minimum jerk over the 5 s ramp-in, offset so that the arm settles at its
+  goal against the bias torque; the subject's own arm weight is part of this
+  voluntary torque and not modelled); tau_tw is one short "twitch" (a 20 ms
+  voluntary torque pulse of random sign and size) at a random time in the
+  first second of every analysis window, so a little ringing of the natural
+  mode is in every window.
+* exoskeleton: M_e th'' = tau_s - tau_c - tau_g(th), M_e = 0.1 + load 0.45^2,
+  tau_g = g (1.5 kg * 0.2 m + load * 0.45 m) sin th (th = 0 hanging down).
+* SEA: tau_s follows tau_d through a 10 Hz, zeta 0.7 second-order low pass.
+* controller (500 Hz, zero-order hold, from the measured signals):
+  tau_d = tau_gravity(th_meas) - (alpha - 1) tau_c_meas + bias(t) + tau_x(t);
+  the gravity compensation uses +3 % arm mass and +2 % load mass.
+* sensors: tau_c, tau_s + white noise (0.05 Nm); encoder + white noise
+  (2e-5 rad) then 17-bit quantisation; omega_e = finite difference of the
+  measured angle through a 40 Hz first-order low pass; status 0.
+
+Protocol of each period (local time): 0-5 s ramp-in (phase 1: bias ramped in
+with a raised cosine, arm raised), 5-10 s settling (phase 2, sine on, starting
+at phase 0), 10-15 s analysis (phase 3), 15-20 s ramp-out (phase 4), 20-25 s
+rest (phase 5; the paper rests 40 s). Each period is simulated from rest at
+the start of its ramp-in to the end of its analysis window. Samples (sensor
+and command, seq +1 per written sample) are written from 1 s
+(--pre-window) before each analysis window to its end (inclusive); protocol
+states at every change and once a second throughout, idle (0) before and
+after the protocol.
+
+Randomness: the subject's parameters come from default_rng([seed, 0x5B])
+(--random-subject, and Monte Carlo), each period's posture, twitch and noise
+from default_rng([seed, 1, experiment, period]); so a Monte-Carlo recording
+is byte-identical to the single recording with the same seed, subject name,
+experiments and --random-subject.
+
+The MCAP file is written by a small numpy writer of its own (chunked, zstd,
+message and chunk indexes, statistics, summary offsets, CRCs): the mcap
+library's Writer costs ~3.4 us a message, too slow for the Monte-Carlo set;
+--writer mcap writes the same messages through it, for cross-checks.
+"""
+
+import argparse
+import json
+import math
+import os
+import struct
+import sys
+import time
+import zlib
+
+import numpy as np
+
+SOFTWARE = "independent_rig.py"
+
+# ---------------------------------------------------------------- rig constants
+RATE_HZ = 500
+DT = 1.0 / RATE_HZ
+TICK_NS = 1_000_000_000 // RATE_HZ
+G = 9.81
+ARM_INERTIA = 0.1  # kg m^2, exoskeleton without load
+LEVER = 0.45  # m, load lever arm
+ARM_MASS, ARM_COM = 1.5, 0.2  # kg, m: exoskeleton arm weight
+COMP_ARM_MASS_FACTOR = 1.03  # the controller's gravity model is off-nominal
+COMP_LOAD_MASS_FACTOR = 1.02
+SEA_HZ, SEA_ZETA = 10.0, 0.7
+ENC_BITS = 17
+ENC_Q = 2.0 * math.pi / 2**ENC_BITS
+OMEGA_FILTER_HZ = 40.0
+SIGMA_TAU_C = 0.05  # Nm
+SIGMA_TAU_S = 0.05  # Nm
+SIGMA_ENC = 2e-5  # rad
+TWITCH_TICKS = 10  # 20 ms pulse
+TWITCH_IMPULSE_SIGMA = 0.004  # N m s (default; --twitch overrides)
+
+# ---------------------------------------------------------------- protocol (Table I)
+GROUPS = [  # (grip kg, bias Nm, omega_0 rad/s)
+    (10.0, 0.0, 2.0),
+    (14.0, 4.0, 3.0),
+    (27.0, 8.0, 4.0),
+]
+ALPHAS = [1.0, 2.0, 4.0]
+LOAD_KG = 4.5
+AMPLITUDE = 2.0
+AMP_BOOST_FROM = 8  # 1-based period from which the amplitude is x 10^0.2
+N_PERIODS = 10
+
+RAMP_IN_S, SETTLE_S, ANALYSIS_S, RAMP_OUT_S, REST_S = 5.0, 5.0, 5.0, 5.0, 5.0
+PRE_WINDOW_S = 1.0
+RECORDING_LEAD_TICKS = RATE_HZ  # 1 s of idle before the first period
+
+
+def ticks(s):
+    return int(round(s * RATE_HZ))
+
+
+T_SINE = ticks(RAMP_IN_S)  # local tick the sine starts (phase 2)
+T_ANALYSIS = T_SINE + ticks(SETTLE_S)  # phase 3
+T_RAMP_OUT = T_ANALYSIS + ticks(ANALYSIS_S)  # phase 4
+T_REST = T_RAMP_OUT + ticks(RAMP_OUT_S)  # phase 5
+T_PERIOD = T_REST + ticks(REST_S)
+N_SIM = T_RAMP_OUT + 1  # simulated ticks 0..T_RAMP_OUT inclusive
+
+
+def experiment_settings(e):
+    grip, bias, w0 = GROUPS[(e - 1) // 3]
+    return dict(alpha=ALPHAS[(e - 1) % 3], load_kg=LOAD_KG, grip_kg=grip, bias_nm=bias, omega0=w0)
+
+
+def period_omega(e, k):  # k = 0..9
+    return experiment_settings(e)["omega0"] * 10.0 ** (0.1 * k)
+
+
+def period_amplitude(k):
+    return AMPLITUDE * (10.0**0.2 if k + 1 >= AMP_BOOST_FROM else 1.0)
+
+
+def m_e(load_kg):
+    return ARM_INERTIA + load_kg * LEVER**2
+
+
+# ---------------------------------------------------------------- subjects
+# Our own table (not exo's configs): K rises with the group (grip and bias),
+# with a spread inside each group; H = 10^b0 K^b1 times a small scatter.
+TABLE_M_H = 0.13
+TABLE_K = [14.0, 17.5, 21.0, 33.0, 40.0, 47.0, 62.0, 71.0, 80.0]
+TABLE_BETA0, TABLE_BETA1 = -0.3, 0.95
+TABLE_H_SCATTER = [1.04, 0.95, 1.02, 0.97, 1.05, 0.98, 1.03, 0.96, 1.01]
+
+
+def table_subject():
+    k = list(TABLE_K)
+    h = [10.0**TABLE_BETA0 * kk**TABLE_BETA1 * s for kk, s in zip(k, TABLE_H_SCATTER)]
+    return dict(m_h=TABLE_M_H, k=k, h=h, beta0=TABLE_BETA0, beta1=TABLE_BETA1, source="table")
+
+
+def random_subject(seed):
+    """A subject drawn from seed: M_h in [0.10, 0.16], K = table x lognormal(0.15),
+    H = 10^b0 K^b1 x lognormal(0.06), b0 ~ -0.3 +- 0.05, b1 ~ 0.95 +- 0.03."""
+    rng = np.random.default_rng([seed, 0x5B])
+    m_h = float(rng.uniform(0.10, 0.16))
+    b0 = float(TABLE_BETA0 + 0.05 * rng.standard_normal())
+    b1 = float(TABLE_BETA1 + 0.03 * rng.standard_normal())
+    k = [float(kk * math.exp(0.15 * rng.standard_normal())) for kk in TABLE_K]
+    h = [float(10.0**b0 * kk**b1 * math.exp(0.06 * rng.standard_normal())) for kk in k]
+    return dict(m_h=m_h, k=k, h=h, beta0=b0, beta1=b1, source=f"random(seed={seed})")
+
+
+def load_params(path):
+    """JSON {"m_h": x, "k": [9 values], "h": [9 values]} (k/h may also be
+    {"1": v, ...} maps over the experiments given)."""
+    with open(path) as f:
+        p = json.load(f)
+    base = table_subject()
+    out = dict(m_h=float(p.get("m_h", base["m_h"])), k=list(base["k"]), h=list(base["h"]),
+               beta0=p.get("beta0"), beta1=p.get("beta1"), source=os.path.basename(path))
+    for key in ("k", "h"):
+        v = p.get(key)
+        if isinstance(v, list):
+            if len(v) != 9:
+                raise SystemExit(f"{path}: '{key}' must list 9 values (experiments 1-9)")
+            out[key] = [float(x) for x in v]
+        elif isinstance(v, dict):
+            for e, x in v.items():
+                out[key][int(e) - 1] = float(x)
+    return out
+
+
+# ---------------------------------------------------------------- period specs
+def human_realisation(k, h, m_h, alpha, load_kg, w, damping):
+    """The time-domain human whose S_h(j w) is exactly K - M_h w^2 + j H:
+    S_h(s) = M_h s^2 + b0 s + k0 + km tau s / (1 + tau s) (a Maxwell element
+    km, km tau). viscous: b0 = H / w, k0 = K, km = 0. two-point: besides,
+    the loss is H also at the arm's natural frequency w_n = sqrt(K / (M_h +
+    M_e / alpha)) (as a hysteretic human's would be), via a Maxwell element
+    with tau = 1 / w_n, when w > w_n (below, b0 = H / w already gives more)."""
+    w_n = math.sqrt(k / (m_h + m_e(load_kg) / alpha))
+    x = w / w_n
+    if damping == "viscous" or x <= 1.0:
+        return dict(k0=k, b0=h / w, km=0.0, tau_m=1.0 / w_n)
+    km = 2.0 * h * (1.0 + x * x) / (x * (1.0 + x))  # Im Z_m = H - b0 w at w_n and w
+    return dict(k0=k - km * x * x / (1.0 + x * x), b0=(h - 0.5 * km) / w_n, km=km, tau_m=1.0 / w_n)
+
+
+def closed_loop_mode(sp):
+    """(w, zeta) of the slowest oscillatory pole of the linearised closed loop
+    (human realisation, exoskeleton, SEA, amplification; continuous time,
+    gravity and sampling left out)."""
+    w_s = 2.0 * math.pi * SEA_HZ
+    d = np.array([1.0, 2.0 * SEA_ZETA * w_s, w_s * w_s])
+    tau = sp["tau_m"]
+    lag = np.array([tau, 1.0])
+    n_h = np.polyadd(np.polymul([sp["m_h"], sp["b0"], sp["k0"]], lag), [sp["km"] * tau, 0.0])
+    me = m_e(sp["load_kg"])
+    char = np.polyadd(np.polymul(np.polymul([me, 0.0, 0.0], d), lag),
+                      np.polymul(np.polyadd(d, [0.0, 0.0, (sp["alpha"] - 1.0) * w_s * w_s]), n_h))
+    r = np.roots(char)
+    r = r[np.abs(r.imag) > 1e-9 * np.abs(r)]
+    if len(r) == 0:
+        return 0.0, 1.0
+    x = r[np.argmin(np.abs(r))]
+    return float(abs(x)), float(-x.real / abs(x))
+
+
+def period_specs(seed, subject, experiments, n_periods, noise_scale, twitch_sigma, damping="viscous"):
+    """Everything random about each period, drawn from its own stream
+    default_rng([seed, 1, e, k]) so an experiment's data do not depend on
+    which other experiments are written."""
+    specs = []
+    for e in experiments:
+        st = experiment_settings(e)
+        for k in range(n_periods):
+            rng = np.random.default_rng([seed, 1, e, k])
+            w = period_omega(e, k)
+            spec = dict(
+                experiment=e, period=k + 1, omega=w, amplitude=period_amplitude(k),
+                alpha=st["alpha"], load_kg=st["load_kg"], grip_kg=st["grip_kg"],
+                bias_nm=st["bias_nm"], m_h=subject["m_h"], k=subject["k"][e - 1],
+                h=subject["h"][e - 1],
+                theta_rest=0.3 + 0.02 * rng.standard_normal(),
+                theta_goal=math.radians(45.0) + math.radians(2.0) * rng.standard_normal(),
+                twitch_tick=T_ANALYSIS + int(rng.integers(0, RATE_HZ - TWITCH_TICKS)),
+                twitch_nm=twitch_sigma * rng.standard_normal() / (TWITCH_TICKS * DT),
+            )
+            spec.update(human_realisation(spec["k"], spec["h"], spec["m_h"], spec["alpha"],
+                                          spec["load_kg"], w, damping))
+            spec["mode_omega"], spec["mode_zeta"] = closed_loop_mode(spec)
+            spec["noise_enc"] = SIGMA_ENC * noise_scale * rng.standard_normal(N_SIM)
+            spec["noise_tc"] = SIGMA_TAU_C * noise_scale * rng.standard_normal(N_SIM)
+            spec["noise_ts"] = SIGMA_TAU_S * noise_scale * rng.standard_normal(N_SIM)
+            specs.append(spec)
+    return specs
+
+
+# ---------------------------------------------------------------- simulation
+def smooth_ramp(x):  # 0 -> 1 over x in [0, 1], zero slope at both ends
+    x = np.clip(x, 0.0, 1.0)
+    return 0.5 - 0.5 * np.cos(np.pi * x)
+
+
+def min_jerk(x):
+    x = np.clip(x, 0.0, 1.0)
+    return x**3 * (10.0 - 15.0 * x + 6.0 * x**2)
+
+
+def simulate(specs, pre_window_s=PRE_WINDOW_S):
+    """Simulates the periods side by side (vectorised over periods), RK4 with
+    the controller's torque held over each 2 ms tick, from rest at the start
+    of the ramp-in to the end of the analysis window. Returns the recorded
+    ticks (pre_window_s before the analysis window to its end, inclusive) of
+    every period as (P, n) arrays."""
+    rec0 = T_ANALYSIS - ticks(pre_window_s)
+    n_rec = N_SIM - rec0
+    col = lambda key: np.array([s[key] for s in specs], dtype=float)
+    alpha, load, m_h = col("alpha"), col("load_kg"), col("m_h")
+    k, b, km, inv_tau = col("k0"), col("b0"), col("km"), 1.0 / col("tau_m")
+    omega, amp, bias = col("omega"), col("amplitude"), col("bias_nm")
+    th_rest, th_goal = col("theta_rest"), col("theta_goal")
+    P = len(specs)
+    m_tot = m_e(load) + m_h
+    inv_m = 1.0 / m_tot
+    g_true = G * (ARM_MASS * ARM_COM + load * LEVER)
+    g_comp = G * (COMP_ARM_MASS_FACTOR * ARM_MASS * ARM_COM + COMP_LOAD_MASS_FACTOR * load * LEVER)
+    w_s = 2.0 * math.pi * SEA_HZ
+    w2, z2 = w_s * w_s, 2.0 * SEA_ZETA * w_s
+
+    # The subject's input u = K th_p + tau_tw, held over each tick at its
+    # mid-tick value. th_p: the planned arm angle, minus the offset the
+    # muscles need against bias and residual gravity to hold it there.
+    t_mid = (np.arange(N_SIM) + 0.5) * DT
+    plan = th_rest[:, None] + (th_goal - th_rest)[:, None] * min_jerk(t_mid / RAMP_IN_S)[None, :]
+    bias_mid = bias[:, None] * smooth_ramp(t_mid / RAMP_IN_S)[None, :]
+    dg = (g_comp - g_true)[:, None] * np.sin(plan)
+    th_p = plan - (bias_mid + dg) / (alpha * k)[:, None]  # k: the static stiffness k0
+    u = k[:, None] * th_p
+    for i, s in enumerate(specs):
+        u[i, s["twitch_tick"]:s["twitch_tick"] + TWITCH_TICKS] += s["twitch_nm"]
+    n_enc = np.stack([s["noise_enc"] for s in specs])
+    n_tc = np.stack([s["noise_tc"] for s in specs])
+    n_ts = np.stack([s["noise_ts"] for s in specs])
+
+    # Initial rest equilibrium (th_p(0) is consistent with it by construction).
+    th = th_rest.copy()
+    om = np.zeros(P)
+    q = th_rest.copy()  # the Maxwell element's damper node, relaxed
+    tc0 = (g_comp - g_true) * np.sin(th_rest) / alpha
+    ts = g_true * np.sin(th_rest) + tc0
+    dts = np.zeros(P)
+    th_m_prev = None
+    om_e = np.zeros(P)
+    a_om = 1.0 - math.exp(-2.0 * math.pi * OMEGA_FILTER_HZ * DT)
+
+    out = {key: np.empty((P, n_rec)) for key in
+           ("theta", "omega_e", "tau_c", "tau_s", "tau_d", "tau_gravity", "tau_amplification",
+            "tau_bias", "tau_excitation")}
+
+    h = DT
+    for n in range(N_SIM):
+        t = n * DT
+        un = u[:, n]
+        # --- sensors at tick n
+        f_h = b * om + k * th + km * (th - q) - un  # the human's passive torque less the voluntary
+        acc = (ts - g_true * np.sin(th) - f_h) * inv_m
+        tau_c = m_h * acc + f_h
+        th_m = np.round((th + n_enc[:, n]) / ENC_Q) * ENC_Q
+        tc_m = tau_c + n_tc[:, n]
+        ts_m = ts + n_ts[:, n]
+        if th_m_prev is not None:
+            om_e += a_om * ((th_m - th_m_prev) / DT - om_e)
+        th_m_prev = th_m
+        # --- controller
+        t_gc = g_comp * np.sin(th_m)
+        t_amp = (1.0 - alpha) * tc_m + 0.0  # + 0.0: no -0.0 at alpha = 1
+        t_bias = bias * float(smooth_ramp(t / RAMP_IN_S))
+        if T_SINE <= n < T_RAMP_OUT:
+            t_x = amp * np.sin(omega * ((n - T_SINE) * DT))
+        else:
+            t_x = np.zeros(P)
+        tau_d = t_gc + t_amp + t_bias + t_x
+        if n >= rec0:
+            j = n - rec0
+            for key, v in (("theta", th_m), ("omega_e", om_e), ("tau_c", tc_m), ("tau_s", ts_m),
+                           ("tau_d", tau_d), ("tau_gravity", t_gc), ("tau_amplification", t_amp),
+                           ("tau_bias", t_bias), ("tau_excitation", t_x)):
+                out[key][:, j] = v
+        if n == N_SIM - 1:
+            break
+        # --- plant: RK4 over [t, t + h] with tau_d and u held
+        def f(th_, om_, ts_, dts_, q_):
+            return (om_, (ts_ - g_true * np.sin(th_) - b * om_ - k * th_ - km * (th_ - q_) + un) * inv_m,
+                    dts_, w2 * (tau_d - ts_) - z2 * dts_, (th_ - q_) * inv_tau)
+        k1 = f(th, om, ts, dts, q)
+        k2 = f(*(x + 0.5 * h * d for x, d in zip((th, om, ts, dts, q), k1)))
+        k3 = f(*(x + 0.5 * h * d for x, d in zip((th, om, ts, dts, q), k2)))
+        k4 = f(*(x + h * d for x, d in zip((th, om, ts, dts, q), k3)))
+        c = h / 6.0
+        th, om, ts, dts, q = (x + c * (d1 + 2.0 * d2 + 2.0 * d3 + d4)
+                              for x, d1, d2, d3, d4 in zip((th, om, ts, dts, q), k1, k2, k3, k4))
+    if not all(np.isfinite(v).all() for v in out.values()):
+        raise RuntimeError("simulation diverged")
+    return out
+
+
+# ---------------------------------------------------------------- contract schemas
+SENSOR_SCHEMA = ("exo_msgs/msg/SensorSample", "exo/sensor",
+                 "uint64 seq\nuint64 stamp_ns\nfloat64 theta_e\nfloat64 omega_e\n"
+                 "float64 tau_c\nfloat64 tau_s\nuint32 status\n")
+COMMAND_SCHEMA = ("exo_msgs/msg/ActuatorCommand", "exo/command",
+                  "uint64 seq\nuint64 stamp_ns\nuint64 sensor_seq\nfloat64 tau_d\n"
+                  "float64 tau_gravity\nfloat64 tau_amplification\nfloat64 tau_bias\n"
+                  "float64 tau_excitation\nuint32 mode\n")
+PROTOCOL_SCHEMA = ("exo_msgs/msg/ProtocolState", "exo/protocol",
+                   "uint32 experiment\nuint32 period\nuint32 phase\nfloat64 omega\n"
+                   "float64 amplitude\nfloat64 alpha\nfloat64 load_kg\nfloat64 grip_kg\n"
+                   "float64 bias_nm\nuint64 stamp_ns\n")
+CH_PROTOCOL, CH_SENSOR, CH_COMMAND = 1, 2, 3
+
+# MCAP message record (opcode, length, channel, sequence, log, publish) then
+# the CDR encapsulation header 00 01 00 00 and the payload. CDR alignment is
+# relative to the byte after the encapsulation header: with these field
+# orders every field already sits on its own size (the sensor and command
+# payloads end with a uint32, so no padding anywhere; the protocol's needs
+# 4 bytes after `phase`).
+_MSG_HDR = [("op", "u1"), ("rlen", "<u8"), ("chan", "<u2"), ("mseq", "<u4"),
+            ("log", "<u8"), ("pub", "<u8"), ("encap", "<u4")]
+SENSOR_DT = np.dtype(_MSG_HDR + [("seq", "<u8"), ("stamp", "<u8"), ("theta_e", "<f8"),
+                                 ("omega_e", "<f8"), ("tau_c", "<f8"), ("tau_s", "<f8"),
+                                 ("status", "<u4")])
+COMMAND_DT = np.dtype(_MSG_HDR + [("seq", "<u8"), ("stamp", "<u8"), ("sensor_seq", "<u8"),
+                                  ("tau_d", "<f8"), ("tau_gravity", "<f8"),
+                                  ("tau_amplification", "<f8"), ("tau_bias", "<f8"),
+                                  ("tau_excitation", "<f8"), ("mode", "<u4")])
+PAIR_DT = np.dtype([("s", SENSOR_DT), ("c", COMMAND_DT)])
+ENCAP = int.from_bytes(b"\x00\x01\x00\x00", "little")
+_PROTO_STRUCT = struct.Struct("<BQHIQQ" + "4sIII4xddddddQ")
+
+
+def protocol_record(mseq, stamp, experiment, period, phase, omega, amplitude, alpha, load, grip, bias):
+    return _PROTO_STRUCT.pack(0x05, _PROTO_STRUCT.size - 9, CH_PROTOCOL, mseq & 0xFFFFFFFF, stamp, stamp,
+                              b"\x00\x01\x00\x00", experiment, period, phase,
+                              omega, amplitude, alpha, load, grip, bias, stamp)
+
+
+# ---------------------------------------------------------------- MCAP container
+def _s(x):
+    b = x.encode()
+    return struct.pack("<I", len(b)) + b
+
+
+def _map(d):
+    body = b"".join(_s(k) + _s(v) for k, v in d.items())
+    return struct.pack("<I", len(body)) + body
+
+
+def _rec(op, body):
+    return struct.pack("<BQ", op, len(body)) + body
+
+
+MAGIC = b"\x89MCAP0\r\n"
+
+
+class OwnMcapWriter:
+    """A small chunked MCAP writer (profile ros2) for pre-built message
+    records: one chunk per call of add_chunk, zstd, with message indexes,
+    chunk/metadata indexes, statistics and summary offsets."""
+
+    def __init__(self, path, compression="zstd"):
+        try:
+            import zstandard  # installed with mcap
+        except ImportError:
+            zstandard = None
+        self.f = open(path, "wb")
+        self.zc = zstandard.ZstdCompressor(level=3) if compression == "zstd" and zstandard else None
+        self.compression = compression if self.zc else ""
+        self.schemas, self.channels = [], []
+        self.chunk_index, self.meta_index = [], []
+        self.counts = {}
+        self.n_msgs, self.t0, self.t1 = 0, None, 0
+        self.f.write(MAGIC)
+        self.f.write(_rec(0x01, _s("ros2") + _s(SOFTWARE)))
+
+    def register(self, sid, name, topic, text):
+        body = text.encode()
+        s = _rec(0x03, struct.pack("<H", sid) + _s(name) + _s("ros2msg") + struct.pack("<I", len(body)) + body)
+        c = _rec(0x04, struct.pack("<HH", sid, sid) + _s(topic) + _s("cdr") + _map({}))
+        self.schemas.append(s)
+        self.channels.append(c)
+        self.f.write(s)
+        self.f.write(c)
+        self.counts[sid] = 0
+
+    def add_metadata(self, name, d):
+        off = self.f.tell()
+        r = _rec(0x0C, _s(name) + _map(d))
+        self.f.write(r)
+        self.meta_index.append(_rec(0x0D, struct.pack("<QQ", off, len(r)) + _s(name)))
+
+    def add_chunk(self, records, index, t_start, t_end):
+        """records: the chunk's message records (bytes); index: {channel:
+        (log_times, offsets)} numpy arrays, offsets into records."""
+        raw = records
+        data = self.zc.compress(raw) if self.zc else raw
+        start = self.f.tell()
+        body = (struct.pack("<QQQI", t_start, t_end, len(raw), zlib.crc32(raw)) + _s(self.compression)
+                + struct.pack("<Q", len(data)))
+        self.f.write(struct.pack("<BQ", 0x06, len(body) + len(data)) + body)
+        self.f.write(data)
+        chunk_len = self.f.tell() - start
+        mi_offsets = {}
+        mi_start = self.f.tell()
+        for ch in sorted(index):
+            logs, offs = index[ch]
+            arr = np.empty((len(logs), 2), dtype="<u8")
+            arr[:, 0], arr[:, 1] = logs, offs
+            mi_offsets[ch] = self.f.tell()
+            self.f.write(_rec(0x07, struct.pack("<HI", ch, arr.nbytes) + arr.tobytes()))
+            self.counts[ch] += len(logs)
+            self.n_msgs += len(logs)
+        mi_len = self.f.tell() - mi_start
+        mo = b"".join(struct.pack("<HQ", ch, o) for ch, o in mi_offsets.items())
+        self.chunk_index.append(_rec(0x08, struct.pack("<QQQQ", t_start, t_end, start, chunk_len)
+                                     + struct.pack("<I", len(mo)) + mo + struct.pack("<Q", mi_len)
+                                     + _s(self.compression) + struct.pack("<QQ", len(data), len(raw))))
+        self.t0 = t_start if self.t0 is None else min(self.t0, t_start)
+        self.t1 = max(self.t1, t_end)
+
+    def finish(self):
+        self.f.write(_rec(0x0F, struct.pack("<I", 0)))
+        summary_start = self.f.tell()
+        groups = [(0x03, self.schemas), (0x04, self.channels)]
+        cm = b"".join(struct.pack("<HQ", ch, n) for ch, n in self.counts.items())
+        stats = _rec(0x0B, struct.pack("<QHIIIIQQ", self.n_msgs, len(self.schemas), len(self.channels), 0,
+                                       len(self.meta_index), len(self.chunk_index), self.t0 or 0, self.t1)
+                     + struct.pack("<I", len(cm)) + cm)
+        groups += [(0x0B, [stats]), (0x08, self.chunk_index), (0x0D, self.meta_index)]
+        summary = bytearray()
+        offsets = []
+        for op, recs in groups:
+            g0 = len(summary)
+            for r in recs:
+                summary += r
+            offsets.append(_rec(0x0E, struct.pack("<BQQ", op, summary_start + g0, len(summary) - g0)))
+        summary_offset_start = summary_start + len(summary)
+        for r in offsets:
+            summary += r
+        crc = zlib.crc32(bytes(summary))
+        crc = zlib.crc32(struct.pack("<BQQQ", 0x02, 20, summary_start, summary_offset_start), crc)
+        self.f.write(summary)
+        self.f.write(_rec(0x02, struct.pack("<QQI", summary_start, summary_offset_start, crc)))
+        self.f.write(MAGIC)
+        self.f.close()
+
+
+class LibMcapWriter:
+    """The same chunks written message by message through the mcap library's
+    Writer (slow; to cross-check OwnMcapWriter)."""
+
+    def __init__(self, path):
+        from mcap.writer import Writer
+        self.f = open(path, "wb")
+        self.w = Writer(self.f)
+        self.w.start("ros2", SOFTWARE)
+        self.ch = {}
+
+    def register(self, sid, name, topic, text):
+        s = self.w.register_schema(name, "ros2msg", text.encode())
+        self.ch[sid] = self.w.register_channel(topic, "cdr", s)
+
+    def add_metadata(self, name, d):
+        self.w.add_metadata(name, d)
+
+    def add_chunk(self, records, index, t_start, t_end):
+        mv = memoryview(records)
+        pos = 0
+        while pos < len(mv):
+            op, ln = struct.unpack_from("<BQ", mv, pos)
+            assert op == 0x05
+            ch, mseq, log, pub = struct.unpack_from("<HIQQ", mv, pos + 9)
+            self.w.add_message(self.ch[ch], log, bytes(mv[pos + 31:pos + 9 + ln]), pub, mseq)
+            pos += 9 + ln
+
+    def finish(self):
+        self.w.finish()
+        self.f.close()
+
+
+# ---------------------------------------------------------------- recording
+def phase_at(lt):
+    if lt < T_SINE:
+        return 1
+    if lt < T_ANALYSIS:
+        return 2
+    if lt < T_RAMP_OUT:
+        return 3
+    if lt < T_REST:
+        return 4
+    return 5
+
+
+def write_recording(path, subject_name, seed, specs, sim, noise_scale, writer="own", extra_meta=None):
+    """Writes one recording: the periods of specs (in order) with their
+    simulated samples sim (rows in the order of specs)."""
+    n_rec = sim["theta"].shape[1]  # recorded ticks per period: the last n_rec simulated ones
+    rec0 = N_SIM - n_rec
+    w = OwnMcapWriter(path) if writer == "own" else LibMcapWriter(path)
+    w.register(CH_PROTOCOL, PROTOCOL_SCHEMA[0], PROTOCOL_SCHEMA[1], PROTOCOL_SCHEMA[2])
+    w.register(CH_SENSOR, SENSOR_SCHEMA[0], SENSOR_SCHEMA[1], SENSOR_SCHEMA[2])
+    w.register(CH_COMMAND, COMMAND_SCHEMA[0], COMMAND_SCHEMA[1], COMMAND_SCHEMA[2])
+    meta = {
+        "subject": subject_name,
+        "software_version": SOFTWARE,
+        "rate_hz": str(RATE_HZ),
+        "arm_inertia_kg_m2": repr(ARM_INERTIA),
+        "load_lever_arm_m": repr(LEVER),
+        "seed": str(seed),
+        "noise_scale": repr(float(noise_scale)),
+        "recorded_samples": f"from {(T_ANALYSIS - rec0) / RATE_HZ:g} s before each analysis window "
+                            "to its end (inclusive); seq counts the written samples",
+    }
+    meta.update(extra_meta or {})
+    w.add_metadata("exo", meta)
+
+    pair_size = PAIR_DT.itemsize
+    s_size = SENSOR_DT.itemsize
+    seq0 = 0
+    n_proto = 0
+
+    def proto(tick, e, k, ph, sp):
+        nonlocal n_proto
+        r = protocol_record(n_proto, tick * TICK_NS, e, k, ph, sp["omega"] if sp else 0.0,
+                            sp["amplitude"] if sp else 0.0, sp["alpha"] if sp else 1.0,
+                            sp["load_kg"] if sp else 0.0, sp["grip_kg"] if sp else 0.0,
+                            sp["bias_nm"] if sp else 0.0)
+        n_proto += 1
+        return r
+
+    # Idle before the protocol.
+    t_idle = [i * RATE_HZ for i in range(RECORDING_LEAD_TICKS // RATE_HZ)]
+    recs = [proto(t, 0, 0, 0, None) for t in t_idle]
+    w.add_chunk(b"".join(recs), {CH_PROTOCOL: (np.array(t_idle, dtype=np.uint64) * TICK_NS,
+                                               np.arange(len(recs), dtype=np.uint64) * _PROTO_STRUCT.size)},
+                t_idle[0] * TICK_NS, t_idle[-1] * TICK_NS)
+
+    keys_s = ("theta_e", "omega_e", "tau_c", "tau_s")
+    src_s = ("theta", "omega_e", "tau_c", "tau_s")
+    keys_c = ("tau_d", "tau_gravity", "tau_amplification", "tau_bias", "tau_excitation")
+    for j, sp in enumerate(specs):
+        base = RECORDING_LEAD_TICKS + j * T_PERIOD
+        e, k = sp["experiment"], sp["period"]
+        # Sensor + command pairs of the recorded ticks.
+        pairs = np.zeros(n_rec, dtype=PAIR_DT)
+        gt = base + rec0 + np.arange(n_rec, dtype=np.uint64)
+        stamps = gt * np.uint64(TICK_NS)
+        seqs = seq0 + np.arange(n_rec, dtype=np.uint64)
+        for part, dt_, ch in (("s", SENSOR_DT, CH_SENSOR), ("c", COMMAND_DT, CH_COMMAND)):
+            p = pairs[part]
+            p["op"] = 0x05
+            p["rlen"] = dt_.itemsize - 9
+            p["chan"] = ch
+            p["mseq"] = seqs & np.uint64(0xFFFFFFFF)
+            p["log"] = stamps
+            p["pub"] = stamps
+            p["encap"] = ENCAP
+            p["seq"] = seqs
+            p["stamp"] = stamps
+        for key, src in zip(keys_s, src_s):
+            pairs["s"][key] = sim[src][j]
+        pairs["s"]["status"] = 0
+        pairs["c"]["sensor_seq"] = seqs
+        for key in keys_c:
+            pairs["c"][key] = sim[key][j]
+        pairs["c"]["mode"] = 1
+        seq0 += n_rec
+        pair_bytes = pairs.tobytes()
+
+        # Merge protocol states (every change, and once a second) with the pairs.
+        proto_ticks = sorted(set(range(0, T_PERIOD, RATE_HZ)) | {0, T_SINE, T_ANALYSIS, T_RAMP_OUT, T_REST})
+        segs, p_logs, p_offs = [], [], []
+        s_offs = np.empty(n_rec, dtype=np.uint64)
+        pos, next_pair = 0, 0
+
+        def flush_pairs(upto):  # pairs with local index < upto
+            nonlocal pos, next_pair
+            if upto > next_pair:
+                segs.append(pair_bytes[next_pair * pair_size:upto * pair_size])
+                s_offs[next_pair:upto] = pos + pair_size * np.arange(upto - next_pair, dtype=np.uint64)
+                pos += (upto - next_pair) * pair_size
+                next_pair = upto
+
+        for lt in proto_ticks:
+            flush_pairs(min(max(lt - rec0, 0), n_rec))
+            r = proto(base + lt, e, k, phase_at(lt), sp)
+            p_logs.append((base + lt) * TICK_NS)
+            p_offs.append(pos)
+            segs.append(r)
+            pos += len(r)
+        flush_pairs(n_rec)
+        index = {
+            CH_PROTOCOL: (np.array(p_logs, dtype=np.uint64), np.array(p_offs, dtype=np.uint64)),
+            CH_SENSOR: (stamps, s_offs),
+            CH_COMMAND: (stamps, s_offs + np.uint64(s_size)),
+        }
+        w.add_chunk(b"".join(segs), index, base * TICK_NS, (base + proto_ticks[-1]) * TICK_NS)
+
+    end = RECORDING_LEAD_TICKS + len(specs) * T_PERIOD
+    r = proto(end, 0, 0, 0, None)
+    w.add_chunk(r, {CH_PROTOCOL: (np.array([end * TICK_NS], dtype=np.uint64), np.zeros(1, dtype=np.uint64))},
+                end * TICK_NS, end * TICK_NS)
+    w.add_metadata("exo.drops", {"exo/sensor": "0", "exo/command": "0", "exo/protocol": "0"})
+    w.finish()
+
+
+# ---------------------------------------------------------------- truth
+def subject_truth(name, seed, subject, specs):
+    exps = {}
+    for sp in specs:
+        e = exps.setdefault(str(sp["experiment"]), dict(
+            alpha=sp["alpha"], load_kg=sp["load_kg"], grip_kg=sp["grip_kg"], bias_nm=sp["bias_nm"],
+            m_e=m_e(sp["load_kg"]), k=sp["k"], h=sp["h"], c=sp["h"] / sp["k"],
+            omega=[], amplitude=[], theta_goal=[], twitch_impulse_nms=[],
+            realisation=dict(k0=[], b0=[], km=[], tau_m=[]), mode_omega=[], mode_zeta=[]))
+        e["omega"].append(sp["omega"])
+        e["amplitude"].append(sp["amplitude"])
+        for key in ("k0", "b0", "km", "tau_m"):
+            e["realisation"][key].append(sp[key])
+        e["mode_omega"].append(sp["mode_omega"])
+        e["mode_zeta"].append(sp["mode_zeta"])
+        e["theta_goal"].append(sp["theta_goal"])
+        e["twitch_impulse_nms"].append(sp["twitch_nm"] * TWITCH_TICKS * DT)
+    return dict(subject=name, seed=seed, m_h=subject["m_h"], beta0=subject.get("beta0"),
+                beta1=subject.get("beta1"), params_source=subject.get("source"),
+                subject_table=dict(m_h=subject["m_h"], k=subject["k"], h=subject["h"]),
+                experiments=exps)
+
+
+def rig_truth():
+    return dict(generator=SOFTWARE, rate_hz=RATE_HZ, arm_inertia_kg_m2=ARM_INERTIA, load_lever_arm_m=LEVER,
+                arm_mass_kg=ARM_MASS, arm_com_m=ARM_COM,
+                gravity_comp_mass_factors=dict(arm=COMP_ARM_MASS_FACTOR, load=COMP_LOAD_MASS_FACTOR),
+                sea=dict(hz=SEA_HZ, zeta=SEA_ZETA), encoder_bits=ENC_BITS,
+                sigma=dict(tau_c=SIGMA_TAU_C, tau_s=SIGMA_TAU_S, encoder=SIGMA_ENC),
+                omega_filter_hz=OMEGA_FILTER_HZ,
+                hysteresis="S_h(s) = M_h s^2 + b0 s + k0 + km tau_m s / (1 + tau_m s) per period, exact "
+                           "K - M_h w^2 + j H at the period's omega (viscous: b0 = H / omega, k0 = K, km = 0)",
+                mode="mode_omega/mode_zeta: slowest oscillatory pole of the linearised closed loop",
+                twitch=f"{TWITCH_TICKS * DT * 1e3:g} ms voluntary pulse at a random time in the first second "
+                       "of each analysis window")
+
+
+# ---------------------------------------------------------------- command line
+def warn_unstable(name_specs):
+    """Names the periods whose linearised closed loop has an unstable natural
+    mode (its oscillation grows through the window: no steady state there)."""
+    for name, specs in name_specs:
+        bad = [f"{sp['experiment']}/{sp['period']} (zeta {sp['mode_zeta']:.3f} at {sp['mode_omega']:.1f} rad/s)"
+               for sp in specs if sp["mode_zeta"] < 0.0]
+        if bad:
+            print(f"{SOFTWARE}: {name}: WARNING: unstable closed-loop natural mode in experiment/period "
+                  + ", ".join(bad) + "; --damping two-point damps it", file=sys.stderr)
+
+
+def parse_experiments(s):
+    ex = [int(x) for x in s.split(",") if x.strip()]
+    if not ex or any(e < 1 or e > 9 for e in ex) or len(set(ex)) != len(ex):
+        raise SystemExit(f"--experiments: distinct numbers 1-9 expected, got {s!r}")
+    return ex
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("out", nargs="?", help="output .mcap (single-recording mode)")
+    ap.add_argument("--seed", type=int, required=True)
+    ap.add_argument("--subject", default=None, help="subject name (default indep<seed>)")
+    ap.add_argument("--experiments", default="1,2,3,4,5,6,7,8,9")
+    ap.add_argument("--periods", type=int, default=N_PERIODS)
+    ap.add_argument("--truth", help="write the true parameters to this JSON file")
+    ap.add_argument("--noise-scale", type=float, default=1.0,
+                    help="multiplies the sensor noise (tau_c, tau_s, encoder); quantisation stays")
+    ap.add_argument("--twitch", type=float, default=TWITCH_IMPULSE_SIGMA,
+                    help="standard deviation of the analysis-window twitch impulse, N m s (0 = none)")
+    ap.add_argument("--damping", choices=("viscous", "two-point"), default="two-point",
+                    help="realisation of the hysteretic damping H: viscous B = H / omega_k; two-point: loss H "
+                         "at omega_k and at the arm's natural frequency (see human_realisation)")
+    ap.add_argument("--random-subject", action="store_true",
+                    help="draw the subject's parameters from the seed (default: the built-in table)")
+    ap.add_argument("--params", help="JSON with m_h, k[9], h[9] overriding the table")
+    ap.add_argument("--writer", choices=("own", "mcap"), default="own",
+                    help="own: fast numpy chunk writer; mcap: the mcap library's Writer (slow)")
+    ap.add_argument("--monte-carlo", type=int, metavar="N")
+    ap.add_argument("--out-dir")
+    ap.add_argument("--table-subject", action="store_true",
+                    help="Monte Carlo: every subject uses the table (default: drawn from its seed)")
+    ap.add_argument("--pre-window", type=float, default=PRE_WINDOW_S, metavar="S",
+                    help="seconds of samples written before each analysis window (0-5)")
+    ap.add_argument("--batch-periods", type=int, default=400, help="periods simulated side by side")
+    a = ap.parse_args(argv)
+    experiments = parse_experiments(a.experiments)
+    if a.seed < 0:
+        raise SystemExit("--seed must be >= 0")
+    if not 1 <= a.periods <= N_PERIODS:
+        raise SystemExit(f"--periods must be 1-{N_PERIODS}")
+    if not (a.noise_scale >= 0 and a.twitch >= 0 and 0 <= a.pre_window <= SETTLE_S):
+        raise SystemExit("--noise-scale and --twitch must be >= 0, --pre-window in [0, 5] s")
+    t_begin = time.perf_counter()
+
+    if a.monte_carlo is not None:
+        if not a.out_dir or a.out:
+            raise SystemExit("--monte-carlo N needs --out-dir DIR and no OUT")
+        os.makedirs(a.out_dir, exist_ok=True)
+        per = len(experiments) * a.periods
+        per_batch = max(1, a.batch_periods // per)
+        truth = dict(rig=rig_truth(), seed0=a.seed, experiments=experiments, periods=a.periods,
+                     noise_scale=a.noise_scale, twitch_sigma_nms=a.twitch, damping=a.damping, subjects={})
+        t_sim = t_write = 0.0
+        for b0 in range(0, a.monte_carlo, per_batch):
+            t0 = time.perf_counter()
+            batch = []  # drawn batch by batch: the noise of all subjects at once would not fit well
+            for i in range(b0, min(b0 + per_batch, a.monte_carlo)):
+                seed = a.seed + i
+                if a.params:
+                    subj = load_params(a.params)
+                else:
+                    subj = table_subject() if a.table_subject else random_subject(seed)
+                batch.append((f"mc{i:03d}", seed, subj,
+                              period_specs(seed, subj, experiments, a.periods, a.noise_scale, a.twitch,
+                                           a.damping)))
+            warn_unstable([(b[0], b[3]) for b in batch])
+            sim = simulate([sp for _, _, _, specs in batch for sp in specs], a.pre_window)
+            t1 = time.perf_counter()
+            for i, (name, seed, subj, specs) in enumerate(batch):
+                part = {key: v[i * per:(i + 1) * per] for key, v in sim.items()}
+                write_recording(os.path.join(a.out_dir, f"{name}.mcap"), name, seed, specs, part,
+                                a.noise_scale, a.writer)
+                truth["subjects"][name] = subject_truth(name, seed, subj, specs)
+            t_write += time.perf_counter() - t1
+            t_sim += t1 - t0
+        with open(os.path.join(a.out_dir, "truth.json"), "w") as f:
+            json.dump(truth, f, indent=1)
+        print(f"{a.monte_carlo} recordings x {len(experiments)} experiments in {a.out_dir}: "
+              f"{time.perf_counter() - t_begin:.1f} s (simulation {t_sim:.1f} s, writing {t_write:.1f} s)",
+              file=sys.stderr)
+        return 0
+
+    if not a.out:
+        raise SystemExit("OUT.mcap is required (or --monte-carlo N --out-dir DIR)")
+    if a.params:
+        subj = load_params(a.params)
+    elif a.random_subject:
+        subj = random_subject(a.seed)
+    else:
+        subj = table_subject()
+    name = a.subject or f"indep{a.seed}"
+    specs = period_specs(a.seed, subj, experiments, a.periods, a.noise_scale, a.twitch, a.damping)
+    warn_unstable([(name, specs)])
+    sim = simulate(specs, a.pre_window)
+    write_recording(a.out, name, a.seed, specs, sim, a.noise_scale, a.writer)
+    if a.truth:
+        t = subject_truth(name, a.seed, subj, specs)
+        t.update(rig=rig_truth(), noise_scale=a.noise_scale, twitch_sigma_nms=a.twitch, damping=a.damping,
+                 experiments_written=experiments,
+                 periods=a.periods)
+        with open(a.truth, "w") as f:
+            json.dump(t, f, indent=1)
+    print(f"{a.out}: {len(experiments)} experiments x {a.periods} periods in "
+          f"{time.perf_counter() - t_begin:.2f} s", file=sys.stderr)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
