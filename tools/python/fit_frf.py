@@ -4,9 +4,10 @@
 Reads contract recordings (docs/recording-format.md) with `mcap` and
 `mcap-ros2-support`, and does what `exo fit` does to them: per period, the
 analysis window (protocol phase 3) of theta_e, tau_c and tau_s, trimmed to
-whole cycles, single-frequency correlation for S_h = tau_c/theta_e and
-S_h-e/alpha = (tau_s - tau_gravity)/theta_e; then per (subject, experiment) the linear least
-squares of M1, M2 and M3 on S_h-e/alpha with the known M_e/alpha removed.
+whole cycles, single-frequency correlation for S_h = tau_c/theta_e; then
+per (subject, experiment) the linear least squares of M1, M2 and M3 on S_h
+(eqs. Sh1-Sh3, the paper's estimate and exo fit's default; exo fit also
+weights each point by its measured noise, which this baseline does not).
 
 Usage: fit_frf.py [--me KG_M2] RECORDING.mcap [...]
 Prints one JSON object: samples read, FRF points, fits, and seconds spent.
@@ -123,15 +124,15 @@ def main():
             sel = (t >= t0) & (t < t1)
             if sel.sum() < 10:
                 continue
-            s_hea = correlate(t_s[sel], th[sel], ts[sel], omega)
-            if s_hea is None:
+            s_h = correlate(t_s[sel], th[sel], tc[sel], omega)
+            if s_h is None:
                 continue
             m_e = (a.me if a.me is not None else 0.1) + load * a.lever**2
-            per_exp.setdefault(exp, {"alpha": alpha, "m_e": m_e, "points": []})["points"].append((omega, s_hea))
+            per_exp.setdefault(exp, {"alpha": alpha, "m_e": m_e, "points": []})["points"].append((omega, s_h))
             n_points += 1
         for exp, d in per_exp.items():
             if len(d["points"]) >= 2:
-                results[f"{subject}/{exp}"] = fit(d["points"], d["m_e"] / d["alpha"])
+                results[f"{subject}/{exp}"] = fit(d["points"], 0.0)
     elapsed = time.perf_counter() - start
     json.dump(
         {"samples": samples, "frf_points": n_points, "fits": results, "seconds": elapsed,

@@ -19,9 +19,16 @@ use crate::analysis::{analyse, AnalysisSettings, ExperimentData, FitReport, Subj
 /// Arguments of `exo fit`.
 #[derive(Debug, Args)]
 pub struct FitArgs {
-    /// Contract recordings (docs/recording-format.md).
-    #[arg(required = true)]
+    /// Contract recordings (docs/recording-format.md), or another rig's CSV
+    /// files (as `exo import` reads them): CSVs are taken as experiments 1,
+    /// 2, 3… of one subject `imported`, in the order given, each labelled
+    /// with its file name (use `--study` to say more).
+    #[arg(required_unless_present = "study")]
     pub recordings: Vec<PathBuf>,
+    /// A study file (see `exo import --study`): its CSV trials, each with
+    /// its subject, experiment, condition, α and load, are fitted together.
+    #[arg(long, value_name = "STUDY.toml")]
+    pub study: Option<PathBuf>,
     /// Print one JSON object instead of tables.
     #[arg(long)]
     pub json: bool,
@@ -93,6 +100,7 @@ impl FitArgs {
     pub fn for_recordings(recordings: Vec<PathBuf>) -> Self {
         FitArgs {
             recordings,
+            study: None,
             json: false,
             csv: None,
             level: 0.05,
@@ -192,6 +200,49 @@ pub fn load(path: &Path, a: &FitArgs) -> Result<Loaded> {
             FrfPoint::TOPIC,
         ],
     )?;
+    identify_recording(recording, path, a)
+}
+
+/// Whether `path` names a CSV file (by its extension).
+pub fn is_csv(path: &Path) -> bool {
+    path.extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("csv"))
+}
+
+/// Every input of `exo fit`: recordings as they are, CSVs imported in
+/// memory (numbered as experiments 1, 2, … in the order given), and the
+/// trials of `--study`.
+pub fn load_inputs(a: &FitArgs) -> Result<Vec<Loaded>> {
+    let csvs: Vec<PathBuf> = a.recordings.iter().filter(|p| is_csv(p)).cloned().collect();
+    let mut trials = crate::study::default_trials(&csvs).into_iter();
+    let mut inputs: Vec<(PathBuf, Option<crate::study::TrialSpec>)> = a
+        .recordings
+        .iter()
+        .map(|p| (p.clone(), if is_csv(p) { trials.next() } else { None }))
+        .collect();
+    if let Some(study) = &a.study {
+        inputs.extend(
+            crate::study::load_study(study)?
+                .into_iter()
+                .map(|(p, t)| (p, Some(t))),
+        );
+    }
+    let total = inputs.len();
+    let mut loaded = Vec::with_capacity(total);
+    for (i, (p, trial)) in inputs.iter().enumerate() {
+        if total > 1 {
+            eprintln!("exo fit: [{}/{}] {}", i + 1, total, p.display());
+        }
+        loaded.push(match trial {
+            Some(t) => identify_recording(crate::import_cmd::recording_from_csv(p, t)?, p, a)?,
+            None => load(p, a)?,
+        });
+    }
+    Ok(loaded)
+}
+
+/// Identifies a recording already read (or imported).
+pub fn identify_recording(recording: Recording, path: &Path, a: &FitArgs) -> Result<Loaded> {
     let r = &recording;
     let subject = r.meta("subject").map(str::to_string).unwrap_or_else(|| {
         path.file_stem()
@@ -371,18 +422,7 @@ pub fn fit(a: &FitArgs) -> Result<(Vec<Loaded>, FitReport)> {
             bail!("--k-range = {},{}: needs 0 < MIN < MAX", k[0], k[1]);
         }
     }
-    let mut loaded = Vec::new();
-    for (i, p) in a.recordings.iter().enumerate() {
-        if a.recordings.len() > 1 {
-            eprintln!(
-                "exo fit: [{}/{}] {}",
-                i + 1,
-                a.recordings.len(),
-                p.display()
-            );
-        }
-        loaded.push(load(p, a)?);
-    }
+    let loaded = load_inputs(a)?;
     let data = subject_data(&loaded);
     let mut warnings: Vec<String> = loaded
         .iter()

@@ -23,6 +23,7 @@ mod report_cmd;
 mod reproduce_cmd;
 mod run_cmd;
 mod stability;
+mod study;
 mod supervisor;
 mod tune_cmd;
 

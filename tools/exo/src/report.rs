@@ -420,21 +420,32 @@ pub fn html(
         }
         let _ = write!(w, "</ul>");
     }
-    let _ = write!(w, "<h2>M2 parameters (Table III layout)</h2><table><tr><th>subject</th><th>exp</th><th>K (Nm/rad)</th><th>H (Nm/rad)</th><th>M (kg·m²)</th><th>R²</th></tr>");
+    let _ = write!(w, "<h2>M2 parameters (Table III layout; ± 95 % intervals)</h2><table><tr><th>subject</th><th>exp</th><th>condition</th><th>K (Nm/rad)</th><th>H (Nm/rad)</th><th>M_h (kg·m²)</th><th>R²</th><th>χ²/dof</th></tr>");
     for s in &r.subjects {
         for e in &s.experiments {
             if let Some(m) = e.models.get("M2") {
+                let pm = |v: f64, i: usize, d: usize| match m.ci95 {
+                    Some(c) => format!("{v:.d$} ± {:.d$}", c[i]),
+                    None => format!("{v:.d$}"),
+                };
                 let _ = write!(
                     w,
-                    "<tr><td>{}</td><td>{}</td><td>{:.2}</td><td>{:.2}</td><td>{:.3}</td><td>{:.3}</td></tr>",
-                    esc(&s.subject), e.experiment, m.k, m.h, m.m, m.r2
+                    "<tr><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{:.3}</td><td>{}</td></tr>",
+                    esc(&s.subject),
+                    e.experiment,
+                    esc(e.condition.as_deref().unwrap_or("")),
+                    pm(m.k, 0, 2),
+                    pm(m.h, 1, 2),
+                    pm(m.m, 3, 4),
+                    m.r2,
+                    m.chi2_per_dof.map_or("—".into(), |c| format!("{c:.2}"))
                 );
             }
         }
         if let (Some(b0), Some(b1), Some(r2)) = (s.beta0, s.beta1, s.r2) {
             let _ = write!(
                 w,
-                "<tr><td>{}</td><td>power law</td><td colspan=\"4\">β0 = {b0:.3}, β1 = {b1:.3}, R² = {r2:.3}; recommended f = {}</td></tr>",
+                "<tr><td>{}</td><td>power law</td><td colspan=\"6\">β0 = {b0:.3}, β1 = {b1:.3}, R² = {r2:.3}; recommended f = {}</td></tr>",
                 esc(&s.subject),
                 s.recommended_f.map_or_else(
                     || s.recommended_f_note.clone().unwrap_or_default(),
