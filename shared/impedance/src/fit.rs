@@ -27,7 +27,10 @@
 //!
 //! Numerics: the columns are scaled to unit norm and the `4 × 4` normal
 //! equations are solved by Cholesky on the stack, followed by one step of
-//! iterative refinement, so a fit makes no heap allocation. The scaled Gram
+//! iterative refinement; an unweighted fit makes no heap allocation, a
+//! weighted one two vectors of `n` values (the weights and the sorted σ for
+//! their median; fits run at the end of analysis windows, never per
+//! sample). The scaled Gram
 //! matrix of the model's terms has unit diagonal, so its Cholesky pivots
 //! measure how independent each term is from the others; a pivot below
 //! `1e-10` is reported as a singular design (e.g. fewer distinct frequencies

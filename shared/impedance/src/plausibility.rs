@@ -319,6 +319,60 @@ mod tests {
     }
 
     #[test]
+    fn significance_is_beyond_the_interval_strictly() {
+        let h = |h_nm_per_rad, ci95| Implausibility::NegativeHystereticDamping { h_nm_per_rad, ci95 };
+        let b = |b_nm_s_per_rad, ci95| Implausibility::NegativeViscousDamping {
+            b_nm_s_per_rad,
+            ci95,
+        };
+        // −0.5 ± 0.5 reaches zero: not beyond; ± 0.4 is.
+        assert!(!h(-0.5, 0.5).significant() && h(-0.5, 0.4).significant());
+        assert!(!b(-0.5, 0.5).significant() && b(-0.5, 0.4).significant());
+        assert!(!b(-0.5, 0.6).significant());
+        let m = |m_kg_m2, ci95| Implausibility::InertiaOutOfRange {
+            m_kg_m2,
+            ci95,
+            joint: Joint::Elbow,
+        };
+        // Elbow: 0.02–0.4 kg·m².
+        assert!(m(0.01, 0.005).significant() && !m(0.01, 0.02).significant());
+        assert!(!m(0.015, 0.005).significant(), "reaches 0.02 exactly");
+        assert!(m(0.5, 0.05).significant() && !m(0.5, 0.2).significant());
+        assert!(!m(0.5, 0.1).significant(), "reaches 0.4 exactly");
+    }
+
+    #[test]
+    fn a_term_the_model_lacks_is_not_a_negative_one() {
+        // M1 has H = 0 and M2 has B = 0 exactly: neither is "negative".
+        let truth = DynamicStiffness::from_array([0.12, 0.0, 30.0, 9.0]);
+        let pts: Vec<FrfPoint> = (0..10)
+            .map(|i| {
+                let w = 2.0 * 10f64.powf(0.1 * i as f64);
+                let v = truth.response(w);
+                FrfPoint::new(w, v.re, v.im + if i % 2 == 0 { 0.1 } else { -0.1 })
+            })
+            .collect();
+        for model in [ImpedanceModel::M1, ImpedanceModel::M2] {
+            let f = fit_model(model, &pts, FitTarget::Human).unwrap();
+            let found = check_fit(&f, Joint::Elbow);
+            assert!(
+                !found.iter().any(|x| matches!(
+                    x,
+                    Implausibility::NegativeHystereticDamping { .. }
+                        | Implausibility::NegativeViscousDamping { .. }
+                )),
+                "{model}: {found:?}"
+            );
+        }
+        // An elbow at exactly the range's ends is plausible.
+        for m in [0.02, 0.4] {
+            let mut f = fit_model(ImpedanceModel::M2, &pts, FitTarget::Human).unwrap();
+            f.params.m_kg_m2 = m;
+            assert!(check_fit(&f, Joint::Elbow).is_empty(), "{m}");
+        }
+    }
+
+    #[test]
     fn joints_parse_by_name() {
         for j in [
             Joint::Elbow,

@@ -243,3 +243,100 @@ fn a_negative_or_non_finite_noise_is_named() {
     pts[2].std_dev_nm_per_rad = f64::NAN;
     assert!(fit_model(ImpedanceModel::M2, &pts, FitTarget::Human).is_err());
 }
+
+/// A σ far below the others is raised to a tenth of the median σ (here of
+/// an even count: the mean of the middle two), so one lucky point cannot
+/// carry the fit: H of M2 is then the weighted mean with that floor.
+#[test]
+fn a_tiny_noise_is_floored_at_a_tenth_of_the_median() {
+    let sigma = [1e-6, 0.2, 0.4, 0.6, 0.8, 1.0, 1.2, 1.4, 1.6, 1.8];
+    let pts = noisy(human(), &sigma, &mut Rng(5));
+    let fit = fit_model(ImpedanceModel::M2, &pts, FitTarget::Human).unwrap();
+    // Median of the ten: (0.8 + 1.0) / 2 = 0.9; floor 0.09.
+    let effective: Vec<f64> = sigma.iter().map(|s| s.max(0.09)).collect();
+    let (mut num, mut den) = (0.0, 0.0);
+    for (p, s) in pts.iter().zip(&effective) {
+        num += p.value.im / (s * s);
+        den += 1.0 / (s * s);
+    }
+    assert!(
+        (fit.params.h_nm_per_rad - num / den).abs() < 1e-9,
+        "{} vs {}",
+        fit.params.h_nm_per_rad,
+        num / den
+    );
+    // Odd count: the middle value (0.8 of the first nine; floor 0.08).
+    let pts9 = &pts[..9];
+    let fit = fit_model(ImpedanceModel::M2, pts9, FitTarget::Human).unwrap();
+    let (mut num, mut den) = (0.0, 0.0);
+    for (p, s) in pts9.iter().zip(sigma) {
+        let s = s.max(0.08);
+        num += p.value.im / (s * s);
+        den += 1.0 / (s * s);
+    }
+    assert!((fit.params.h_nm_per_rad - num / den).abs() < 1e-9);
+}
+
+/// Points whose imaginary parts are `b ω + h`, exactly, for the sign tests.
+fn imaginary_line(b: f64, h: f64) -> Vec<FrfPoint> {
+    let truth = DynamicStiffness {
+        m_kg_m2: 0.1,
+        b_nm_s_per_rad: b,
+        k_nm_per_rad: 30.0,
+        h_nm_per_rad: h,
+    };
+    omegas()
+        .iter()
+        .enumerate()
+        .map(|(k, &w)| {
+            // A small deterministic wobble so no face fits exactly.
+            let v = truth.response(w) + Complex64::new(0.0, 0.05 * if k % 2 == 0 { 1.0 } else { -1.0 });
+            FrfPoint::new(w, v.re, v.im).with_std_dev(0.1)
+        })
+        .collect()
+}
+
+/// The constrained optimum checked face by face: B and H both negative
+/// need both held at zero; B > 0 with H < 0 holds H (the best of two
+/// feasible faces, not the first found); B < 0 with H > 0 holds B.
+#[test]
+fn non_negative_damping_finds_the_best_feasible_face() {
+    let fit_nn = |pts: &[FrfPoint]| {
+        fit_model_with(ImpedanceModel::M3, pts, FitTarget::Human, DampingSign::NonNegative).unwrap()
+    };
+    let nested = |model, pts: &[FrfPoint]| fit_model(model, pts, FitTarget::Human).unwrap();
+    // Both negative: only stiffness and inertia remain (χ² of that face by hand).
+    let pts = imaginary_line(-0.3, -2.0);
+    let free = nested(ImpedanceModel::M3, &pts);
+    assert!(free.params.b_nm_s_per_rad < 0.0 && free.params.h_nm_per_rad < 0.0);
+    let nn = fit_nn(&pts);
+    assert_eq!(nn.held_at_zero, [false, true, false, true]);
+    assert_eq!((nn.params.b_nm_s_per_rad, nn.params.h_nm_per_rad), (0.0, 0.0));
+    let chi2_im: f64 = pts.iter().map(|p| 2.0 * p.value.im * p.value.im / 0.01).sum();
+    let m1 = nested(ImpedanceModel::M1, &pts);
+    // Real parts as M1's (same real-part terms), imaginary parts unexplained.
+    let chi2_re = m1.chi2
+        - pts
+            .iter()
+            .map(|p| {
+                let r = p.value.im - m1.params.b_nm_s_per_rad * p.omega_rad_s;
+                2.0 * r * r / 0.01
+            })
+            .sum::<f64>();
+    assert!((nn.chi2 / (chi2_re + chi2_im) - 1.0).abs() < 1e-9, "{} vs {}", nn.chi2, chi2_re + chi2_im);
+    assert_eq!(nn.dof, 20 - 2);
+    // B > 0, H < 0: the best face holds H (= M1), though holding B also
+    // leaves a feasible (worse) fit and is tried first.
+    let pts = imaginary_line(0.5, -1.0);
+    let nn = fit_nn(&pts);
+    assert_eq!(nn.held_at_zero, [false, false, false, true]);
+    let m1 = nested(ImpedanceModel::M1, &pts);
+    assert!((nn.params.b_nm_s_per_rad - m1.params.b_nm_s_per_rad).abs() < 1e-9);
+    // B < 0, H > 0: holds B (= M2).
+    let pts = imaginary_line(-0.2, 5.0);
+    let nn = fit_nn(&pts);
+    assert_eq!(nn.held_at_zero, [false, true, false, false]);
+    let m2 = nested(ImpedanceModel::M2, &pts);
+    assert!((nn.params.h_nm_per_rad - m2.params.h_nm_per_rad).abs() < 1e-9);
+    assert_eq!(nn.params.b_nm_s_per_rad, 0.0);
+}

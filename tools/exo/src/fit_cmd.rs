@@ -606,7 +606,12 @@ pub fn tables(r: &FitReport) -> String {
                 )
             })
             .collect();
-        let _ = writeln!(s, "  {:>8}  {}", p.subject, cells.join("   "));
+        let cells = if cells.is_empty() {
+            "no point: every experiment has three frequencies or fewer, and the highest three are left out".to_string()
+        } else {
+            cells.join("   ")
+        };
+        let _ = writeln!(s, "  {:>8}  {cells}", p.subject);
     }
     let _ = writeln!(s, "\nM2 parameters (Table III layout)");
     for sub in &r.subjects {
