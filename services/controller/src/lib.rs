@@ -14,8 +14,15 @@
 //! cuff applies to the human, so `S_h = τ_c/θ_e = M_h s² + K(1 + cj)`, and the
 //! amplification feeds `−(α − 1)τ_c` to the actuator (Fig. 2).
 //!
-//! `main.rs` (the process) only moves samples between iceoryx2 and
-//! [`controller::Controller::tick`], which makes no heap allocation.
+//! Operator commands (`exo op`, `exo_messages::OperatorCommand`) are
+//! decided by [`controller::Controller::on_operator`]: reset the fault
+//! latch, adopt a fractional order f, stop the protocol (ramp out, then hold
+//! gravity compensation in mode `Run`, no fault) or (re)start it at an
+//! experiment; the protocol's position is a [`controller::ProtocolRun`].
+//!
+//! `main.rs` (the process) only moves samples and operator commands between
+//! iceoryx2 and [`controller::Controller::tick`] and
+//! [`controller::Controller::on_operator`], which make no heap allocation.
 
 pub mod amplification;
 pub mod controller;
@@ -23,6 +30,8 @@ pub mod protocol;
 pub mod safety;
 
 pub use amplification::Amplifier;
-pub use controller::{Controller, ControllerError, Tick, TickInput};
+pub use controller::{
+    Controller, ControllerError, OperatorOutcome, OperatorRefusal, ProtocolRun, Tick, TickInput,
+};
 pub use protocol::{Phase, Protocol, ProtocolPoint};
 pub use safety::{Fault, FaultLatch, Limits};

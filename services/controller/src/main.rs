@@ -7,12 +7,18 @@
 //! In real time, no sample within `safety.sample_deadline_ms` latches the
 //! safe state, once the stream is established (0.1 s of samples answered); in lockstep a stalled loop is the plant's
 //! or driver's to report.
+//!
+//! Operator commands (`<instance>/operator`, e.g. from `exo op`) are taken
+//! before each sample is answered and handed to
+//! [`exo_controller::Controller::on_operator`], which decides; this file
+//! only logs the outcome (a refusal as a warning). A stopped protocol holds
+//! gravity compensation and does not end the run.
 
 use std::time::{Duration, Instant};
 
 use anyhow::{bail, Result};
 use exo_config::{RunConfig, TimingMode};
-use exo_controller::controller::Mode;
+use exo_controller::controller::{Mode, OperatorOutcome};
 use exo_controller::{Controller, Fault, TickInput};
 use exo_messages::{
     ActuatorCommand, ControlMode, ImpedanceEstimate, OperatorCommand, ProtocolState, SensorSample,
@@ -24,9 +30,6 @@ use exo_service_kit::{
 };
 use tracing::{error, info, warn};
 
-const OPERATOR_RESET_FAULT: u32 = 1;
-const OPERATOR_ADOPT_F: u32 = 2;
-const OPERATOR_STOP: u32 = 3;
 /// `status` bits meaning "do not act on this sample" (`exo_messages::status`).
 const FAULT_MASK: u32 = 0b1111;
 
@@ -60,9 +63,12 @@ fn run(args: ServiceArgs) -> Result<()> {
     let sensor_in = ipc
         .inbox::<SensorSample>(Channel::Sensor, 64)?
         .with_spin(cfg.lockstep_spin());
+    // The operator inbox is opened before the protocol outbox: `exo op`
+    // takes a publisher on the protocol channel as the sign that the
+    // controller's operator subscriber exists.
+    let operator_in = ipc.inbox::<OperatorCommand>(Channel::Operator, 16)?;
     let command_out = ipc.outbox::<ActuatorCommand>(Channel::Command)?;
     let protocol_out = ipc.outbox::<ProtocolState>(Channel::Protocol)?;
-    let operator_in = ipc.inbox::<OperatorCommand>(Channel::Operator, 16)?;
     let estimate_in = ipc.inbox::<ImpedanceEstimate>(Channel::IdentifierEstimate, 16)?;
     let mut controller = Controller::from_config(&cfg)?;
     if cfg.run.timing == TimingMode::Realtime {
@@ -131,26 +137,14 @@ fn run(args: ServiceArgs) -> Result<()> {
             }
         }
         while let Some(op) = operator_in.try_recv()? {
-            match op.kind {
-                OPERATOR_RESET_FAULT => {
-                    controller.reset_fault();
-                    reported = None;
-                    info!("controller: operator reset of the fault latch");
-                }
-                OPERATOR_ADOPT_F => {
-                    let ok = controller.adopt_fractional_order(op.value);
-                    info!(
-                        "controller: operator asks to adopt f = {} → {}",
-                        op.value,
-                        if ok {
-                            "adopted"
-                        } else {
-                            "refused (outside bounds)"
-                        }
-                    );
-                }
-                OPERATOR_STOP => controller.raise(Fault::SampleTimeout),
-                _ => warn!("controller: unknown operator command {}", op.kind),
+            let outcome = controller.on_operator(&op);
+            if outcome.is_refusal() {
+                warn!("controller: operator command seq {}: {outcome}", op.seq);
+            } else {
+                info!("controller: operator command seq {}: {outcome}", op.seq);
+            }
+            if let OperatorOutcome::FaultReset { cleared: Some(_) } = outcome {
+                reported = None;
             }
         }
         while let Some(e) = estimate_in.try_recv()? {
@@ -191,6 +185,12 @@ fn run(args: ServiceArgs) -> Result<()> {
                 stamp_ns: s.stamp_ns,
                 ..Default::default()
             })?;
+            if key != last_protocol && p.experiment == 0 && !p.done {
+                info!(
+                    "controller: protocol stopped; holding gravity compensation (sim {:.1} s)",
+                    tick.t_s
+                );
+            }
             if (key.0, key.1) != (last_protocol.0, last_protocol.1) && p.experiment > 0 {
                 info!(
                     "controller: experiment {} period {} (ω = {:.2} rad/s, {:.1} Nm, α = {}), sim {:.1} s, wall {:.1} s",

@@ -101,49 +101,176 @@ impl Protocol {
 
     /// The state at time `t_s` since the protocol started. Allocation-free.
     pub fn at(&self, t_s: f64) -> ProtocolPoint {
+        self.at_from(0, t_s)
+    }
+
+    /// The state `rel_s` after the protocol was (re)started at the
+    /// beginning of step `from_step` (an operator start): the steps from
+    /// there on follow each other as they do from the beginning, so
+    /// `at_from(0, t)` is [`Protocol::at`]. Allocation-free.
+    pub fn at_from(&self, from_step: usize, rel_s: f64) -> ProtocolPoint {
+        let idle = self.idle(self.steps.last().map_or(0.0, |(e, _)| e.load_kg));
+        if rel_s.is_nan() || rel_s < 0.0 || self.timing.period_s() <= 0.0 {
+            return ProtocolPoint {
+                done: false,
+                ..idle
+            };
+        }
+        match self.locate_from(from_step, rel_s) {
+            Some((index, tau)) => self.point(index, tau),
+            None => idle,
+        }
+    }
+
+    /// The step (index into the run's sequence of experiment and period)
+    /// `rel_s` after a start at step `from_step`, and the time into its
+    /// period (s); `None` past the last step.
+    pub fn locate_from(&self, from_step: usize, rel_s: f64) -> Option<(usize, f64)> {
         let period_s = self.timing.period_s();
-        let idle = ProtocolPoint {
+        if rel_s.is_nan() || rel_s < 0.0 || period_s <= 0.0 {
+            return None;
+        }
+        let k = (rel_s / period_s).floor();
+        let index = from_step.checked_add(k as usize)?;
+        (index < self.steps.len()).then_some((index, rel_s - k * period_s))
+    }
+
+    /// Duration of one period (s).
+    pub fn period_s(&self) -> f64 {
+        self.timing.period_s()
+    }
+
+    /// Duration of a period's ramp-out (s), also the ramp-out after an
+    /// operator stop.
+    pub fn ramp_out_s(&self) -> f64 {
+        self.timing.ramp_out_s
+    }
+
+    /// Experiment and period of step `index`.
+    pub fn step(&self, index: usize) -> Option<(u32, u32)> {
+        self.steps.get(index).map(|(e, p)| (e.number, *p))
+    }
+
+    /// The first step of experiment `number`, if the run has it.
+    pub fn first_step_of(&self, number: u32) -> Option<usize> {
+        self.steps.iter().position(|(e, _)| e.number == number)
+    }
+
+    /// The run's experiments as a bit set (bit `n` = experiment `n`), for
+    /// messages that must not allocate.
+    pub fn experiment_set(&self) -> u32 {
+        self.steps
+            .iter()
+            .filter(|(e, _)| e.number < 32)
+            .fold(0, |set, (e, _)| set | (1 << e.number))
+    }
+
+    /// Whether `tau_s` into a period is before the end of its analysis
+    /// window (a period stopped there has not been measured completely).
+    pub fn before_analysis_end(&self, tau_s: f64) -> bool {
+        let t = &self.timing;
+        tau_s < t.ramp_in_s + t.settling_s + t.analysis_s
+    }
+
+    /// Whether step `index` applies neither bias nor excitation `tau_s`
+    /// into its period (in its rest, or the ramp-in of an experiment
+    /// without bias): an operator stop or start then has nothing to ramp out.
+    pub fn quiet(&self, index: usize, tau_s: f64) -> bool {
+        let Some((e, period)) = self.steps.get(index) else {
+            return true;
+        };
+        let (_, bias_fraction, envelope) = self.shape(tau_s);
+        bias_fraction * e.bias_nm == 0.0
+            && (envelope == 0.0 || self.table.amplitude_nm(e, *period) == 0.0)
+    }
+
+    /// The state `elapsed_s` after an operator stop `tau_stop_s` into step
+    /// `index`: the bias and the excitation envelope keep the values they
+    /// had at the stop (the sine keeps its phase and frequency) and fade to
+    /// zero with the ramp-out's raised cosine over [`Protocol::ramp_out_s`];
+    /// reported as [`Phase::RampOut`] of that experiment and period (so the
+    /// identifier ends an analysis window there). Continuous with
+    /// [`Protocol::at_from`] at the stop. Allocation-free.
+    pub fn stopping(&self, index: usize, tau_stop_s: f64, elapsed_s: f64) -> ProtocolPoint {
+        let Some((e, period)) = self.steps.get(index) else {
+            return self.idle(0.0);
+        };
+        let t = &self.timing;
+        let (_, bias_fraction, envelope) = self.shape(tau_stop_s);
+        let fade = 1.0 - smooth_step(elapsed_s / t.ramp_out_s);
+        let omega = self.table.omega_rad_s(e, *period);
+        let amplitude = self.table.amplitude_nm(e, *period);
+        let excitation = if tau_stop_s >= t.ramp_in_s {
+            fade * envelope * amplitude * (omega * (tau_stop_s + elapsed_s - t.ramp_in_s)).sin()
+        } else {
+            0.0
+        };
+        ProtocolPoint {
+            experiment: e.number,
+            period: *period,
+            phase: Phase::RampOut,
+            omega_rad_s: omega,
+            amplitude_nm: amplitude,
+            alpha: e.alpha,
+            load_kg: e.load_kg,
+            grip_kg: e.grip_kg,
+            bias_nm: e.bias_nm,
+            tau_bias_nm: fade * bias_fraction * e.bias_nm,
+            tau_excitation_nm: excitation,
+            done: false,
+        }
+    }
+
+    /// The state while stopped by the operator after step `index`: no
+    /// experiment ([`Phase::Idle`], experiment and period 0), no bias or
+    /// excitation, α = 1, that step's load (still on the arm), not done.
+    pub fn held(&self, index: usize) -> ProtocolPoint {
+        let load = self
+            .steps
+            .get(index)
+            .or(self.steps.last())
+            .map_or(0.0, |(e, _)| e.load_kg);
+        ProtocolPoint {
+            done: false,
+            ..self.idle(load)
+        }
+    }
+
+    /// Before the first or after the last step, with `load_kg` on the arm.
+    fn idle(&self, load_kg: f64) -> ProtocolPoint {
+        ProtocolPoint {
             experiment: 0,
             period: 0,
             phase: Phase::Idle,
             omega_rad_s: 0.0,
             amplitude_nm: 0.0,
             alpha: 1.0,
-            load_kg: self.steps.last().map_or(0.0, |(e, _)| e.load_kg),
+            load_kg,
             grip_kg: 0.0,
             bias_nm: 0.0,
             tau_bias_nm: 0.0,
             tau_excitation_nm: 0.0,
-            done: t_s >= 0.0,
-        };
-        if t_s.is_nan() || t_s < 0.0 || period_s <= 0.0 {
-            return ProtocolPoint {
-                done: false,
-                ..idle
-            };
+            done: true,
         }
-        let index = (t_s / period_s).floor() as usize;
-        let Some((e, period)) = self.steps.get(index) else {
-            return idle;
-        };
-        let tau = t_s - index as f64 * period_s;
+    }
+
+    /// Phase, bias fraction and excitation envelope `tau_s` into a period.
+    fn shape(&self, tau_s: f64) -> (Phase, f64, f64) {
         let t = &self.timing;
-        let omega = self.table.omega_rad_s(e, *period);
-        let amplitude = self.table.amplitude_nm(e, *period);
         let sine_start = t.ramp_in_s;
         let analysis_start = sine_start + t.settling_s;
         let ramp_out_start = analysis_start + t.analysis_s;
         let rest_start = ramp_out_start + t.ramp_out_s;
-        let (phase, bias_fraction) = if tau < sine_start {
-            (Phase::RampIn, smooth_step(tau / t.ramp_in_s))
-        } else if tau < analysis_start {
+        let (phase, bias_fraction) = if tau_s < sine_start {
+            (Phase::RampIn, smooth_step(tau_s / t.ramp_in_s))
+        } else if tau_s < analysis_start {
             (Phase::Settling, 1.0)
-        } else if tau < ramp_out_start {
+        } else if tau_s < ramp_out_start {
             (Phase::Analysis, 1.0)
-        } else if tau < rest_start {
+        } else if tau_s < rest_start {
             (
                 Phase::RampOut,
-                1.0 - smooth_step((tau - ramp_out_start) / t.ramp_out_s),
+                1.0 - smooth_step((tau_s - ramp_out_start) / t.ramp_out_s),
             )
         } else {
             (Phase::Rest, 0.0)
@@ -154,12 +281,21 @@ impl Protocol {
         // carries for many seconds into the analysis window and the next
         // period. The analysis window always sees the full amplitude.
         let envelope = match phase {
-            Phase::Settling => smooth_step((tau - sine_start) / (0.5 * t.settling_s)),
+            Phase::Settling => smooth_step((tau_s - sine_start) / (0.5 * t.settling_s)),
             Phase::Analysis => 1.0,
-            Phase::RampOut => 1.0 - smooth_step((tau - ramp_out_start) / t.ramp_out_s),
+            Phase::RampOut => 1.0 - smooth_step((tau_s - ramp_out_start) / t.ramp_out_s),
             _ => 0.0,
         };
-        let excitation = envelope * amplitude * (omega * (tau - sine_start)).sin();
+        (phase, bias_fraction, envelope)
+    }
+
+    /// The state `tau_s` into step `index` (which exists).
+    fn point(&self, index: usize, tau_s: f64) -> ProtocolPoint {
+        let (e, period) = &self.steps[index];
+        let (phase, bias_fraction, envelope) = self.shape(tau_s);
+        let omega = self.table.omega_rad_s(e, *period);
+        let amplitude = self.table.amplitude_nm(e, *period);
+        let excitation = envelope * amplitude * (omega * (tau_s - self.timing.ramp_in_s)).sin();
         ProtocolPoint {
             experiment: e.number,
             period: *period,
@@ -278,5 +414,50 @@ mod tests {
             assert!(b >= prev - 1e-12 && (b - prev).abs() < 0.02);
             prev = b;
         }
+    }
+
+    #[test]
+    fn a_restart_and_an_operator_stop_follow_the_same_periods() {
+        let t = table();
+        let p = Protocol::new(&t, &[1, 4], Some(&[1, 4]));
+        let period = p.period_s();
+        // `at` is `at_from` the first step.
+        for x in [0.0, 3.3, 12.0, 30.0, 70.0, 4.0 * period + 1.0] {
+            assert_eq!(p.at(x), p.at_from(0, x));
+        }
+        // Restarted at step 2 (experiment 4, period 1): the same states as
+        // two periods into the protocol.
+        for x in [0.0, 6.0, 12.5, period - 0.5, period + 7.0] {
+            assert_eq!(p.at_from(2, x), p.at(2.0 * period + x));
+        }
+        assert!(p.at_from(3, period + 0.1).done);
+        assert_eq!(p.first_step_of(4), Some(2));
+        assert_eq!(p.first_step_of(7), None);
+        assert_eq!(p.experiment_set(), (1 << 1) | (1 << 4));
+        // A stop 8 s into experiment 4's period 1 (sine fading in, bias 4 Nm):
+        // continuous at the stop, then faded to zero over the ramp-out.
+        let tau = 8.0;
+        let at_stop = p.at_from(2, tau);
+        let s0 = p.stopping(2, tau, 0.0);
+        assert_eq!(s0.tau_bias_nm, at_stop.tau_bias_nm);
+        assert!((s0.tau_excitation_nm - at_stop.tau_excitation_nm).abs() < 1e-12);
+        assert_eq!((s0.experiment, s0.period, s0.phase), (4, 1, Phase::RampOut));
+        let mut prev = s0;
+        for i in 1..=500 {
+            let s = p.stopping(2, tau, i as f64 * 0.01);
+            assert!(s.tau_bias_nm <= prev.tau_bias_nm);
+            assert!((s.tau_excitation_nm - prev.tau_excitation_nm).abs() < 2.0 * 3.0 * 0.01 + 1e-3);
+            prev = s;
+        }
+        assert_eq!((prev.tau_bias_nm, prev.tau_excitation_nm), (0.0, 0.0));
+        assert!(p.quiet(2, period - 0.1), "rest");
+        assert!(p.quiet(0, 2.0), "experiment 1's ramp-in has no bias");
+        assert!(!p.quiet(2, 2.0), "experiment 4's has");
+        let held = p.held(2);
+        assert_eq!(
+            (held.experiment, held.phase, held.done),
+            (0, Phase::Idle, false)
+        );
+        assert_eq!(held.load_kg, 4.5);
     }
 }

@@ -13,6 +13,11 @@
 //! stands still while waiting, so a missing command is declared after
 //! `safety.lockstep_timeout_ms` of wall time and the safe torque is applied
 //! at that same simulated tick.
+//!
+//! Operator commands (`<instance>/operator`, e.g. from `exo op`): the
+//! driver acts on `ResetFault` (clears its latched safe state), each `seq`
+//! once; the other kinds are the controller's, and an unknown kind is
+//! refused with a warning naming the known ones.
 
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
@@ -22,7 +27,10 @@ mod backends;
 mod replay;
 
 use exo_config::{BusBackend, RunConfig, TimingMode};
-use exo_messages::{ActuatorCommand, OperatorCommand, ProtocolState, SensorSample};
+use exo_messages::operator::{KnownKinds, SeenSeqs};
+use exo_messages::{
+    ActuatorCommand, OperatorCommand, OperatorCommandKind, ProtocolState, SensorSample,
+};
 use exo_sensor_driver::{Calibration, Driver, HardwareBus, RoundTrip};
 use exo_service_kit::channels::Channel;
 use exo_service_kit::ipc::{settle_connections, Inbox, Ipc, Outbox, REALTIME_SETTLE};
@@ -35,12 +43,10 @@ use exo_service_kit::{
     init_logging, monotonic_ns, request_realtime, RealtimeProcess, RealtimeRequest, ServiceArgs,
     StopFlag,
 };
-use tracing::{error, info};
+use tracing::{debug, error, info, warn};
 
 const RESEND_AFTER: Duration = Duration::from_millis(200);
 const STARTUP_PATIENCE: Duration = Duration::from_secs(60);
-/// `OperatorCommandKind::ResetFault`.
-const OPERATOR_RESET_FAULT: u32 = 1;
 
 /// Command line of `exo-sensor-driver`: every service's, plus the round-trip report.
 #[derive(Debug, Parser)]
@@ -218,6 +224,7 @@ fn serve<B: HardwareBus>(
 ) -> Result<()> {
     let mut armed = false;
     let mut reported_latch = false;
+    let mut operator_seqs = SeenSeqs::default();
     while !stop.requested() {
         let Some(frame) = bus.read(Duration::from_millis(100))? else {
             continue;
@@ -226,10 +233,40 @@ fn serve<B: HardwareBus>(
             driver.set_load_kg(p.load_kg);
         }
         while let Some(op) = ports.operator_in.try_recv()? {
-            if op.kind == OPERATOR_RESET_FAULT {
-                info!("sensor-driver: operator reset of the safe state");
-                driver.reset();
-                reported_latch = false;
+            if !operator_seqs.first_time(op.seq) {
+                info!(
+                    "sensor-driver: operator command seq {}: already handled; ignored",
+                    op.seq
+                );
+                continue;
+            }
+            match OperatorCommandKind::from_u32(op.kind) {
+                Some(kind @ OperatorCommandKind::ResetFault) if op.validate().is_err() => warn!(
+                    "sensor-driver: operator command seq {}: {kind} refused: value {} is not finite; nothing changed",
+                    op.seq, op.value
+                ),
+                Some(OperatorCommandKind::ResetFault) => {
+                    match driver.latched() {
+                        Some(event) => info!(
+                            "sensor-driver: operator command seq {}: safe state reset (was: {event:?}); commands are applied again",
+                            op.seq
+                        ),
+                        None => info!(
+                            "sensor-driver: operator command seq {}: reset (no safe state was latched)",
+                            op.seq
+                        ),
+                    }
+                    driver.reset();
+                    reported_latch = false;
+                }
+                Some(kind) => debug!(
+                    "sensor-driver: operator command seq {}: {kind} is the controller's",
+                    op.seq
+                ),
+                None => warn!(
+                    "sensor-driver: operator command seq {}: unknown operator command kind {} refused (known kinds: {KnownKinds}); nothing changed",
+                    op.seq, op.kind
+                ),
             }
         }
         let s = driver.on_frame(&frame);

@@ -15,9 +15,16 @@ pub enum OperatorCommandKind {
     /// `recommended_f`.
     AdoptFractionalOrder = 2,
     /// Start (or resume) the protocol; `value` is the experiment number to
-    /// start at (1–9), or 0 for the next one.
+    /// start at (1–9), or 0 for the next one. The controller restarts the
+    /// protocol at the first period of that experiment (one of the run's
+    /// `protocol.experiments`), ramping the running period out first if
+    /// one is under way; 0 continues a stopped protocol (the interrupted
+    /// period again if it stopped before the end of its analysis window,
+    /// else the next). Refused while a fault is latched.
     StartProtocol = 3,
     /// Stop the protocol: ramp out and hold gravity compensation, without a fault; `value` unused (0).
+    /// The controller stays in mode `Run`, holding gravity compensation
+    /// alone, until a `StartProtocol` or the end of the run.
     StopProtocol = 4,
 }
 
@@ -44,6 +51,77 @@ impl OperatorCommandKind {
     /// The raw code sent in [`OperatorCommand::kind`].
     pub fn as_u32(self) -> u32 {
         self as u32
+    }
+
+    /// The kind's name, e.g. `"ResetFault"`.
+    pub fn name(self) -> &'static str {
+        match self {
+            OperatorCommandKind::ResetFault => "ResetFault",
+            OperatorCommandKind::AdoptFractionalOrder => "AdoptFractionalOrder",
+            OperatorCommandKind::StartProtocol => "StartProtocol",
+            OperatorCommandKind::StopProtocol => "StopProtocol",
+        }
+    }
+}
+
+/// `ResetFault (1)`.
+impl core::fmt::Display for OperatorCommandKind {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        write!(f, "{} ({})", self.name(), self.as_u32())
+    }
+}
+
+/// Every kind with its code, for a message about an unknown one:
+/// `1 ResetFault, 2 AdoptFractionalOrder, 3 StartProtocol, 4 StopProtocol`.
+#[derive(Debug, Clone, Copy)]
+pub struct KnownKinds;
+
+impl core::fmt::Display for KnownKinds {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        for (i, k) in OperatorCommandKind::ALL.iter().enumerate() {
+            let sep = if i == 0 { "" } else { ", " };
+            write!(f, "{sep}{} {}", k.as_u32(), k.name())?;
+        }
+        Ok(())
+    }
+}
+
+/// The `seq`s a receiver has handled lately, so that it acts on each once
+/// (a command delivered twice, e.g. from a publisher's history to a
+/// subscriber that connects late, or sent twice by mistake, is not acted
+/// on again). Fixed storage: the last [`SeenSeqs::CAPACITY`] distinct
+/// `seq`s, which makes no assumption about their order (the `exo` tool
+/// uses the wall clock, a test may count from 1). Allocation-free.
+#[derive(Debug, Clone, Copy)]
+pub struct SeenSeqs {
+    seqs: [u64; SeenSeqs::CAPACITY],
+    len: usize,
+    next: usize,
+}
+
+impl Default for SeenSeqs {
+    fn default() -> Self {
+        SeenSeqs {
+            seqs: [0; SeenSeqs::CAPACITY],
+            len: 0,
+            next: 0,
+        }
+    }
+}
+
+impl SeenSeqs {
+    /// How many `seq`s are remembered.
+    pub const CAPACITY: usize = 64;
+
+    /// Whether `seq` is new (and remembers it); `false` for a repeat.
+    pub fn first_time(&mut self, seq: u64) -> bool {
+        if self.seqs[..self.len].contains(&seq) {
+            return false;
+        }
+        self.seqs[self.next] = seq;
+        self.next = (self.next + 1) % Self::CAPACITY;
+        self.len = (self.len + 1).min(Self::CAPACITY);
+        true
     }
 }
 
@@ -166,5 +244,31 @@ mod tests {
         );
         let start = OperatorCommand::new(3, 4, OperatorCommandKind::StartProtocol, 10.0);
         assert_eq!(start.validate().unwrap_err().field(), "value");
+    }
+
+    #[test]
+    fn kinds_are_named_with_their_codes() {
+        assert_eq!(
+            OperatorCommandKind::StopProtocol.to_string(),
+            "StopProtocol (4)"
+        );
+        assert_eq!(
+            KnownKinds.to_string(),
+            "1 ResetFault, 2 AdoptFractionalOrder, 3 StartProtocol, 4 StopProtocol"
+        );
+    }
+
+    #[test]
+    fn each_seq_is_seen_once() {
+        let mut seen = SeenSeqs::default();
+        assert!(seen.first_time(7));
+        assert!(!seen.first_time(7));
+        assert!(seen.first_time(3), "order does not matter");
+        for s in 100..100 + SeenSeqs::CAPACITY as u64 {
+            assert!(seen.first_time(s));
+        }
+        // Only the last CAPACITY are remembered.
+        assert!(seen.first_time(7));
+        assert!(!seen.first_time(100 + SeenSeqs::CAPACITY as u64 - 1));
     }
 }

@@ -8,6 +8,8 @@
 //! - `exo tune SUBJECT`: the paper's tuning experiment, automated.
 //! - `exo fit`, `exo report`, `exo import`: recordings to the paper's tables and figures.
 //! - `exo reproduce`: the paper's modelling study, simulated and compared.
+//! - `exo diagnose`, `exo diagnose-bench`: what a plant model leaves out.
+//! - `exo op`: the operator console (reset, adopt f, start, stop).
 
 mod analysis;
 mod args;
@@ -17,6 +19,7 @@ mod diagnose_cmd;
 mod diagnose_report;
 mod fit_cmd;
 mod import_cmd;
+mod op_cmd;
 mod plot;
 mod report;
 mod report_cmd;
@@ -70,6 +73,9 @@ enum Command {
     /// Turn another rig's CSV (time, angle, torque, optional actuator torque)
     /// into a contract recording.
     Import(import_cmd::ImportArgs),
+    /// The operator console: send a running system one command (reset a
+    /// latched fault, adopt f, start or stop the protocol).
+    Op(op_cmd::OpArgs),
 }
 
 fn main() {
@@ -84,6 +90,7 @@ fn main() {
         Command::Reproduce(args) => reproduce_cmd::run(&args),
         Command::Diagnose(args) => diagnose_cmd::run(&args),
         Command::DiagnoseBench(args) => diagnose_bench::run(&args),
+        Command::Op(args) => op_cmd::run(&args),
     };
     if let Err(err) = result {
         eprintln!("exo: error: {err:#}");
