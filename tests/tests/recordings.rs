@@ -161,6 +161,43 @@ fn the_real_ankle_recording_is_imported_fitted_and_reported() {
         let t = &v["f_tests"]["all"][g];
         assert!(t["statistic"].as_f64().unwrap() >= 0.0 && t["critical"].as_f64().unwrap() > 1.0);
     }
+    // What no passive model explains is said, not printed silently: M3's
+    // residual far beyond each band's measured noise (the reflex), and a
+    // foot's inertia is implausible for an elbow but not for an ankle.
+    let warnings = |joint: &str, extra: &[&str]| -> (Value, Vec<String>) {
+        let mut args = vec!["fit", "--json", "--joint", joint];
+        args.extend_from_slice(extra);
+        args.push(rec.to_str().unwrap());
+        let out = exo(&args);
+        assert!(out.status.success(), "{}", stderr(&out));
+        let v: Value = serde_json::from_str(&stdout(&out)).unwrap();
+        let w = v["warnings"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|w| w.as_str().unwrap().to_string())
+            .collect();
+        (v, w)
+    };
+    let (_, w) = warnings("ankle", &[]);
+    assert!(
+        w.iter()
+            .any(|w| w.contains("experiment 1") && w.contains("M3: the residual is")),
+        "{w:?}"
+    );
+    assert!(!w.iter().any(|w| w.contains("M_h =")), "{w:?}");
+    let (_, w) = warnings("elbow", &[]);
+    assert!(
+        w.iter()
+            .any(|w| w.contains("M_h =") && w.contains("plausible for a human elbow")),
+        "{w:?}"
+    );
+    // Unweighted (the paper's OLS) M3 puts H below zero, within its interval;
+    // --nonneg-damping holds it at zero.
+    let (v, _) = warnings("ankle", &["--unweighted", "--nonneg-damping"]);
+    let m3 = &v["subjects"][0]["experiments"][0]["models"]["M3"];
+    assert_eq!(m3["H"].as_f64().unwrap(), 0.0, "{m3}");
+    assert_eq!(m3["held_at_zero"][0], "H", "{m3}");
     let out = exo(&[
         "report",
         rec.to_str().unwrap(),
