@@ -2,7 +2,10 @@
 //! value printed in the paper; the code under test computes it from the
 //! paper's inputs (never the reverse).
 
+mod rng;
 mod table3;
+
+use rng::SplitMix64;
 
 use exo_impedance::design::{design, DesignInputs};
 use exo_impedance::*;
@@ -339,20 +342,4 @@ fn noisy_points(truth: DynamicStiffness, w0: f64, sigma: f64, seed: u64) -> Vec<
             }
         })
         .collect()
-}
-
-struct SplitMix64(u64);
-impl SplitMix64 {
-    fn next_f64(&mut self) -> f64 {
-        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        ((z ^ (z >> 31)) >> 11) as f64 / (1u64 << 53) as f64
-    }
-    fn gaussian(&mut self) -> f64 {
-        let u1 = self.next_f64().max(1e-300);
-        let u2 = self.next_f64();
-        (-2.0 * u1.ln()).sqrt() * (2.0 * std::f64::consts::PI * u2).cos()
-    }
 }

@@ -14,21 +14,9 @@ fn omegas() -> Vec<f64> {
     (0..10).map(|i| 2.0 * 10f64.powf(0.1 * i as f64)).collect()
 }
 
-struct Rng(u64);
-impl Rng {
-    fn uniform(&mut self) -> f64 {
-        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        ((z ^ (z >> 31)) >> 11) as f64 / (1u64 << 53) as f64
-    }
-    fn gaussian(&mut self) -> f64 {
-        let u1 = self.uniform().max(1e-300);
-        let u2 = self.uniform();
-        (-2.0 * u1.ln()).sqrt() * (2.0 * std::f64::consts::PI * u2).cos()
-    }
-}
+mod rng;
+
+use rng::SplitMix64 as Rng;
 
 /// Points of `truth` with circular complex noise of `σ_k = sigma[k]`
 /// (`E|δ|² = σ²`, so σ/√2 in each part), carrying their σ.
@@ -290,7 +278,8 @@ fn imaginary_line(b: f64, h: f64) -> Vec<FrfPoint> {
         .enumerate()
         .map(|(k, &w)| {
             // A small deterministic wobble so no face fits exactly.
-            let v = truth.response(w) + Complex64::new(0.0, 0.05 * if k % 2 == 0 { 1.0 } else { -1.0 });
+            let v =
+                truth.response(w) + Complex64::new(0.0, 0.05 * if k % 2 == 0 { 1.0 } else { -1.0 });
             FrfPoint::new(w, v.re, v.im).with_std_dev(0.1)
         })
         .collect()
@@ -302,7 +291,13 @@ fn imaginary_line(b: f64, h: f64) -> Vec<FrfPoint> {
 #[test]
 fn non_negative_damping_finds_the_best_feasible_face() {
     let fit_nn = |pts: &[FrfPoint]| {
-        fit_model_with(ImpedanceModel::M3, pts, FitTarget::Human, DampingSign::NonNegative).unwrap()
+        fit_model_with(
+            ImpedanceModel::M3,
+            pts,
+            FitTarget::Human,
+            DampingSign::NonNegative,
+        )
+        .unwrap()
     };
     let nested = |model, pts: &[FrfPoint]| fit_model(model, pts, FitTarget::Human).unwrap();
     // Both negative: only stiffness and inertia remain (χ² of that face by hand).
@@ -311,8 +306,14 @@ fn non_negative_damping_finds_the_best_feasible_face() {
     assert!(free.params.b_nm_s_per_rad < 0.0 && free.params.h_nm_per_rad < 0.0);
     let nn = fit_nn(&pts);
     assert_eq!(nn.held_at_zero, [false, true, false, true]);
-    assert_eq!((nn.params.b_nm_s_per_rad, nn.params.h_nm_per_rad), (0.0, 0.0));
-    let chi2_im: f64 = pts.iter().map(|p| 2.0 * p.value.im * p.value.im / 0.01).sum();
+    assert_eq!(
+        (nn.params.b_nm_s_per_rad, nn.params.h_nm_per_rad),
+        (0.0, 0.0)
+    );
+    let chi2_im: f64 = pts
+        .iter()
+        .map(|p| 2.0 * p.value.im * p.value.im / 0.01)
+        .sum();
     let m1 = nested(ImpedanceModel::M1, &pts);
     // Real parts as M1's (same real-part terms), imaginary parts unexplained.
     let chi2_re = m1.chi2
@@ -323,7 +324,12 @@ fn non_negative_damping_finds_the_best_feasible_face() {
                 2.0 * r * r / 0.01
             })
             .sum::<f64>();
-    assert!((nn.chi2 / (chi2_re + chi2_im) - 1.0).abs() < 1e-9, "{} vs {}", nn.chi2, chi2_re + chi2_im);
+    assert!(
+        (nn.chi2 / (chi2_re + chi2_im) - 1.0).abs() < 1e-9,
+        "{} vs {}",
+        nn.chi2,
+        chi2_re + chi2_im
+    );
     assert_eq!(nn.dof, 20 - 2);
     // B > 0, H < 0: the best face holds H (= M1), though holding B also
     // leaves a feasible (worse) fit and is tried first.
