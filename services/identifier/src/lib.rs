@@ -1060,3 +1060,73 @@ impl Identifier {
         }
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn an_unset_alpha_is_one() {
+        assert_eq!(effective_alpha(2.0), 2.0);
+        assert_eq!(effective_alpha(0.5), 0.5);
+        for unset in [0.0, -1.0, f64::NAN, f64::INFINITY, f64::NEG_INFINITY] {
+            assert_eq!(effective_alpha(unset), 1.0, "{unset}");
+        }
+    }
+
+    #[test]
+    fn each_source_fits_its_own_transfer_function_weighted_by_its_own_noise() {
+        let p = FrfPoint {
+            omega: 5.0,
+            s_h_re: 3.0,
+            s_h_im: 4.0,
+            noise_rel: 0.01,
+            s_he_re: -6.0,
+            s_he_im: 8.0,
+            s_he_noise_rel: 0.02,
+            ..Default::default()
+        };
+        let [cuff] = FitSource::CuffTorque.fit_points(&[p])[..] else {
+            panic!("one point")
+        };
+        // σ = noise_rel · |S|: 0.01 · 5 and 0.02 · 10.
+        assert_eq!(cuff.value, Complex64::new(3.0, 4.0));
+        assert!((cuff.std_dev_nm_per_rad - 0.05).abs() < 1e-15);
+        let [act] = FitSource::ActuatorTorque.fit_points(&[p])[..] else {
+            panic!("one point")
+        };
+        assert_eq!(act.value, Complex64::new(-6.0, 8.0));
+        assert!((act.std_dev_nm_per_rad - 0.2).abs() < 1e-15);
+        assert_eq!(act.omega_rad_s, 5.0);
+        // Noise not measured (0, NaN, inf): σ = 0, the fit goes unweighted.
+        for rel in [0.0, f64::NAN, f64::INFINITY, -0.1] {
+            let q = FrfPoint {
+                noise_rel: rel,
+                ..p
+            };
+            let pts = FitSource::CuffTorque.fit_points(&[q]);
+            assert_eq!(pts[0].std_dev_nm_per_rad, 0.0, "{rel}");
+        }
+        assert_eq!(FitSource::CuffTorque.name(), "cuff");
+        assert_eq!(FitSource::ActuatorTorque.name(), "actuator");
+        assert_eq!(FitSource::CuffTorque.target(1.0), FitTarget::Human);
+        assert_eq!(
+            FitSource::ActuatorTorque.target(1.25),
+            FitTarget::ActuatorSide { m_e_kg_m2: 1.25 }
+        );
+    }
+
+    #[test]
+    fn models_with_too_few_points_say_how_many_they_need() {
+        let pts = [FitPoint::new(2.0, 20.0, 5.0)];
+        let fits = fit_models(&pts, FitTarget::Human, DampingSign::Free);
+        // M1, M2: 3 parameters → 2 points; M3: 4 → 3 points.
+        assert_eq!(fits[0], Err(ModelFitError::TooFewPoints { needed: 2 }));
+        assert_eq!(fits[1], Err(ModelFitError::TooFewPoints { needed: 2 }));
+        assert_eq!(fits[2], Err(ModelFitError::TooFewPoints { needed: 3 }));
+        let pts = [FitPoint::new(2.0, 20.0, 5.0), FitPoint::new(4.0, 18.0, 5.1)];
+        let fits = fit_models(&pts, FitTarget::Human, DampingSign::Free);
+        assert!(fits[0].is_ok() && fits[1].is_ok());
+        assert_eq!(fits[2], Err(ModelFitError::TooFewPoints { needed: 3 }));
+    }
+}
