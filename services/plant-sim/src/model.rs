@@ -24,8 +24,120 @@
 
 use std::path::Path;
 
+use exo_config::{range_of, Range, Ranges};
 use serde::{Deserialize, Serialize};
 use thiserror::Error;
+
+/// The largest Prony bank a plant model may ask for (elements): the bank is
+/// fitted by non-negative least squares and integrated with the rest of the
+/// state, so its size bounds both memory and time.
+pub const MAX_PRONY_ELEMENTS: usize = 200;
+
+/// The documented range of every numeric key of a plant model (the doc
+/// comment of each key says the same); [`PlantModel::validate`] checks
+/// them and, beyond them, band orders, the Prony bank's size (at most
+/// [`MAX_PRONY_ELEMENTS`]) and the integration step against the fastest
+/// mode. Array elements are written `[*]`.
+pub const PLANT_RANGES: Ranges = &[
+    ("human.inertia_kg_m2", Range::closed(0.001, 10.0)),
+    ("human.stiffness_nm_per_rad", Range::above(0.0, 5000.0)),
+    (
+        "human.hysteretic_damping.loss_factor",
+        Range::closed(0.0, 10.0),
+    ),
+    (
+        "human.hysteretic_damping.band_rad_s[*]",
+        Range::closed(0.001, 1e5),
+    ),
+    (
+        "human.hysteretic_damping.elements_per_decade",
+        Range::above(0.0, 50.0),
+    ),
+    (
+        "human.hysteretic_damping.reference_rad_s",
+        Range::above(0.0, 1e5),
+    ),
+    (
+        "human.hysteretic_damping.matched_band_decades[*]",
+        Range::closed(0.0, 3.0),
+    ),
+    (
+        "human.viscous_damping.b_nm_s_per_rad",
+        Range::closed(0.0, 1000.0),
+    ),
+    (
+        "human.stretch_reflex.gain_nm_s_per_rad",
+        Range::closed(0.0, 1000.0),
+    ),
+    ("human.stretch_reflex.delay_s", Range::closed(0.0, 1.0)),
+    ("human.stretch_reflex.cutoff_rad_s", Range::above(0.0, 1e4)),
+    (
+        "human.rest_angle_rad",
+        Range::closed(-std::f64::consts::TAU, std::f64::consts::TAU),
+    ),
+    (
+        "human.active_angle_rad",
+        Range::closed(-std::f64::consts::TAU, std::f64::consts::TAU),
+    ),
+    ("exo.arm_inertia_kg_m2", Range::above(0.0, 10.0)),
+    ("exo.load_lever_arm_m", Range::closed(0.0, 2.0)),
+    ("exo.load_kg", Range::closed(0.0, 50.0)),
+    ("gravity.arm_mass_kg", Range::closed(0.0, 50.0)),
+    ("gravity.arm_com_m", Range::closed(0.0, 2.0)),
+    ("gravity.g_m_s2", Range::closed(0.0, 20.0)),
+    (
+        "joint_friction.coulomb.torque_nm",
+        Range::closed(0.0, 100.0),
+    ),
+    (
+        "joint_friction.coulomb.smoothing_rad_s",
+        Range::above(0.0, 100.0),
+    ),
+    (
+        "joint_friction.viscous.b_nm_s_per_rad",
+        Range::closed(0.0, 1000.0),
+    ),
+    (
+        "cuff.compliance.stiffness_nm_per_rad",
+        Range::above(0.0, 1e6),
+    ),
+    (
+        "cuff.compliance.damping_nm_s_per_rad",
+        Range::closed(0.0, 1e4),
+    ),
+    (
+        "sea.dynamics.natural_frequency_hz",
+        Range::above(0.0, 1000.0),
+    ),
+    ("sea.dynamics.damping_ratio", Range::above(0.0, 10.0)),
+    ("sea.torque_limit_nm", Range::above(0.0, 1000.0)),
+    ("sea.spring_stiffness_nm_per_rad", Range::above(0.0, 1e6)),
+    ("actuator.delay_s", Range::closed(0.0, 1.0)),
+    ("sensors.encoder.counts_per_rev", Range::closed(1.0, 1e12)),
+    ("sensors.cuff_ft.lever_arm_m", Range::above(0.0, 2.0)),
+    (
+        "sensors.cuff_ft.force_resolution_n",
+        Range::closed(0.0, 100.0),
+    ),
+    (
+        "sensors.sea_deflection.counts_per_rev",
+        Range::closed(1.0, 1e12),
+    ),
+    ("sensors.encoder.gain", Range::closed(0.1, 10.0)),
+    ("sensors.encoder.offset", Range::closed(-10.0, 10.0)),
+    ("sensors.encoder.noise_std", Range::closed(0.0, 10.0)),
+    ("sensors.encoder.delay_s", Range::closed(0.0, 1.0)),
+    ("sensors.cuff_ft.gain", Range::closed(0.1, 10.0)),
+    ("sensors.cuff_ft.offset", Range::closed(-10.0, 10.0)),
+    ("sensors.cuff_ft.noise_std", Range::closed(0.0, 10.0)),
+    ("sensors.cuff_ft.delay_s", Range::closed(0.0, 1.0)),
+    ("sensors.sea_deflection.gain", Range::closed(0.1, 10.0)),
+    ("sensors.sea_deflection.offset", Range::closed(-10.0, 10.0)),
+    ("sensors.sea_deflection.noise_std", Range::closed(0.0, 10.0)),
+    ("sensors.sea_deflection.delay_s", Range::closed(0.0, 1.0)),
+    ("integration.step_s", Range::above(0.0, 1e-3)),
+    ("integration.seed", Range::closed(0.0, u64::MAX as f64)),
+];
 
 /// A plant-model error naming the file and the key.
 #[derive(Debug, Error)]
@@ -56,6 +168,9 @@ pub enum PlantModelError {
         /// What is wrong and what is allowed.
         message: String,
     },
+    /// Several values out of range, one per line.
+    #[error("{}", .0.iter().map(|e| e.to_string()).collect::<Vec<_>>().join("\n"))]
+    Several(Vec<PlantModelError>),
 }
 
 /// How hysteretic damping is simulated.
@@ -85,18 +200,20 @@ pub enum HysteresisMode {
 pub struct HystereticDamping {
     /// On or off.
     pub enabled: bool,
-    /// Default loss factor `c = H/K` (a subject file's H overrides it).
+    /// Default loss factor `c = H/K` (a subject file's H overrides it). Range [0, 10].
     pub loss_factor: f64,
     /// Simulation method.
     pub mode: HysteresisMode,
-    /// Band of the Prony bank (rad/s).
+    /// Band of the Prony bank (rad/s): [low, high], each in [0.001, 10⁵], low < high.
     pub band_rad_s: [f64; 2],
-    /// Relaxation times per decade.
+    /// Relaxation times per decade. Range (0, 50], and the bank of the
+    /// mode in use (over `band_rad_s`, or `matched_band_decades`, plus half
+    /// a decade each side) at most [`MAX_PRONY_ELEMENTS`] elements.
     pub elements_per_decade: f64,
-    /// Frequency where `Re K` equals the nominal K (rad/s).
+    /// Frequency where `Re K` equals the nominal K (rad/s). Range (0, 10⁵].
     pub reference_rad_s: f64,
     /// `prony_matched`: the band of constant loss factor, in decades below
-    /// and above the excitation frequency.
+    /// and above the excitation frequency: each in [0, 3], not both 0.
     #[serde(default = "default_matched_band_decades")]
     pub matched_band_decades: [f64; 2],
 }
@@ -112,7 +229,7 @@ pub fn default_matched_band_decades() -> [f64; 2] {
 pub struct ViscousTerm {
     /// On or off.
     pub enabled: bool,
-    /// Viscous coefficient (Nm·s/rad).
+    /// Viscous coefficient (Nm·s/rad). Range [0, 1000].
     pub b_nm_s_per_rad: f64,
 }
 
@@ -126,11 +243,12 @@ pub struct ViscousTerm {
 pub struct StretchReflex {
     /// On or off.
     pub enabled: bool,
-    /// Velocity gain `G` (Nm·s/rad).
+    /// Velocity gain `G` (Nm·s/rad). Range [0, 1000].
     pub gain_nm_s_per_rad: f64,
-    /// Pathway delay `δ` (s), e.g. 0.04 for an ankle.
+    /// Pathway delay `δ` (s), e.g. 0.04 for an ankle. Range [0, 1].
     pub delay_s: f64,
     /// Corner of the critically damped second-order low-pass `ω_c` (rad/s).
+    /// Range (0, 10 000].
     pub cutoff_rad_s: f64,
 }
 
@@ -149,9 +267,9 @@ impl Default for StretchReflex {
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct Human {
-    /// Forearm inertia `M_h` (kg·m²).
+    /// Forearm inertia `M_h` (kg·m²). Range [0.001, 10].
     pub inertia_kg_m2: f64,
-    /// Default joint stiffness `K_h` (Nm/rad).
+    /// Default joint stiffness `K_h` (Nm/rad). Range (0, 5000].
     pub stiffness_nm_per_rad: f64,
     /// Hysteretic damping (complex stiffness).
     pub hysteretic_damping: HystereticDamping,
@@ -160,9 +278,9 @@ pub struct Human {
     /// Stretch-reflex pathway (off when the section is absent).
     #[serde(default)]
     pub stretch_reflex: StretchReflex,
-    /// Posture the subject holds at rest and during a period (rad).
+    /// Posture the subject holds at rest and during a period (rad). Range [−2π, 2π].
     pub rest_angle_rad: f64,
-    /// Posture during a period (the paper: about 45°).
+    /// Posture during a period (the paper: about 45°). Range [−2π, 2π].
     pub active_angle_rad: f64,
 }
 
@@ -170,11 +288,11 @@ pub struct Human {
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct Exo {
-    /// Arm inertia without load (kg·m²); the paper: 0.1.
+    /// Arm inertia without load (kg·m²); the paper: 0.1. Range (0, 10].
     pub arm_inertia_kg_m2: f64,
-    /// Load lever arm (m); the paper: 0.45.
+    /// Load lever arm (m); the paper: 0.45. Range [0, 2].
     pub load_lever_arm_m: f64,
-    /// Default load (kg); the protocol's load overrides it.
+    /// Default load (kg); the protocol's load overrides it. Range [0, 50].
     pub load_kg: f64,
 }
 
@@ -184,11 +302,11 @@ pub struct Exo {
 pub struct Gravity {
     /// On or off.
     pub enabled: bool,
-    /// Arm mass (kg).
+    /// Arm mass (kg). Range [0, 50].
     pub arm_mass_kg: f64,
-    /// Arm centre of mass from the joint (m).
+    /// Arm centre of mass from the joint (m). Range [0, 2].
     pub arm_com_m: f64,
-    /// Gravitational acceleration (m/s²).
+    /// Gravitational acceleration (m/s²). Range [0, 20].
     pub g_m_s2: f64,
 }
 
@@ -198,9 +316,9 @@ pub struct Gravity {
 pub struct Coulomb {
     /// On or off.
     pub enabled: bool,
-    /// Friction torque magnitude (Nm).
+    /// Friction torque magnitude (Nm). Range [0, 100].
     pub torque_nm: f64,
-    /// Velocity (rad/s) over which `tanh` smooths the sign change.
+    /// Velocity (rad/s) over which `tanh` smooths the sign change. Range (0, 100].
     pub smoothing_rad_s: f64,
 }
 
@@ -220,9 +338,10 @@ pub struct JointFriction {
 pub struct CuffCompliance {
     /// On (compliant) or off (rigid).
     pub enabled: bool,
-    /// Stiffness (Nm/rad); the paper measured > 1000.
+    /// Stiffness (Nm/rad); the paper measured > 1000. Range (0, 10⁶], and
+    /// `√(stiffness/human.inertia_kg_m2) · integration.step_s` ≤ 0.5.
     pub stiffness_nm_per_rad: f64,
-    /// Damping (Nm·s/rad).
+    /// Damping (Nm·s/rad). Range [0, 10 000].
     pub damping_nm_s_per_rad: f64,
 }
 
@@ -240,9 +359,10 @@ pub struct Cuff {
 pub struct SeaDynamics {
     /// On (second order) or off (ideal: τ_s = τ_d).
     pub enabled: bool,
-    /// Natural frequency (Hz); the paper: 10.
+    /// Natural frequency (Hz); the paper: 10. Range (0, 1000], and
+    /// `2π · natural_frequency_hz · integration.step_s` ≤ 0.5.
     pub natural_frequency_hz: f64,
-    /// Damping ratio.
+    /// Damping ratio. Range (0, 10].
     pub damping_ratio: f64,
 }
 
@@ -252,9 +372,9 @@ pub struct SeaDynamics {
 pub struct Sea {
     /// Torque dynamics.
     pub dynamics: SeaDynamics,
-    /// Motor torque saturation (Nm).
+    /// Motor torque saturation (Nm). Range (0, 1000].
     pub torque_limit_nm: f64,
-    /// Spring stiffness (Nm/rad), for the deflection sensor.
+    /// Spring stiffness (Nm/rad), for the deflection sensor. Range (0, 10⁶].
     pub spring_stiffness_nm_per_rad: f64,
 }
 
@@ -262,7 +382,7 @@ pub struct Sea {
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct Actuator {
-    /// Pure delay on the motor command (s).
+    /// Pure delay on the motor command (s). Range [0, 1].
     pub delay_s: f64,
 }
 
@@ -270,13 +390,13 @@ pub struct Actuator {
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct SensorTerms {
-    /// Gain (1 = exact).
+    /// Gain (1 = exact). Range [0.1, 10].
     pub gain: f64,
-    /// Offset (sensor units: rad or Nm).
+    /// Offset (sensor units: rad or Nm). Range [−10, 10].
     pub offset: f64,
-    /// Gaussian noise standard deviation (rad or Nm).
+    /// Gaussian noise standard deviation (rad or Nm). Range [0, 10].
     pub noise_std: f64,
-    /// Pure delay (s).
+    /// Pure delay (s). Range [0, 1].
     pub delay_s: f64,
 }
 
@@ -284,7 +404,7 @@ pub struct SensorTerms {
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct Encoder {
-    /// Counts per revolution (quantisation).
+    /// Counts per revolution (quantisation). Range [1, 10¹²].
     pub counts_per_rev: f64,
     /// Error terms (offset in rad).
     #[serde(flatten)]
@@ -295,9 +415,9 @@ pub struct Encoder {
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct CuffFt {
-    /// Sensor distance from the joint (m).
+    /// Sensor distance from the joint (m). Range (0, 2].
     pub lever_arm_m: f64,
-    /// Force quantisation (N).
+    /// Force quantisation (N). Range [0, 100].
     pub force_resolution_n: f64,
     /// Error terms on τ_c (offset, noise in Nm).
     #[serde(flatten)]
@@ -308,7 +428,7 @@ pub struct CuffFt {
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct SeaDeflection {
-    /// Counts per revolution (quantisation).
+    /// Counts per revolution (quantisation). Range [1, 10¹²].
     pub counts_per_rev: f64,
     /// Error terms on τ_s (offset, noise in Nm).
     #[serde(flatten)]
@@ -331,9 +451,11 @@ pub struct Sensors {
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct Integration {
-    /// Fixed step (s); must divide the control period.
+    /// Fixed step (s); must divide the control period (`exo run` checks it
+    /// against `run.rate_hz`). Range (0, 0.001], and at most 0.5 / the
+    /// fastest mode (SEA, cuff compliance) in rad/s.
     pub step_s: f64,
-    /// Seed of the sensor noise.
+    /// Seed of the sensor noise. Any unsigned 64-bit integer.
     pub seed: u64,
 }
 
@@ -364,9 +486,15 @@ pub struct PlantModel {
 impl PlantModel {
     /// Parses and validates TOML text; `file` names it in errors.
     pub fn from_toml_str(text: &str, file: &str) -> Result<Self, PlantModelError> {
-        let m: PlantModel = toml::from_str(text).map_err(|e| PlantModelError::Parse {
-            file: file.to_string(),
-            message: e.to_string().trim_end().to_string(),
+        let m: PlantModel = toml::from_str(text).map_err(|e| {
+            let (key, message) = exo_config::describe_toml_error(text, &e);
+            PlantModelError::Parse {
+                file: file.to_string(),
+                message: match key {
+                    Some(k) => format!("{k}: {message}"),
+                    None => message,
+                },
+            }
         })?;
         m.validate(file)?;
         Ok(m)
@@ -386,186 +514,360 @@ impl PlantModel {
         toml::to_string(self).unwrap_or_default()
     }
 
-    /// Checks every value, naming the key at fault.
+    /// Checks every value, naming every key at fault (one error, or
+    /// [`PlantModelError::Several`]): each against its range in
+    /// [`PLANT_RANGES`], then band orders, the Prony bank's size and the
+    /// integration step against the fastest mode.
     pub fn validate(&self, file: &str) -> Result<(), PlantModelError> {
-        let bad = |key: &str, message: String| PlantModelError::Invalid {
-            file: file.to_string(),
-            key: key.to_string(),
-            message,
+        let mut errors: Vec<PlantModelError> = Vec::new();
+        let mut bad = |key: &str, message: String| {
+            errors.push(PlantModelError::Invalid {
+                file: file.to_string(),
+                key: key.to_string(),
+                message,
+            })
         };
-        let finite = |key: &str, v: f64| -> Result<(), PlantModelError> {
-            if v.is_finite() {
-                Ok(())
-            } else {
-                Err(bad(key, format!("must be a finite number, got {v}")))
+        let mut all_ok = true;
+        for (key, value) in self.numeric_keys() {
+            let range = range_of(PLANT_RANGES, &key).unwrap_or(Range::closed(f64::NAN, f64::NAN));
+            if !range.contains(value) {
+                all_ok = false;
+                bad(
+                    &key,
+                    if value.is_finite() {
+                        format!("must lie in {range}, got {}", exo_config::number(value))
+                    } else {
+                        format!("must be a finite number in {range}, got {value}")
+                    },
+                );
             }
-        };
-        let positive = |key: &str, v: f64| -> Result<(), PlantModelError> {
-            finite(key, v)?;
-            if v > 0.0 {
-                Ok(())
-            } else {
-                Err(bad(key, format!("must be greater than zero, got {v}")))
-            }
-        };
-        let non_negative = |key: &str, v: f64| -> Result<(), PlantModelError> {
-            finite(key, v)?;
-            if v >= 0.0 {
-                Ok(())
-            } else {
-                Err(bad(key, format!("must be zero or more, got {v}")))
-            }
-        };
-        let h = &self.human;
-        positive("human.inertia_kg_m2", h.inertia_kg_m2)?;
-        positive("human.stiffness_nm_per_rad", h.stiffness_nm_per_rad)?;
-        non_negative(
-            "human.hysteretic_damping.loss_factor",
-            h.hysteretic_damping.loss_factor,
-        )?;
-        positive(
-            "human.hysteretic_damping.band_rad_s[0]",
-            h.hysteretic_damping.band_rad_s[0],
-        )?;
-        positive(
-            "human.hysteretic_damping.band_rad_s[1]",
-            h.hysteretic_damping.band_rad_s[1],
-        )?;
-        if h.hysteretic_damping.band_rad_s[0] >= h.hysteretic_damping.band_rad_s[1] {
-            return Err(bad(
-                "human.hysteretic_damping.band_rad_s",
-                "must be [low, high] with low < high".into(),
-            ));
         }
-        positive(
-            "human.hysteretic_damping.elements_per_decade",
-            h.hysteretic_damping.elements_per_decade,
-        )?;
-        positive(
-            "human.hysteretic_damping.reference_rad_s",
-            h.hysteretic_damping.reference_rad_s,
-        )?;
-        let [below, above] = h.hysteretic_damping.matched_band_decades;
-        non_negative("human.hysteretic_damping.matched_band_decades[0]", below)?;
-        non_negative("human.hysteretic_damping.matched_band_decades[1]", above)?;
+        let h = &self.human.hysteretic_damping;
+        if h.band_rad_s[0] >= h.band_rad_s[1] {
+            bad(
+                "human.hysteretic_damping.band_rad_s[1]",
+                format!(
+                    "must be above human.hysteretic_damping.band_rad_s[0] = {} (the band is [low, high]), got {}",
+                    h.band_rad_s[0], h.band_rad_s[1]
+                ),
+            );
+        }
+        let [below, above] = h.matched_band_decades;
         if below + above <= 0.0 {
-            return Err(bad(
-                "human.hysteretic_damping.matched_band_decades",
-                "must be [below, above] with a band wider than zero".into(),
-            ));
+            for i in 0..2 {
+                bad(
+                    &format!("human.hysteretic_damping.matched_band_decades[{i}]"),
+                    "the band [below, above] must be wider than zero decades".into(),
+                );
+            }
         }
-        non_negative(
-            "human.viscous_damping.b_nm_s_per_rad",
-            h.viscous_damping.b_nm_s_per_rad,
-        )?;
-        non_negative(
-            "human.stretch_reflex.gain_nm_s_per_rad",
-            h.stretch_reflex.gain_nm_s_per_rad,
-        )?;
-        non_negative("human.stretch_reflex.delay_s", h.stretch_reflex.delay_s)?;
-        if h.stretch_reflex.delay_s > 1.0 {
-            return Err(bad(
-                "human.stretch_reflex.delay_s",
-                format!("must be at most 1 s, got {}", h.stretch_reflex.delay_s),
-            ));
+        if all_ok {
+            // The bank as `prony::PronyBank::fit` builds it: half a decade
+            // beyond the band each side.
+            let decades = match h.mode {
+                HysteresisMode::Prony => Some((h.band_rad_s[1] / h.band_rad_s[0]).log10()),
+                HysteresisMode::PronyMatched => Some(below + above),
+                HysteresisMode::EquivalentViscous => None,
+            };
+            if let Some(d) = decades {
+                let n = ((d + 1.0) * h.elements_per_decade).ceil() + 1.0;
+                if n > MAX_PRONY_ELEMENTS as f64 {
+                    bad(
+                        "human.hysteretic_damping.elements_per_decade",
+                        format!(
+                            "{} per decade over {:.2} decades makes a Prony bank of {n} elements; at most {MAX_PRONY_ELEMENTS}",
+                            h.elements_per_decade,
+                            d + 1.0
+                        ),
+                    );
+                }
+            }
+            let step = self.integration.step_s;
+            let w_max = [
+                2.0 * std::f64::consts::PI * self.sea.dynamics.natural_frequency_hz,
+                (self.cuff.compliance.stiffness_nm_per_rad / self.human.inertia_kg_m2).sqrt(),
+            ]
+            .into_iter()
+            .fold(0.0, f64::max);
+            if w_max * step > 0.5 {
+                bad(
+                    "integration.step_s",
+                    format!("{step} s is too coarse for the fastest mode ({w_max:.0} rad/s): use at most {:.2e}", 0.5 / w_max),
+                );
+            }
         }
-        positive(
-            "human.stretch_reflex.cutoff_rad_s",
-            h.stretch_reflex.cutoff_rad_s,
-        )?;
-        finite("human.rest_angle_rad", h.rest_angle_rad)?;
-        finite("human.active_angle_rad", h.active_angle_rad)?;
-        positive("exo.arm_inertia_kg_m2", self.exo.arm_inertia_kg_m2)?;
-        non_negative("exo.load_lever_arm_m", self.exo.load_lever_arm_m)?;
-        non_negative("exo.load_kg", self.exo.load_kg)?;
-        non_negative("gravity.arm_mass_kg", self.gravity.arm_mass_kg)?;
-        non_negative("gravity.arm_com_m", self.gravity.arm_com_m)?;
-        non_negative("gravity.g_m_s2", self.gravity.g_m_s2)?;
-        non_negative(
-            "joint_friction.coulomb.torque_nm",
-            self.joint_friction.coulomb.torque_nm,
-        )?;
-        positive(
-            "joint_friction.coulomb.smoothing_rad_s",
-            self.joint_friction.coulomb.smoothing_rad_s,
-        )?;
-        non_negative(
-            "joint_friction.viscous.b_nm_s_per_rad",
-            self.joint_friction.viscous.b_nm_s_per_rad,
-        )?;
-        positive(
-            "cuff.compliance.stiffness_nm_per_rad",
-            self.cuff.compliance.stiffness_nm_per_rad,
-        )?;
-        non_negative(
-            "cuff.compliance.damping_nm_s_per_rad",
-            self.cuff.compliance.damping_nm_s_per_rad,
-        )?;
-        positive(
-            "sea.dynamics.natural_frequency_hz",
-            self.sea.dynamics.natural_frequency_hz,
-        )?;
-        positive(
-            "sea.dynamics.damping_ratio",
-            self.sea.dynamics.damping_ratio,
-        )?;
-        positive("sea.torque_limit_nm", self.sea.torque_limit_nm)?;
-        positive(
-            "sea.spring_stiffness_nm_per_rad",
-            self.sea.spring_stiffness_nm_per_rad,
-        )?;
-        non_negative("actuator.delay_s", self.actuator.delay_s)?;
-        positive(
-            "sensors.encoder.counts_per_rev",
-            self.sensors.encoder.counts_per_rev,
-        )?;
-        positive(
-            "sensors.cuff_ft.lever_arm_m",
-            self.sensors.cuff_ft.lever_arm_m,
-        )?;
-        non_negative(
-            "sensors.cuff_ft.force_resolution_n",
-            self.sensors.cuff_ft.force_resolution_n,
-        )?;
-        positive(
-            "sensors.sea_deflection.counts_per_rev",
-            self.sensors.sea_deflection.counts_per_rev,
-        )?;
+        match errors.len() {
+            0 => Ok(()),
+            1 => Err(errors.remove(0)),
+            _ => Err(PlantModelError::Several(errors)),
+        }
+    }
+
+    /// Every numeric key of the model with its value, in file order.
+    pub fn numeric_keys(&self) -> Vec<(String, f64)> {
+        let h = &self.human;
+        let d = &h.hysteretic_damping;
+        let r = &h.stretch_reflex;
+        let mut out: Vec<(String, f64)> = vec![
+            ("human.inertia_kg_m2".into(), h.inertia_kg_m2),
+            ("human.stiffness_nm_per_rad".into(), h.stiffness_nm_per_rad),
+            ("human.hysteretic_damping.loss_factor".into(), d.loss_factor),
+            (
+                "human.hysteretic_damping.band_rad_s[0]".into(),
+                d.band_rad_s[0],
+            ),
+            (
+                "human.hysteretic_damping.band_rad_s[1]".into(),
+                d.band_rad_s[1],
+            ),
+            (
+                "human.hysteretic_damping.elements_per_decade".into(),
+                d.elements_per_decade,
+            ),
+            (
+                "human.hysteretic_damping.reference_rad_s".into(),
+                d.reference_rad_s,
+            ),
+            (
+                "human.hysteretic_damping.matched_band_decades[0]".into(),
+                d.matched_band_decades[0],
+            ),
+            (
+                "human.hysteretic_damping.matched_band_decades[1]".into(),
+                d.matched_band_decades[1],
+            ),
+            (
+                "human.viscous_damping.b_nm_s_per_rad".into(),
+                h.viscous_damping.b_nm_s_per_rad,
+            ),
+            (
+                "human.stretch_reflex.gain_nm_s_per_rad".into(),
+                r.gain_nm_s_per_rad,
+            ),
+            ("human.stretch_reflex.delay_s".into(), r.delay_s),
+            ("human.stretch_reflex.cutoff_rad_s".into(), r.cutoff_rad_s),
+            ("human.rest_angle_rad".into(), h.rest_angle_rad),
+            ("human.active_angle_rad".into(), h.active_angle_rad),
+            ("exo.arm_inertia_kg_m2".into(), self.exo.arm_inertia_kg_m2),
+            ("exo.load_lever_arm_m".into(), self.exo.load_lever_arm_m),
+            ("exo.load_kg".into(), self.exo.load_kg),
+            ("gravity.arm_mass_kg".into(), self.gravity.arm_mass_kg),
+            ("gravity.arm_com_m".into(), self.gravity.arm_com_m),
+            ("gravity.g_m_s2".into(), self.gravity.g_m_s2),
+            (
+                "joint_friction.coulomb.torque_nm".into(),
+                self.joint_friction.coulomb.torque_nm,
+            ),
+            (
+                "joint_friction.coulomb.smoothing_rad_s".into(),
+                self.joint_friction.coulomb.smoothing_rad_s,
+            ),
+            (
+                "joint_friction.viscous.b_nm_s_per_rad".into(),
+                self.joint_friction.viscous.b_nm_s_per_rad,
+            ),
+            (
+                "cuff.compliance.stiffness_nm_per_rad".into(),
+                self.cuff.compliance.stiffness_nm_per_rad,
+            ),
+            (
+                "cuff.compliance.damping_nm_s_per_rad".into(),
+                self.cuff.compliance.damping_nm_s_per_rad,
+            ),
+            (
+                "sea.dynamics.natural_frequency_hz".into(),
+                self.sea.dynamics.natural_frequency_hz,
+            ),
+            (
+                "sea.dynamics.damping_ratio".into(),
+                self.sea.dynamics.damping_ratio,
+            ),
+            ("sea.torque_limit_nm".into(), self.sea.torque_limit_nm),
+            (
+                "sea.spring_stiffness_nm_per_rad".into(),
+                self.sea.spring_stiffness_nm_per_rad,
+            ),
+            ("actuator.delay_s".into(), self.actuator.delay_s),
+            (
+                "sensors.encoder.counts_per_rev".into(),
+                self.sensors.encoder.counts_per_rev,
+            ),
+            (
+                "sensors.cuff_ft.lever_arm_m".into(),
+                self.sensors.cuff_ft.lever_arm_m,
+            ),
+            (
+                "sensors.cuff_ft.force_resolution_n".into(),
+                self.sensors.cuff_ft.force_resolution_n,
+            ),
+            (
+                "sensors.sea_deflection.counts_per_rev".into(),
+                self.sensors.sea_deflection.counts_per_rev,
+            ),
+        ];
         for (name, t) in [
             ("sensors.encoder", self.sensors.encoder.terms),
             ("sensors.cuff_ft", self.sensors.cuff_ft.terms),
             ("sensors.sea_deflection", self.sensors.sea_deflection.terms),
         ] {
-            finite(&format!("{name}.gain"), t.gain)?;
-            finite(&format!("{name}.offset"), t.offset)?;
-            non_negative(&format!("{name}.noise_std"), t.noise_std)?;
-            non_negative(&format!("{name}.delay_s"), t.delay_s)?;
+            out.push((format!("{name}.gain"), t.gain));
+            out.push((format!("{name}.offset"), t.offset));
+            out.push((format!("{name}.noise_std"), t.noise_std));
+            out.push((format!("{name}.delay_s"), t.delay_s));
         }
-        let step = self.integration.step_s;
-        positive("integration.step_s", step)?;
-        if step > 1e-3 {
-            return Err(bad(
-                "integration.step_s",
-                format!("must be at most 1e-3 s (finer than the control period), got {step}"),
-            ));
-        }
-        let w_max = [
-            2.0 * std::f64::consts::PI * self.sea.dynamics.natural_frequency_hz,
-            (self.cuff.compliance.stiffness_nm_per_rad / self.human.inertia_kg_m2).sqrt(),
-        ]
-        .into_iter()
-        .fold(0.0, f64::max);
-        if w_max * step > 0.5 {
-            return Err(bad(
-                "integration.step_s",
-                format!("{step} s is too coarse for the fastest mode ({w_max:.0} rad/s): use at most {:.2e}", 0.5 / w_max),
-            ));
-        }
-        Ok(())
+        out.push(("integration.step_s".into(), self.integration.step_s));
+        out.push(("integration.seed".into(), self.integration.seed as f64));
+        out
     }
 
     /// Exoskeleton inertia with `load_kg` (kg·m²).
     pub fn exo_inertia_kg_m2(&self, load_kg: f64) -> f64 {
         self.exo.arm_inertia_kg_m2 + load_kg * self.exo.load_lever_arm_m * self.exo.load_lever_arm_m
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    //! Every numeric key of the shipped plant model set in turn to NaN,
+    //! ±inf, 0, a negative value and 1e300: refused naming the key, or
+    //! accepted within its documented range; never a panic.
+
+    use super::*;
+    use std::panic::{catch_unwind, AssertUnwindSafe};
+    use toml::{Table, Value};
+
+    fn plants_dir() -> std::path::PathBuf {
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("../../configs/plants")
+    }
+
+    fn leaves(v: &Value, path: &str, out: &mut Vec<String>) {
+        match v {
+            Value::Integer(_) | Value::Float(_) => out.push(path.to_string()),
+            Value::Table(t) => {
+                for (k, v) in t {
+                    let p = if path.is_empty() {
+                        k.clone()
+                    } else {
+                        format!("{path}.{k}")
+                    };
+                    leaves(v, &p, out);
+                }
+            }
+            Value::Array(a) => {
+                for (i, v) in a.iter().enumerate() {
+                    leaves(v, &format!("{path}[{i}]"), out);
+                }
+            }
+            _ => {}
+        }
+    }
+
+    fn leaf_mut<'a>(doc: &'a mut Table, path: &str) -> &'a mut Value {
+        let (path, index) = match path.split_once('[') {
+            Some((p, i)) => (p, Some(i.trim_end_matches(']').parse::<usize>().unwrap())),
+            None => (path, None),
+        };
+        let mut parts = path.split('.');
+        let mut v = doc.get_mut(parts.next().unwrap()).unwrap();
+        for part in parts {
+            v = v.as_table_mut().unwrap().get_mut(part).unwrap();
+        }
+        match index {
+            Some(i) => &mut v.as_array_mut().unwrap()[i],
+            None => v,
+        }
+    }
+
+    #[test]
+    fn the_shipped_plants_are_valid() {
+        for entry in std::fs::read_dir(plants_dir()).unwrap() {
+            let path = entry.unwrap().path();
+            if path.extension().is_some_and(|e| e == "toml") {
+                PlantModel::from_file(&path).unwrap_or_else(|e| panic!("{e}"));
+            }
+        }
+    }
+
+    #[test]
+    fn every_numeric_key_is_refused_by_name_or_accepted_within_its_range() {
+        let text = std::fs::read_to_string(plants_dir().join("default.toml")).unwrap();
+        let doc: Table = toml::from_str(&text).unwrap();
+        let mut keys = Vec::new();
+        leaves(&Value::Table(doc.clone()), "", &mut keys);
+        assert!(keys.len() > 40, "only {} numeric keys", keys.len());
+        let mut failures = Vec::new();
+        for key in &keys {
+            let original = leaf_mut(&mut doc.clone(), key).clone();
+            let (is_int, magnitude) = match original {
+                Value::Integer(i) => (true, (i as f64).abs()),
+                Value::Float(f) => (false, f.abs()),
+                _ => unreachable!(),
+            };
+            let negative = if magnitude > 0.0 { -magnitude } else { -1.0 };
+            let mut bad = vec![
+                Value::Float(f64::NAN),
+                Value::Float(f64::INFINITY),
+                Value::Float(f64::NEG_INFINITY),
+                Value::Float(1e300),
+            ];
+            if is_int {
+                bad.extend([Value::Integer(0), Value::Integer(negative as i64)]);
+            } else {
+                bad.extend([Value::Float(0.0), Value::Float(negative)]);
+            }
+            for b in bad {
+                let mut changed = doc.clone();
+                *leaf_mut(&mut changed, key) = b.clone();
+                let text = toml::to_string(&changed).unwrap();
+                let outcome = catch_unwind(AssertUnwindSafe(|| {
+                    PlantModel::from_toml_str(&text, "plant.toml")
+                }));
+                match outcome {
+                    Err(_) => failures.push(format!("{key} = {b}: panicked")),
+                    Ok(Err(e)) => {
+                        let e = e.to_string();
+                        if !(e.contains("plant.toml") && e.contains(key.as_str())) {
+                            failures.push(format!("{key} = {b}: refused without naming it: {e}"));
+                        }
+                    }
+                    Ok(Ok(_)) => {
+                        let v = match b {
+                            Value::Integer(i) => i as f64,
+                            Value::Float(f) => f,
+                            _ => unreachable!(),
+                        };
+                        match range_of(PLANT_RANGES, key) {
+                            Some(r) if r.contains(v) => {}
+                            r => failures.push(format!(
+                                "{key} = {b}: accepted outside its documented range {r:?}"
+                            )),
+                        }
+                    }
+                }
+            }
+        }
+        assert!(failures.is_empty(), "{}", failures.join("\n"));
+    }
+
+    #[test]
+    fn a_huge_prony_bank_is_refused_naming_the_key() {
+        let text = std::fs::read_to_string(plants_dir().join("default.toml"))
+            .unwrap()
+            .replace("mode = \"equivalent_viscous\"", "mode = \"prony\"");
+        for (per_decade, ok) in [("3.0", true), ("50.0", false), ("1e9", false)] {
+            let t = text.replace(
+                "elements_per_decade = 3.0",
+                &format!("elements_per_decade = {per_decade}"),
+            );
+            let r = PlantModel::from_toml_str(&t, "plant.toml");
+            assert_eq!(r.is_ok(), ok, "{per_decade}: {r:?}");
+            if let Err(e) = r {
+                assert!(
+                    e.to_string()
+                        .contains("human.hysteretic_damping.elements_per_decade"),
+                    "{e}"
+                );
+            }
+        }
     }
 }

@@ -4,7 +4,87 @@ use std::path::{Path, PathBuf};
 
 use serde::{Deserialize, Serialize};
 
-use crate::{read_toml, Check, ExperimentTable, ProtocolTiming, Result, Subject};
+use crate::{
+    read_toml, Check, ExperimentTable, ProtocolTiming, Range, Ranges, Result, Subject,
+    MAX_DURATION_S, MAX_EXPERIMENT, MAX_PERIOD,
+};
+
+/// The documented range of every numeric key of a run file (the doc
+/// comment of each key says the same). Beyond these, [`RunConfig::from_file`]
+/// checks what involves several keys or files: the deadlines are at least
+/// one control period, the velocity cut-off and every excitation frequency
+/// are below the Nyquist frequency of `run.rate_hz`, the protocol lasts at
+/// most a day, the experiments and periods exist, and `run.output_dir` is
+/// not a file.
+pub const RUN_RANGES: Ranges = &[
+    ("run.rate_hz", Range::closed(1.0, 100_000.0)),
+    ("run.seed", Range::closed(0.0, u64::MAX as f64)),
+    ("run.max_sim_time_s", Range::above(0.0, MAX_DURATION_S)),
+    ("run.lockstep_spin_us", Range::closed(0.0, 100_000.0)),
+    ("bus.replay_pace_hz", Range::closed(1.0, 1e6)),
+    ("realtime.sched_fifo_priority", Range::closed(1.0, 99.0)),
+    ("realtime.controller_cpu", Range::closed(0.0, 1023.0)),
+    ("realtime.sensor_driver_cpu", Range::closed(0.0, 1023.0)),
+    ("realtime.plant_sim_cpu", Range::closed(0.0, 1023.0)),
+    (
+        "protocol.experiments[*]",
+        Range::closed(1.0, MAX_EXPERIMENT as f64),
+    ),
+    ("protocol.periods[*]", Range::closed(1.0, MAX_PERIOD as f64)),
+    ("protocol.rest_s", Range::closed(0.0, 3600.0)),
+    ("protocol.ramp_in_s", Range::closed(0.0, 3600.0)),
+    ("protocol.settling_s", Range::closed(0.0, 3600.0)),
+    ("protocol.analysis_s", Range::closed(0.01, 3600.0)),
+    ("protocol.ramp_out_s", Range::closed(0.0, 3600.0)),
+    ("voluntary.amplitude_rad", Range::closed(0.0, 1.5)),
+    ("voluntary.omega_rad_s", Range::above(0.0, 10_000.0)),
+    ("voluntary.duration_s", Range::above(0.0, 3600.0)),
+    ("voluntary.grip_kg", Range::closed(0.0, 100.0)),
+    ("voluntary.bias_nm", Range::closed(-100.0, 100.0)),
+    (
+        "voluntary.experiment",
+        Range::closed(1.0, MAX_EXPERIMENT as f64),
+    ),
+    (
+        "release.experiment",
+        Range::closed(1.0, MAX_EXPERIMENT as f64),
+    ),
+    ("release.spring_torque_nm", Range::closed(-100.0, 100.0)),
+    ("release.hold_s", Range::above(0.0, 3600.0)),
+    ("release.observe_s", Range::above(0.0, 3600.0)),
+    ("controller.kp", Range::above(0.0, 20.0)),
+    ("controller.f", Range::below(0.0, 1.0)),
+    (
+        "controller.k_range_nm_per_rad[*]",
+        Range::above(0.0, 5000.0),
+    ),
+    ("controller.filters", Range::closed(1.0, 16.0)),
+    ("controller.p1_rad_s", Range::above(0.0, 10_000.0)),
+    ("controller.r_pp", Range::above(1.0, 100.0)),
+    ("controller.f_bounds[*]", Range::closed(0.0, 0.999)),
+    ("controller.limits.torque_nm", Range::above(0.0, 1000.0)),
+    (
+        "controller.limits.torque_rate_nm_per_s",
+        Range::above(0.0, 1e6),
+    ),
+    (
+        "controller.limits.theta_rad[*]",
+        Range::closed(-std::f64::consts::TAU, std::f64::consts::TAU),
+    ),
+    ("controller.limits.tau_c_nm", Range::above(0.0, 1000.0)),
+    ("safety.command_deadline_ms", Range::above(0.0, 1000.0)),
+    ("safety.sample_deadline_ms", Range::above(0.0, 1000.0)),
+    ("safety.lockstep_timeout_ms", Range::above(0.0, 60_000.0)),
+    ("rig.arm_inertia_kg_m2", Range::above(0.0, 10.0)),
+    ("rig.arm_mass_kg", Range::closed(0.0, 50.0)),
+    ("rig.arm_com_m", Range::closed(0.0, 2.0)),
+    ("rig.load_lever_arm_m", Range::closed(0.0, 2.0)),
+    ("rig.encoder_counts_per_rev", Range::closed(1.0, 1e12)),
+    ("rig.cuff_lever_arm_m", Range::above(0.0, 2.0)),
+    ("rig.sea_stiffness_nm_per_rad", Range::above(0.0, 1e6)),
+    ("rig.sea_counts_per_rev", Range::closed(1.0, 1e12)),
+    ("rig.velocity_cutoff_hz", Range::above(0.0, 50_000.0)),
+];
 
 /// How simulated time advances.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
@@ -24,16 +104,22 @@ pub struct RunSettings {
     /// Timing mode.
     pub timing: TimingMode,
     /// Control rate (Hz): one sensor sample and one command per tick.
+    /// Range [1, 100 000].
     pub rate_hz: f64,
-    /// Seed of every random source (sensor noise); same seed ⇒ same run in lockstep.
+    /// Seed of every random source (sensor noise); same seed ⇒ same run in
+    /// lockstep. Any unsigned 64-bit integer.
     pub seed: u64,
-    /// Prefix of this run's iceoryx2 service names, so runs do not collide.
+    /// Prefix of this run's iceoryx2 service names, so runs do not collide:
+    /// 1 to 64 letters, digits, `-` or `_`.
     #[serde(default = "default_instance")]
     pub instance: String,
-    /// Stop after this much simulated time (s), if set; otherwise at protocol end.
+    /// Stop after this much simulated time (s), if set; otherwise at
+    /// protocol end. Range (0, 86 400] (a day).
     #[serde(default)]
     pub max_sim_time_s: Option<f64>,
-    /// Directory for recordings and reports (relative to the working directory).
+    /// Directory for recordings and reports (relative to the working
+    /// directory). Must not be, or lie under, an existing file; `exo run`
+    /// creates it, and refuses to start when it cannot, before any process.
     #[serde(default = "default_output_dir")]
     pub output_dir: PathBuf,
     /// In lockstep, how long (µs) a process polls for the next message,
@@ -42,6 +128,7 @@ pub struct RunSettings {
     /// Default 0: never polls, every wait sleeps on the iceoryx2 event (no
     /// busy loop by default); 200 makes lockstep about three times faster on
     /// two cores (BENCHMARKS.md). Ignored in real time (which always sleeps).
+    /// Range [0, 100 000].
     #[serde(default = "default_lockstep_spin_us")]
     pub lockstep_spin_us: f64,
 }
@@ -71,13 +158,14 @@ pub struct RealtimeSettings {
     /// Lock all current and future memory (`mlockall`), so no page fault stalls a tick.
     #[serde(default)]
     pub lock_memory: bool,
-    /// Pin the controller to this CPU.
+    /// Pin the controller to this CPU (0–1023; a CPU the machine lacks is
+    /// warned about at start).
     #[serde(default)]
     pub controller_cpu: Option<usize>,
-    /// Pin the sensor driver to this CPU.
+    /// Pin the sensor driver to this CPU (0–1023).
     #[serde(default)]
     pub sensor_driver_cpu: Option<usize>,
-    /// Pin the plant simulator to this CPU.
+    /// Pin the plant simulator to this CPU (0–1023).
     #[serde(default)]
     pub plant_sim_cpu: Option<usize>,
 }
@@ -106,6 +194,7 @@ pub struct BusSettings {
     #[serde(default)]
     pub replay_file: Option<PathBuf>,
     /// Frames per second of wall time a replay delivers (default 5000).
+    /// Range [1, 1 000 000].
     #[serde(default)]
     pub replay_pace_hz: Option<f64>,
 }
@@ -153,24 +242,28 @@ pub struct ProtocolSettings {
     pub mode: ProtocolMode,
     /// Experiment table (relative to the run file).
     pub experiments_file: PathBuf,
-    /// Which experiments to run, in order.
+    /// Which experiments to run, in order: at least one, each in the
+    /// experiment table and the subject file (1 to 9).
     pub experiments: Vec<u32>,
-    /// Which periods of each (1-based); all when absent.
+    /// Which periods of each (1-based, each at most the table's `periods`);
+    /// all when absent; when present, at least one.
     #[serde(default)]
     pub periods: Option<Vec<u32>>,
-    /// Override of the rest between periods (s), so simulations need not wait 40 s.
+    /// Override of the rest between periods (s), so simulations need not
+    /// wait 40 s. Range [0, 3600].
     #[serde(default)]
     pub rest_s: Option<f64>,
-    /// Override of the bias ramp-in (s); the paper: 5.
+    /// Override of the bias ramp-in (s); the paper: 5. Range [0, 3600].
     #[serde(default)]
     pub ramp_in_s: Option<f64>,
-    /// Override of the settling part of the sine (s); the paper: 5.
+    /// Override of the settling part of the sine (s); the paper: 5. Range [0, 3600].
     #[serde(default)]
     pub settling_s: Option<f64>,
-    /// Override of the analysis window (s); the paper: 5.
+    /// Override of the analysis window (s); the paper: 5. Range [0.01, 3600].
     #[serde(default)]
     pub analysis_s: Option<f64>,
-    /// Override of the bias ramp-out (s); the paper: 5.
+    /// Override of the bias ramp-out (s); the paper: 5. Range [0, 3600].
+    /// The whole protocol (experiments × periods × period) lasts at most a day.
     #[serde(default)]
     pub ramp_out_s: Option<f64>,
 }
@@ -208,17 +301,20 @@ impl ProtocolSettings {
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct VoluntarySettings {
-    /// Target angle amplitude (rad).
+    /// Target angle amplitude (rad). Range [0, 1.5].
     pub amplitude_rad: f64,
-    /// Target frequency (rad/s).
+    /// Target frequency (rad/s). Range (0, 10 000], and below the Nyquist
+    /// frequency π·`run.rate_hz`.
     pub omega_rad_s: f64,
-    /// Duration (s).
+    /// Duration (s). Range (0, 3600].
     pub duration_s: f64,
     /// Grip (kg) and bias (Nm) held meanwhile (the paper: 14 kg, 4 Nm).
+    /// Range [0, 100].
     pub grip_kg: f64,
-    /// Bias torque (Nm).
+    /// Bias torque (Nm). Range [−100, 100].
     pub bias_nm: f64,
-    /// Experiment whose stiffness the subject holds.
+    /// Experiment whose stiffness the subject holds (1 to 9, in the
+    /// experiment table and the subject file).
     pub experiment: u32,
 }
 
@@ -231,13 +327,16 @@ pub struct VoluntarySettings {
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct ReleaseSettings {
-    /// Experiment of Table I whose stiffness, grip, bias and load the subject holds.
+    /// Experiment of Table I whose stiffness, grip, bias and load the
+    /// subject holds (1 to 9, in the experiment table and the subject file).
     pub experiment: u32,
-    /// Torque (Nm) the attached springs exert on the exoskeleton joint (positive = raising).
+    /// Torque (Nm) the attached springs exert on the exoskeleton joint
+    /// (positive = raising). Range [−100, 100].
     pub spring_torque_nm: f64,
     /// Time (s) the spring stays attached after the bias has ramped in.
+    /// Range (0, 3600].
     pub hold_s: f64,
-    /// Time (s) observed after the release.
+    /// Time (s) observed after the release. Range (0, 3600].
     pub observe_s: f64,
 }
 
@@ -245,24 +344,34 @@ pub struct ReleaseSettings {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct ControllerSettings {
-    /// Proportional gain k_p; eq. kp from the rig and subject inertias when absent.
+    /// Proportional gain k_p; eq. kp from the rig and subject inertias when
+    /// absent. Range (0, 20] (the paper's is 3.2; eq. kp gives about 3 for
+    /// its rig); `exo run` also refuses a k_p and f whose model loop is
+    /// clearly unstable (see `controller.f`).
     #[serde(default)]
     pub kp: Option<f64>,
-    /// Fractional order f in [0, 1); when absent, α is the experiment's constant.
+    /// Fractional order f in [0, 1); when absent, α is the experiment's
+    /// constant. `exo run` computes the loop's phase margin (the science
+    /// core's model, with the plant's SEA) at the stiffness the subject
+    /// holds in each experiment of the run and at both bounds of
+    /// `k_range_nm_per_rad`: it refuses the run, naming the margin, when one
+    /// is below −15°, and warns when one is negative.
     #[serde(default)]
     pub f: Option<f64>,
-    /// Stiffness range (Nm/rad) for k_f (eq. kf).
+    /// Stiffness range (Nm/rad) for k_f (eq. kf): [min, max], each in
+    /// (0, 5000], min ≤ max.
     pub k_range_nm_per_rad: [f64; 2],
-    /// Number of lag filters.
+    /// Number of lag filters, 1 to 16.
     pub filters: usize,
-    /// First pole (rad/s).
+    /// First pole (rad/s). Range (0, 10 000].
     pub p1_rad_s: f64,
-    /// Pole spacing.
+    /// Pole spacing. Range (1, 100].
     pub r_pp: f64,
     /// Adopt the identifier's recommended f when it is published.
     #[serde(default)]
     pub adopt_recommended_f: bool,
-    /// Bounds within which a recommended f may be adopted.
+    /// Bounds within which a recommended f may be adopted: [min, max], each
+    /// in [0, 0.999], min ≤ max.
     #[serde(default = "default_f_bounds")]
     pub f_bounds: [f64; 2],
     /// Torque and rate limits.
@@ -284,13 +393,14 @@ fn default_f_bounds() -> [f64; 2] {
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct LimitSettings {
-    /// |τ_d| limit (Nm); every command is clamped to it.
+    /// |τ_d| limit (Nm); every command is clamped to it. Range (0, 1000].
     pub torque_nm: f64,
-    /// |dτ_d/dt| limit (Nm/s).
+    /// |dτ_d/dt| limit (Nm/s). Range (0, 1 000 000].
     pub torque_rate_nm_per_s: f64,
     /// Allowed joint angle range (rad); outside it the controller faults.
+    /// [min, max], each in [−2π, 2π], min < max.
     pub theta_rad: [f64; 2],
-    /// |τ_c| above this (Nm) is a sensor fault.
+    /// |τ_c| above this (Nm) is a sensor fault. Range (0, 1000].
     pub tau_c_nm: f64,
 }
 
@@ -308,16 +418,18 @@ pub enum SafeState {
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct SafetySettings {
-    /// The driver drops to the safe state when no fresh command arrives within this (ms).
+    /// The driver drops to the safe state when no fresh command arrives
+    /// within this (ms). Range (0, 1000], and at least one control period.
     pub command_deadline_ms: f64,
     /// The controller faults when no sample arrives within this (ms).
+    /// Range (0, 1000], and at least one control period.
     pub sample_deadline_ms: f64,
     /// What the safe state commands.
     pub safe_state: SafeState,
     /// In lockstep, simulated time stands still while a process waits, so
     /// deadlines are counted in ticks: a missing answer is declared after
     /// this much wall time (ms), and the safe state then takes effect at the
-    /// same simulated tick.
+    /// same simulated tick. Range (0, 60 000] (a minute).
     #[serde(default = "default_lockstep_timeout_ms")]
     pub lockstep_timeout_ms: f64,
 }
@@ -331,24 +443,31 @@ fn default_lockstep_timeout_ms() -> f64 {
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct RigSettings {
-    /// Exoskeleton arm inertia without load (kg·m²); the paper: 0.1.
+    /// Exoskeleton arm inertia without load (kg·m²); the paper: 0.1. Range (0, 10].
     pub arm_inertia_kg_m2: f64,
-    /// Arm mass (kg) and centre-of-mass distance (m) for gravity compensation.
+    /// Arm mass (kg) and centre-of-mass distance (m) for gravity
+    /// compensation. Range [0, 50].
     pub arm_mass_kg: f64,
-    /// Arm centre of mass from the joint (m).
+    /// Arm centre of mass from the joint (m). Range [0, 2].
     pub arm_com_m: f64,
-    /// Where the load hangs (m); the paper: 0.45.
+    /// Where the load hangs (m); the paper: 0.45. Range [0, 2].
     pub load_lever_arm_m: f64,
-    /// Encoder counts per revolution.
+    /// Encoder counts per revolution. Range [1, 10¹²].
     pub encoder_counts_per_rev: f64,
-    /// Cuff F/T sensor distance from the joint (m): τ_c = r·f_y + t_z.
+    /// Cuff F/T sensor distance from the joint (m): τ_c = r·f_y + t_z. Range (0, 2].
     pub cuff_lever_arm_m: f64,
     /// SEA spring stiffness (Nm/rad) and its deflection encoder resolution.
+    /// Range (0, 10⁶].
     pub sea_stiffness_nm_per_rad: f64,
-    /// SEA deflection encoder counts per revolution.
+    /// SEA deflection encoder counts per revolution. Range [1, 10¹²].
     pub sea_counts_per_rev: f64,
     /// Velocity filter cut-off (Hz) of the driver's angle differentiator.
+    /// Range (0, 50 000], and below half of `run.rate_hz`.
     pub velocity_cutoff_hz: f64,
+}
+
+fn range_of_run(key: &str) -> Range {
+    crate::range_of(RUN_RANGES, key).unwrap_or(Range::closed(f64::NAN, f64::NAN))
 }
 
 /// Standard gravity (m/s²).
@@ -409,12 +528,48 @@ pub struct RunConfig {
     pub subject: Option<Subject>,
 }
 
+/// Why `dir` cannot be a run's output directory, as far as can be told
+/// without writing: it is empty, or it or a directory above it exists and
+/// is not a directory. `None` when nothing is wrong so far (whether it can
+/// be created and written is for `exo run` to find out before it starts).
+pub fn output_dir_problem(dir: &Path) -> Option<String> {
+    if dir.as_os_str().is_empty() {
+        return Some("must not be empty (use \".\" for the working directory)".into());
+    }
+    let mut at = Some(dir);
+    while let Some(p) = at {
+        if p.as_os_str().is_empty() {
+            break;
+        }
+        match std::fs::metadata(p) {
+            Ok(m) if m.is_dir() => return None,
+            Ok(_) => return Some(format!("{} exists and is not a directory", p.display())),
+            Err(e)
+                if matches!(
+                    e.kind(),
+                    std::io::ErrorKind::NotFound | std::io::ErrorKind::NotADirectory
+                ) =>
+            {
+                at = p.parent();
+            }
+            Err(e) => return Some(format!("{}: {e}", p.display())),
+        }
+    }
+    None
+}
+
 impl RunConfig {
-    /// Reads, validates and resolves a run file and the files it names.
+    /// Reads, validates and resolves a run file and the files it names (the
+    /// experiment table and the subject; the plant model is the plant
+    /// simulator's). The error names the file and the key of every value at
+    /// fault that could be found, one per line: a run file that does not
+    /// parse stops there, otherwise its own values, the experiment table,
+    /// the subject and the checks across them are all made.
     pub fn from_file(file: &Path) -> Result<Self> {
         let mut cfg: RunConfig = read_toml(file)?;
         cfg.source = file.to_path_buf();
-        cfg.validate(file)?;
+        let c = Check::with_ranges(file, RUN_RANGES);
+        cfg.check_values(&c);
         let dir = file.parent().unwrap_or(Path::new("."));
         cfg.plant_model = dir.join(&cfg.plant_model);
         cfg.subject_file = dir.join(&cfg.subject_file);
@@ -423,211 +578,329 @@ impl RunConfig {
             *f = dir.join(&*f);
         }
         if cfg.bus.backend == BusBackend::Replay {
-            let c = Check::new(file);
             match &cfg.bus.replay_file {
-                None => {
-                    return Err(c.fail(
-                        "bus.replay_file",
-                        "bus.backend = \"replay\" needs the recording to play back",
-                    ))
-                }
+                None => c.note(
+                    "bus.replay_file",
+                    "bus.backend = \"replay\" needs the recording to play back",
+                ),
                 Some(f) if !f.is_file() => {
-                    return Err(c.fail("bus.replay_file", format!("{} does not exist", f.display())))
+                    c.note("bus.replay_file", format!("{} does not exist", f.display()))
                 }
                 Some(_) => {}
             }
-            if let Some(p) = cfg.bus.replay_pace_hz {
-                c.within("bus.replay_pace_hz", p, 1.0, 1e6)?;
-            }
         }
-        let mut table = ExperimentTable::from_file(&cfg.protocol.experiments_file)?;
-        cfg.protocol.apply_timing(&mut table.timing);
-        let c = Check::new(file);
-        for (i, n) in cfg.protocol.experiments.iter().enumerate() {
-            if table.get(*n).is_none() {
-                return Err(c.fail(
-                    &format!("protocol.experiments[{i}]"),
-                    format!(
-                        "experiment {n} is not in {}; it has {:?}",
-                        cfg.protocol.experiments_file.display(),
-                        table
-                            .experiment
-                            .iter()
-                            .map(|e| e.number)
-                            .collect::<Vec<_>>()
-                    ),
-                ));
-            }
+        let table = c
+            .take(ExperimentTable::from_file(&cfg.protocol.experiments_file))
+            .map(|mut t| {
+                cfg.protocol.apply_timing(&mut t.timing);
+                t
+            });
+        let subject = c.take(Subject::from_file(&cfg.subject_file));
+        if let Some(t) = &table {
+            cfg.check_against_table(&c, t);
         }
-        if let Some(periods) = &cfg.protocol.periods {
-            for (i, p) in periods.iter().enumerate() {
-                if *p == 0 || *p > table.periods {
-                    return Err(c.fail(
-                        &format!("protocol.periods[{i}]"),
-                        format!("period {p} is outside 1..={}", table.periods),
-                    ));
+        if let Some(s) = &subject {
+            for (i, n) in cfg.protocol.experiments.iter().enumerate() {
+                if s.get(*n).is_none() {
+                    c.note(
+                        "subject_file",
+                        format!(
+                            "{} has no impedance for experiment {n} (protocol.experiments[{i}])",
+                            cfg.subject_file.display()
+                        ),
+                    );
                 }
             }
         }
-        let subject = Subject::from_file(&cfg.subject_file)?;
-        for n in &cfg.protocol.experiments {
-            if subject.get(*n).is_none() {
-                return Err(c.fail(
-                    "subject_file",
-                    format!(
-                        "{} has no impedance for experiment {n}",
-                        cfg.subject_file.display()
-                    ),
-                ));
-            }
-        }
-        let held = [
-            cfg.voluntary
-                .filter(|_| cfg.protocol.mode == ProtocolMode::Voluntary)
-                .map(|v| ("voluntary.experiment", v.experiment)),
-            cfg.release
-                .filter(|_| cfg.protocol.mode == ProtocolMode::Release)
-                .map(|r| ("release.experiment", r.experiment)),
-        ];
-        for (key, n) in held.into_iter().flatten() {
-            if table.get(n).is_none() || subject.get(n).is_none() {
-                return Err(c.fail(
+        if let Some((key, n)) = cfg.held_experiment() {
+            let in_table = table.as_ref().is_none_or(|t| t.get(n).is_some());
+            let in_subject = subject.as_ref().is_none_or(|s| s.get(n).is_some());
+            if !(in_table && in_subject) {
+                c.note(
                     key,
                     format!(
                         "experiment {n} must be in both {} and {}",
                         cfg.protocol.experiments_file.display(),
                         cfg.subject_file.display()
                     ),
-                ));
+                );
             }
         }
-        cfg.experiments = Some(table);
-        cfg.subject = Some(subject);
+        c.finish()?;
+        cfg.experiments = table;
+        cfg.subject = subject;
         Ok(cfg)
     }
 
-    /// Validates the values of the run file itself, naming the key at fault.
-    pub fn validate(&self, file: &Path) -> Result<()> {
-        let c = Check::new(file);
-        c.within("run.rate_hz", self.run.rate_hz, 1.0, 100_000.0)?;
-        c.within(
-            "run.lockstep_spin_us",
-            self.run.lockstep_spin_us,
-            0.0,
-            100_000.0,
-        )?;
-        if let Some(t) = self.run.max_sim_time_s {
-            c.positive("run.max_sim_time_s", t)?;
+    /// The experiment whose stiffness the subject holds throughout, with its
+    /// key: `voluntary.experiment` or `release.experiment` in those modes.
+    fn held_experiment(&self) -> Option<(&'static str, u32)> {
+        match self.protocol.mode {
+            ProtocolMode::Voluntary => self
+                .voluntary
+                .map(|v| ("voluntary.experiment", v.experiment)),
+            ProtocolMode::Release => self.release.map(|r| ("release.experiment", r.experiment)),
+            ProtocolMode::Identification => None,
         }
-        if self.run.instance.is_empty()
-            || !self
-                .run
-                .instance
-                .chars()
-                .all(|ch| ch.is_ascii_alphanumeric() || ch == '_' || ch == '-')
-        {
-            return Err(c.fail(
-                "run.instance",
-                "must be non-empty letters, digits, '-' or '_'",
-            ));
+    }
+
+    /// The periods (1-based) each experiment of the run goes through.
+    pub fn periods_run(&self, table: &ExperimentTable) -> Vec<u32> {
+        match &self.protocol.periods {
+            Some(p) => p.clone(),
+            None => (1..=table.periods).collect(),
         }
-        for (key, v) in self.protocol.timing_overrides() {
-            if let Some(v) = v {
-                if key == "protocol.analysis_s" {
-                    c.positive(key, v)?;
-                } else {
-                    c.non_negative(key, v)?;
+    }
+
+    /// The checks against the experiment table (with the run's timing
+    /// overrides applied): experiments and periods exist, every excitation
+    /// is below the Nyquist frequency, the protocol lasts at most a day.
+    fn check_against_table(&self, c: &Check<'_>, table: &ExperimentTable) {
+        let tfile = &self.protocol.experiments_file;
+        for (i, n) in self.protocol.experiments.iter().enumerate() {
+            if table.get(*n).is_none() {
+                c.note(
+                    &format!("protocol.experiments[{i}]"),
+                    format!(
+                        "experiment {n} is not in {}; it has {:?}",
+                        tfile.display(),
+                        table
+                            .experiment
+                            .iter()
+                            .map(|e| e.number)
+                            .collect::<Vec<_>>()
+                    ),
+                );
+            }
+        }
+        if let Some(periods) = &self.protocol.periods {
+            for (i, p) in periods.iter().enumerate() {
+                if *p == 0 || *p > table.periods {
+                    c.note(
+                        &format!("protocol.periods[{i}]"),
+                        format!(
+                            "period {p} is outside 1..={} (periods of {})",
+                            table.periods,
+                            tfile.display()
+                        ),
+                    );
                 }
             }
         }
-        if let Some(p) = self.realtime.and_then(|r| r.sched_fifo_priority) {
-            if !(1..=99).contains(&p) {
-                return Err(c.fail(
-                    "realtime.sched_fifo_priority",
-                    format!("must be 1 to 99, got {p}"),
-                ));
+        let rate = self.run.rate_hz;
+        if !range_of_run("run.rate_hz").contains(rate) {
+            return;
+        }
+        let nyquist = std::f64::consts::PI * rate;
+        if self.protocol.mode == ProtocolMode::Identification {
+            let periods = self.periods_run(table);
+            let mut seen = Vec::new();
+            for n in &self.protocol.experiments {
+                let (Some(idx), false) = (table.index_of(*n), seen.contains(n)) else {
+                    continue;
+                };
+                seen.push(*n);
+                let e = &table.experiment[idx];
+                let worst = periods
+                    .iter()
+                    .map(|p| (*p, table.omega_rad_s(e, *p)))
+                    .find(|(_, w)| w.is_nan() || *w >= nyquist);
+                if let Some((p, w)) = worst {
+                    c.push(crate::invalid(
+                        tfile,
+                        format!("experiment[{idx}].start_omega_rad_s"),
+                        format!(
+                            "experiment {n} excites at {} rad/s in period {p} (start_omega_rad_s {} × frequency_step {}^{}), not below the Nyquist frequency π·run.rate_hz = {nyquist:.1} rad/s of {} (run.rate_hz = {rate})",
+                            crate::number(w),
+                            e.start_omega_rad_s,
+                            table.frequency_step,
+                            p.saturating_sub(1),
+                            c.file().display()
+                        ),
+                    ));
+                }
+            }
+            let steps = self.protocol.experiments.len() * periods.len();
+            let total = steps as f64 * table.timing.period_s();
+            let t = &table.timing;
+            let each_valid = [
+                ("protocol.ramp_in_s", t.ramp_in_s),
+                ("protocol.settling_s", t.settling_s),
+                ("protocol.analysis_s", t.analysis_s),
+                ("protocol.ramp_out_s", t.ramp_out_s),
+                ("protocol.rest_s", t.rest_s),
+            ]
+            .iter()
+            .all(|(k, v)| range_of_run(k).contains(*v));
+            if each_valid && total > MAX_DURATION_S {
+                c.note(
+                    "protocol",
+                    format!(
+                        "the protocol would last {total} s ({} experiments × {} periods × {} s per period, timing of {} with this file's overrides), more than a day ({MAX_DURATION_S} s)",
+                        self.protocol.experiments.len(),
+                        periods.len(),
+                        table.timing.period_s(),
+                        tfile.display()
+                    ),
+                );
+            }
+        }
+        if let Some(v) = self
+            .voluntary
+            .filter(|_| self.protocol.mode == ProtocolMode::Voluntary)
+        {
+            if v.omega_rad_s.is_finite() && v.omega_rad_s >= nyquist {
+                c.note(
+                    "voluntary.omega_rad_s",
+                    format!(
+                        "{} rad/s is not below the Nyquist frequency π·run.rate_hz = {nyquist:.1} rad/s",
+                        v.omega_rad_s
+                    ),
+                );
+            }
+        }
+    }
+
+    /// Validates the values of the run file itself, naming every key at fault.
+    pub fn validate(&self, file: &Path) -> Result<()> {
+        let c = Check::with_ranges(file, RUN_RANGES);
+        self.check_values(&c);
+        c.finish()
+    }
+
+    /// Records every value of the run file itself that is out of range.
+    fn check_values(&self, c: &Check<'_>) {
+        let rate_ok = c.key("run.rate_hz", self.run.rate_hz);
+        c.key("run.seed", self.run.seed as f64);
+        c.key("run.lockstep_spin_us", self.run.lockstep_spin_us);
+        if let Some(t) = self.run.max_sim_time_s {
+            c.key("run.max_sim_time_s", t);
+        }
+        let instance = &self.run.instance;
+        if instance.is_empty()
+            || instance.len() > 64
+            || !instance
+                .chars()
+                .all(|ch| ch.is_ascii_alphanumeric() || ch == '_' || ch == '-')
+        {
+            c.note(
+                "run.instance",
+                format!("must be 1 to 64 letters, digits, '-' or '_', got {instance:?}"),
+            );
+        }
+        if let Some(why) = output_dir_problem(&self.run.output_dir) {
+            c.note("run.output_dir", why);
+        }
+        if let Some(p) = self.bus.replay_pace_hz {
+            c.key("bus.replay_pace_hz", p);
+        }
+        if let Some(rt) = &self.realtime {
+            if let Some(p) = rt.sched_fifo_priority {
+                c.key("realtime.sched_fifo_priority", f64::from(p));
+            }
+            for (key, cpu) in [
+                ("realtime.controller_cpu", rt.controller_cpu),
+                ("realtime.sensor_driver_cpu", rt.sensor_driver_cpu),
+                ("realtime.plant_sim_cpu", rt.plant_sim_cpu),
+            ] {
+                if let Some(cpu) = cpu {
+                    c.key(key, cpu as f64);
+                }
             }
         }
         if self.protocol.experiments.is_empty() {
-            return Err(c.fail("protocol.experiments", "name at least one experiment"));
+            c.note("protocol.experiments", "name at least one experiment");
         }
-        if self.protocol.mode == ProtocolMode::Voluntary {
-            let v = self.voluntary.ok_or_else(|| {
-                c.fail(
-                    "voluntary",
-                    "protocol.mode = \"voluntary\" needs a [voluntary] table",
-                )
-            })?;
-            c.non_negative("voluntary.amplitude_rad", v.amplitude_rad)?;
-            c.positive("voluntary.omega_rad_s", v.omega_rad_s)?;
-            c.positive("voluntary.duration_s", v.duration_s)?;
-            c.non_negative("voluntary.grip_kg", v.grip_kg)?;
-            c.finite("voluntary.bias_nm", v.bias_nm)?;
+        for (i, n) in self.protocol.experiments.iter().enumerate() {
+            c.key(&format!("protocol.experiments[{i}]"), f64::from(*n));
         }
-        if self.protocol.mode == ProtocolMode::Release {
-            let r = self.release.ok_or_else(|| {
-                c.fail(
-                    "release",
-                    "protocol.mode = \"release\" needs a [release] table",
-                )
-            })?;
-            c.finite("release.spring_torque_nm", r.spring_torque_nm)?;
-            c.positive("release.hold_s", r.hold_s)?;
-            c.positive("release.observe_s", r.observe_s)?;
+        if let Some(periods) = &self.protocol.periods {
+            if periods.is_empty() {
+                c.note(
+                    "protocol.periods",
+                    "name at least one period, or leave the key out for all of them",
+                );
+            }
+            for (i, p) in periods.iter().enumerate() {
+                c.key(&format!("protocol.periods[{i}]"), f64::from(*p));
+            }
+        }
+        for (key, v) in self.protocol.timing_overrides() {
+            if let Some(v) = v {
+                c.key(key, v);
+            }
+        }
+        match (self.protocol.mode, &self.voluntary, &self.release) {
+            (ProtocolMode::Voluntary, None, _) => c.note(
+                "voluntary",
+                "protocol.mode = \"voluntary\" needs a [voluntary] table",
+            ),
+            (ProtocolMode::Release, _, None) => c.note(
+                "release",
+                "protocol.mode = \"release\" needs a [release] table",
+            ),
+            _ => {}
+        }
+        if let Some(v) = &self.voluntary {
+            c.key("voluntary.amplitude_rad", v.amplitude_rad);
+            c.key("voluntary.omega_rad_s", v.omega_rad_s);
+            c.key("voluntary.duration_s", v.duration_s);
+            c.key("voluntary.grip_kg", v.grip_kg);
+            c.key("voluntary.bias_nm", v.bias_nm);
+            c.key("voluntary.experiment", f64::from(v.experiment));
+        }
+        if let Some(r) = &self.release {
+            c.key("release.experiment", f64::from(r.experiment));
+            c.key("release.spring_torque_nm", r.spring_torque_nm);
+            c.key("release.hold_s", r.hold_s);
+            c.key("release.observe_s", r.observe_s);
         }
         let k = &self.controller;
         if let Some(kp) = k.kp {
-            c.positive("controller.kp", kp)?;
+            c.key("controller.kp", kp);
         }
         if let Some(f) = k.f {
-            c.finite("controller.f", f)?;
-            if !(0.0..1.0).contains(&f) {
-                return Err(c.fail("controller.f", format!("must lie in [0, 1), got {f}")));
-            }
+            c.key("controller.f", f);
         }
-        c.positive("controller.k_range_nm_per_rad[0]", k.k_range_nm_per_rad[0])?;
-        c.positive("controller.k_range_nm_per_rad[1]", k.k_range_nm_per_rad[1])?;
-        if k.k_range_nm_per_rad[0] > k.k_range_nm_per_rad[1] {
-            return Err(c.fail(
-                "controller.k_range_nm_per_rad",
-                "the range is reversed (min > max)",
-            ));
+        let [k_lo, k_hi] = k.k_range_nm_per_rad;
+        if c.key("controller.k_range_nm_per_rad[0]", k_lo)
+            & c.key("controller.k_range_nm_per_rad[1]", k_hi)
+            && k_lo > k_hi
+        {
+            c.note(
+                "controller.k_range_nm_per_rad[1]",
+                format!("must be at least controller.k_range_nm_per_rad[0] = {k_lo} (the range is [min, max]), got {k_hi}"),
+            );
         }
-        if k.filters == 0 || k.filters > 16 {
-            return Err(c.fail(
-                "controller.filters",
-                format!("must be 1 to 16, got {}", k.filters),
-            ));
+        c.key("controller.filters", k.filters as f64);
+        c.key("controller.p1_rad_s", k.p1_rad_s);
+        c.key("controller.r_pp", k.r_pp);
+        let [f_lo, f_hi] = k.f_bounds;
+        if c.key("controller.f_bounds[0]", f_lo) & c.key("controller.f_bounds[1]", f_hi)
+            && f_lo > f_hi
+        {
+            c.note(
+                "controller.f_bounds[1]",
+                format!("must be at least controller.f_bounds[0] = {f_lo} (the bounds are [min, max]), got {f_hi}"),
+            );
         }
-        c.positive("controller.p1_rad_s", k.p1_rad_s)?;
-        c.finite("controller.r_pp", k.r_pp)?;
-        if k.r_pp <= 1.0 {
-            return Err(c.fail(
-                "controller.r_pp",
-                format!("must be greater than 1, got {}", k.r_pp),
-            ));
-        }
-        c.within("controller.f_bounds[0]", k.f_bounds[0], 0.0, 0.999)?;
-        c.within(
-            "controller.f_bounds[1]",
-            k.f_bounds[1],
-            k.f_bounds[0],
-            0.999,
-        )?;
-        c.positive("controller.limits.torque_nm", k.limits.torque_nm)?;
-        c.positive(
+        let l = &k.limits;
+        c.key("controller.limits.torque_nm", l.torque_nm);
+        c.key(
             "controller.limits.torque_rate_nm_per_s",
-            k.limits.torque_rate_nm_per_s,
-        )?;
-        c.finite("controller.limits.theta_rad[0]", k.limits.theta_rad[0])?;
-        c.finite("controller.limits.theta_rad[1]", k.limits.theta_rad[1])?;
-        if k.limits.theta_rad[0] >= k.limits.theta_rad[1] {
-            return Err(c.fail(
-                "controller.limits.theta_rad",
-                "must be [min, max] with min < max",
-            ));
+            l.torque_rate_nm_per_s,
+        );
+        let [t_lo, t_hi] = l.theta_rad;
+        if c.key("controller.limits.theta_rad[0]", t_lo)
+            & c.key("controller.limits.theta_rad[1]", t_hi)
+            && t_lo >= t_hi
+        {
+            c.note(
+                "controller.limits.theta_rad[1]",
+                format!("must be greater than controller.limits.theta_rad[0] = {t_lo} (the range is [min, max]), got {t_hi}"),
+            );
         }
-        c.positive("controller.limits.tau_c_nm", k.limits.tau_c_nm)?;
+        c.key("controller.limits.tau_c_nm", l.tau_c_nm);
         let period_ms = 1000.0 / self.run.rate_hz;
         for (key, v) in [
             (
@@ -636,38 +909,42 @@ impl RunConfig {
             ),
             ("safety.sample_deadline_ms", self.safety.sample_deadline_ms),
         ] {
-            c.positive(key, v)?;
-            if v < period_ms {
-                return Err(c.fail(
+            if c.key(key, v) && rate_ok && v < period_ms {
+                c.note(
                     key,
                     format!(
                         "{v} ms is shorter than one control period ({period_ms} ms at {} Hz)",
                         self.run.rate_hz
                     ),
-                ));
+                );
             }
         }
-        c.positive(
+        c.key(
             "safety.lockstep_timeout_ms",
             self.safety.lockstep_timeout_ms,
-        )?;
+        );
         let r = &self.rig;
-        c.positive("rig.arm_inertia_kg_m2", r.arm_inertia_kg_m2)?;
-        c.non_negative("rig.arm_mass_kg", r.arm_mass_kg)?;
-        c.non_negative("rig.arm_com_m", r.arm_com_m)?;
-        c.non_negative("rig.load_lever_arm_m", r.load_lever_arm_m)?;
-        c.positive("rig.encoder_counts_per_rev", r.encoder_counts_per_rev)?;
-        c.positive("rig.cuff_lever_arm_m", r.cuff_lever_arm_m)?;
-        c.positive("rig.sea_stiffness_nm_per_rad", r.sea_stiffness_nm_per_rad)?;
-        c.positive("rig.sea_counts_per_rev", r.sea_counts_per_rev)?;
-        c.positive("rig.velocity_cutoff_hz", r.velocity_cutoff_hz)?;
-        if r.velocity_cutoff_hz >= self.run.rate_hz / 2.0 {
-            return Err(c.fail(
+        c.key("rig.arm_inertia_kg_m2", r.arm_inertia_kg_m2);
+        c.key("rig.arm_mass_kg", r.arm_mass_kg);
+        c.key("rig.arm_com_m", r.arm_com_m);
+        c.key("rig.load_lever_arm_m", r.load_lever_arm_m);
+        c.key("rig.encoder_counts_per_rev", r.encoder_counts_per_rev);
+        c.key("rig.cuff_lever_arm_m", r.cuff_lever_arm_m);
+        c.key("rig.sea_stiffness_nm_per_rad", r.sea_stiffness_nm_per_rad);
+        c.key("rig.sea_counts_per_rev", r.sea_counts_per_rev);
+        if c.key("rig.velocity_cutoff_hz", r.velocity_cutoff_hz)
+            && rate_ok
+            && r.velocity_cutoff_hz >= self.run.rate_hz / 2.0
+        {
+            c.note(
                 "rig.velocity_cutoff_hz",
-                "must be below half the control rate",
-            ));
+                format!(
+                    "must be below half the control rate ({} Hz), got {}",
+                    self.run.rate_hz / 2.0,
+                    r.velocity_cutoff_hz
+                ),
+            );
         }
-        Ok(())
     }
 
     /// The experiment table (always present after [`RunConfig::from_file`]).

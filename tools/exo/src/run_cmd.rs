@@ -1,11 +1,12 @@
-//! `exo run CONFIG`: validates a run configuration, then starts and
-//! supervises its processes.
+//! `exo run CONFIG`: validates a run configuration and every file it names,
+//! then starts and supervises its processes; `exo run --check CONFIG`
+//! validates only, starting nothing.
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result};
 use clap::Args;
-use exo_config::{RunConfig, TimingMode};
+use exo_config::{ProtocolMode, RunConfig, TimingMode};
 
 use std::time::Instant;
 
@@ -26,6 +27,15 @@ pub struct RunArgs {
     /// Do not fit the recording and write the report after the run.
     #[arg(long)]
     pub no_report: bool,
+    /// Only check: validate the run file and every file it names (plant
+    /// model, subject, experiment table, the iceoryx2 configuration), the
+    /// checks across them (Nyquist, integration step, the controller's
+    /// stability, the output directory), start nothing and write nothing;
+    /// print `ok` and what was checked, or every error found (file: key:
+    /// what is wrong) and exit non-zero. `exo run` makes the same check
+    /// before it starts any process.
+    #[arg(long)]
+    pub check: bool,
 }
 
 /// The processes a configuration asks for, in start order; the recorder
@@ -178,8 +188,18 @@ pub fn recording_path(cfg: &RunConfig) -> PathBuf {
 /// progress lines; returns the recording's path when the recorder ran.
 pub fn run_config(config: &std::path::Path, logs: Logs) -> Result<Option<PathBuf>> {
     // Validate everything before any process starts.
-    let cfg = RunConfig::from_file(config)?;
-    exo_plant_sim::PlantModel::from_file(&cfg.plant_model)?;
+    let checked = check_or_fail(config)?;
+    for w in &checked.warnings {
+        eprintln!("exo: warning: {w}");
+    }
+    let cfg = checked.cfg;
+    std::fs::create_dir_all(&cfg.run.output_dir).map_err(|e| {
+        anyhow::anyhow!(
+            "{}: run.output_dir: cannot create {}: {e}",
+            config.display(),
+            cfg.run.output_dir.display()
+        )
+    })?;
     let recording = cfg.services.recorder.then(|| recording_path(&cfg));
     let services = services_of(&cfg, config, recording.as_deref())?;
     eprintln!(
@@ -246,15 +266,26 @@ fn keep_off_the_control_path(cfg: &RunConfig) {
 }
 
 /// Runs `exo run`: the processes, then (when the run was recorded) the fit
-/// and the report of the recording.
+/// and the report of the recording; with `--check`, only the check.
 pub fn run(args: &RunArgs) -> Result<()> {
+    if args.check {
+        let checked = check_or_fail(&args.config)?;
+        println!("ok");
+        for line in &checked.checked {
+            println!("  {line}");
+        }
+        for w in &checked.warnings {
+            eprintln!("exo: warning: {w}");
+        }
+        return Ok(());
+    }
     let Some(recording) = run_config(&args.config, Logs::Forward)? else {
         return Ok(());
     };
     // Only the identification protocol excites the subject for a fit (a
     // replay republishes whatever the recording's protocol was).
     let cfg = RunConfig::from_file(&args.config)?;
-    let identification = cfg.protocol.mode == exo_config::ProtocolMode::Identification;
+    let identification = cfg.protocol.mode == ProtocolMode::Identification;
     if args.no_report || !identification {
         return Ok(());
     }
@@ -272,4 +303,402 @@ pub fn run(args: &RunArgs) -> Result<()> {
     println!("recording: {}", recording.display());
     println!("report:    {}", page.display());
     Ok(())
+}
+
+/// A run file that passed [`check_run`].
+pub struct Checked {
+    /// The run configuration, with its experiment table and subject.
+    pub cfg: RunConfig,
+    /// What was checked, one line each, for `exo run --check`.
+    pub checked: Vec<String>,
+    /// What is valid but deserves a warning (e.g. a controller stable at
+    /// the subject's stiffness but not over the whole design range).
+    pub warnings: Vec<String>,
+}
+
+/// [`check_run`], with every error in one `anyhow` error (one per line).
+pub fn check_or_fail(config: &Path) -> Result<Checked> {
+    check_run(config).map_err(|errors| {
+        anyhow::anyhow!(
+            "{} is refused ({} error{}); nothing was started:\n  {}",
+            config.display(),
+            errors.len(),
+            if errors.len() == 1 { "" } else { "s" },
+            errors.join("\n  ")
+        )
+    })
+}
+
+/// Validates the run file `config` and every file it names before any
+/// process starts, writing nothing: the run file, its experiment table and
+/// subject (`exo_config`), the plant model, the iceoryx2 configuration the
+/// services will load, and across them: the plant's integration step
+/// divides the control period, the output directory can be created and
+/// written, and the controller's model loop is not clearly unstable at the
+/// stiffness the subject holds in any experiment of the run nor at either
+/// bound of `controller.k_range_nm_per_rad` (refused below
+/// [`REFUSE_BELOW_MARGIN_DEG`], warned below 0°). Returns every error
+/// found, each naming its file and key.
+pub fn check_run(config: &Path) -> std::result::Result<Checked, Vec<String>> {
+    let mut errors: Vec<String> = Vec::new();
+    let mut checked: Vec<String> = Vec::new();
+    let mut warnings: Vec<String> = Vec::new();
+    let cfg = match RunConfig::from_file(config) {
+        Ok(c) => Some(c),
+        Err(e) => {
+            errors.extend(e.each().iter().map(|e| e.to_string()));
+            None
+        }
+    };
+    // The plant model is checked even when the run file has errors, as long
+    // as the run file parses (so its path is known).
+    let plant_path = match &cfg {
+        Some(c) => Some(c.plant_model.clone()),
+        None => exo_config::read_toml::<RunConfig>(config).ok().map(|raw| {
+            config
+                .parent()
+                .unwrap_or(Path::new("."))
+                .join(raw.plant_model)
+        }),
+    };
+    let plant = plant_path
+        .as_ref()
+        .and_then(|p| match exo_plant_sim::PlantModel::from_file(p) {
+            Ok(m) => Some(m),
+            Err(exo_plant_sim::PlantModelError::Several(v)) => {
+                errors.extend(v.iter().map(|e| e.to_string()));
+                None
+            }
+            Err(e) => {
+                errors.push(e.to_string());
+                None
+            }
+        });
+    let ipc_config = exo_service_kit::ipc::config_path(None);
+    match exo_service_kit::ipc::load_config(&ipc_config) {
+        Ok(_) => checked.push(format!(
+            "iceoryx2     {}",
+            ipc_config
+                .canonicalize()
+                .unwrap_or_else(|_| ipc_config.clone())
+                .display()
+        )),
+        Err(e) => errors.push(e.to_string()),
+    }
+    if let (Some(cfg), Some(plant)) = (&cfg, &plant) {
+        check_across(config, cfg, plant, &mut errors, &mut checked, &mut warnings);
+    }
+    match (cfg, plant) {
+        (Some(cfg), Some(_)) if errors.is_empty() => {
+            let table = cfg.experiment_table();
+            let periods = cfg.periods_run(table);
+            let mut lines = vec![
+                format!(
+                    "run file     {} ({:?} at {} Hz, instance {}, {:?} protocol)",
+                    config.display(),
+                    cfg.run.timing,
+                    cfg.run.rate_hz,
+                    cfg.run.instance,
+                    cfg.protocol.mode
+                ),
+                format!(
+                    "experiments  {} (experiments {:?}, periods {:?}, {} s per period)",
+                    cfg.protocol.experiments_file.display(),
+                    cfg.protocol.experiments,
+                    periods,
+                    table.timing.period_s()
+                ),
+                format!(
+                    "subject      {} ({})",
+                    cfg.subject_file.display(),
+                    cfg.subject().name
+                ),
+                format!("plant        {}", cfg.plant_model.display()),
+            ];
+            lines.append(&mut checked);
+            Ok(Checked {
+                cfg,
+                checked: lines,
+                warnings,
+            })
+        }
+        _ => Err(errors),
+    }
+}
+
+/// The checks that need the run file and the plant model together.
+fn check_across(
+    config: &Path,
+    cfg: &RunConfig,
+    plant: &exo_plant_sim::PlantModel,
+    errors: &mut Vec<String>,
+    checked: &mut Vec<String>,
+    warnings: &mut Vec<String>,
+) {
+    let run_file = config.display();
+    // The simulator advances a whole number of integration steps per tick.
+    let period_s = 1.0 / cfg.run.rate_hz;
+    let steps = period_s / plant.integration.step_s;
+    if (steps - steps.round()).abs() > 1e-9 {
+        errors.push(format!(
+            "{}: integration.step_s: {} s does not divide the control period {period_s} s (run.rate_hz = {} of {run_file})",
+            cfg.plant_model.display(),
+            plant.integration.step_s,
+            cfg.run.rate_hz
+        ));
+    }
+    // The output directory: created by `exo run`, so its nearest existing
+    // ancestor must be a directory we may write into.
+    let out = &cfg.run.output_dir;
+    let mut existing = Some(out.as_path());
+    while let Some(p) = existing {
+        if p.as_os_str().is_empty() || p.is_dir() {
+            break;
+        }
+        existing = p.parent();
+    }
+    let existing = match existing {
+        Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
+        _ => PathBuf::from("."),
+    };
+    if writable(&existing) {
+        checked.push(format!(
+            "output dir   {}{}",
+            out.display(),
+            if out.is_dir() {
+                ""
+            } else {
+                " (will be created)"
+            }
+        ));
+    } else {
+        errors.push(format!(
+            "{run_file}: run.output_dir: {} cannot be written: {} is not writable",
+            out.display(),
+            existing.display()
+        ));
+    }
+    match controller_margins(config, cfg, plant) {
+        Ok(m) => {
+            checked.push(format!("controller   {}", m.summary));
+            errors.extend(m.errors);
+            warnings.extend(m.warnings);
+        }
+        Err(e) => errors.push(format!("{run_file}: {e}")),
+    }
+}
+
+fn writable(dir: &Path) -> bool {
+    use std::os::unix::ffi::OsStrExt;
+    let Ok(c) = std::ffi::CString::new(dir.as_os_str().as_bytes()) else {
+        return false;
+    };
+    // SAFETY: `c` is a valid NUL-terminated path; access(2) only reads it.
+    unsafe { libc::access(c.as_ptr(), libc::W_OK | libc::X_OK) == 0 }
+}
+
+/// The controller's loop margins at the run's operating points.
+struct Margins {
+    summary: String,
+    errors: Vec<String>,
+    warnings: Vec<String>,
+}
+
+/// Below this phase margin (degrees) of the model loop `exo run` refuses a
+/// controller; between it and 0° it warns. The model (complex stiffness
+/// with a constant loss factor, the SEA, rigid cuff) is conservative: the
+/// paper's own tuned design for subject B (k_p = 3.2, f = 0.60, Table IV),
+/// stable on the rig and in the simulator (`tests/tests/amplification.rs`),
+/// has −10.8° at the lower stiffness bound and −5.1° at the stiffness B
+/// holds in experiment 4; a design clearly past the edge (f = 0.9 for B:
+/// −30° and −33°) is far below.
+pub const REFUSE_BELOW_MARGIN_DEG: f64 = -15.0;
+
+/// The loop `(α(s) − 1) P(s)` of the amplification controller (the plant's
+/// SEA, the rig's inertias with each experiment's load, the subject's
+/// inertia) at the stiffness and loss factor the subject holds in every
+/// experiment of the run, and — for a fractional-order controller — at
+/// both bounds of `controller.k_range_nm_per_rad` (loss factor there from
+/// the power law of the subject's experiments). A phase margin below
+/// [`REFUSE_BELOW_MARGIN_DEG`] is an error naming the key that sets the
+/// gain (`controller.f` with `controller.kp`, or an experiment's constant
+/// α) and the margin; a negative one above it, a warning.
+fn controller_margins(
+    config: &Path,
+    cfg: &RunConfig,
+    plant: &exo_plant_sim::PlantModel,
+) -> Result<Margins, String> {
+    use exo_impedance::loop_shaping::FractionalLayout;
+    use exo_impedance::{
+        fit_power_law, nominal_crossover, proportional_gain, AmplificationPlant, SeaModel,
+        StiffnessRange,
+    };
+    let science = |key: &str, e: exo_impedance::ScienceError| format!("{key}: {e}");
+    let table = cfg.experiment_table();
+    let subject = cfg.subject();
+    let sea = SeaModel::new(
+        plant.sea.dynamics.natural_frequency_hz,
+        plant.sea.dynamics.damping_ratio,
+    )
+    .map_err(|e| science("sea.dynamics", e))?;
+    let held: Vec<u32> = match cfg.protocol.mode {
+        ProtocolMode::Identification => cfg.protocol.experiments.clone(),
+        ProtocolMode::Voluntary => cfg.voluntary.map(|v| v.experiment).into_iter().collect(),
+        ProtocolMode::Release => cfg.release.map(|r| r.experiment).into_iter().collect(),
+    };
+    let c = &cfg.controller;
+    let [k_lo, k_hi] = c.k_range_nm_per_rad;
+    let range =
+        StiffnessRange::new(k_lo, k_hi).map_err(|e| science("controller.k_range_nm_per_rad", e))?;
+    // The subject's loss factor at any stiffness, for the design range.
+    let ks: Vec<f64> = subject
+        .experiment
+        .iter()
+        .map(|x| x.stiffness_nm_per_rad)
+        .collect();
+    let hs: Vec<f64> = subject
+        .experiment
+        .iter()
+        .map(|x| x.hysteretic_damping_nm_per_rad)
+        .collect();
+    let law = fit_power_law(&ks, &hs).ok().map(|fit| fit.law);
+    // (margin, where, which key sets the gain)
+    let mut found: Vec<(f64, String, String)> = Vec::new();
+    let mut seen = Vec::new();
+    for n in held {
+        if seen.contains(&n) {
+            continue;
+        }
+        seen.push(n);
+        let (Some(spec), Some(e)) = (table.get(n), subject.get(n)) else {
+            continue;
+        };
+        let m_e = cfg.exo_inertia_kg_m2(spec.load_kg);
+        let m_h = subject.inertia_kg_m2;
+        let at = AmplificationPlant::new(
+            m_e,
+            m_h,
+            e.stiffness_nm_per_rad,
+            e.hysteretic_damping_nm_per_rad / e.stiffness_nm_per_rad,
+            sea,
+        )
+        .map_err(|e| science("subject_file", e))?;
+        let holds = format!(
+            "the stiffness subject {} holds in experiment {n} (K = {} Nm/rad, H = {} Nm/rad)",
+            subject.name, e.stiffness_nm_per_rad, e.hysteretic_damping_nm_per_rad
+        );
+        match c.f {
+            Some(f) => {
+                let kp = match c.kp {
+                    Some(kp) => kp,
+                    None => proportional_gain(m_e, m_h).map_err(|e| science("controller.kp", e))?,
+                };
+                let layout = FractionalLayout {
+                    kp,
+                    omega_gc_hat_rad_s: nominal_crossover(range, m_e, m_h)
+                        .map_err(|e| science("controller.k_range_nm_per_rad", e))?,
+                    filters: c.filters,
+                    p1_rad_s: c.p1_rad_s,
+                    r_pp: c.r_pp,
+                };
+                // The controller discretises this filter at start: refuse
+                // here what it would refuse there.
+                layout
+                    .loop_at(f, at)
+                    .and_then(|l| l.filter.discretize(cfg.run.rate_hz))
+                    .map_err(|e| science("controller.p1_rad_s", e))?;
+                let key = if c.kp.is_some() {
+                    format!(
+                        "{}: controller.f: f = {f} with controller.kp = {kp}",
+                        config.display()
+                    )
+                } else {
+                    format!(
+                        "{}: controller.f: f = {f} with k_p = {kp:.3} (eq. kp)",
+                        config.display()
+                    )
+                };
+                let m = layout
+                    .min_phase_margin_deg(f, &[at])
+                    .map_err(|e| science("controller.f", e))?;
+                found.push((m, holds, key.clone()));
+                for k in [k_lo, k_hi] {
+                    let loss = match law {
+                        Some(l) => l.loss_factor(k).ok(),
+                        None => Some(e.hysteretic_damping_nm_per_rad / e.stiffness_nm_per_rad),
+                    };
+                    let Some(loss) = loss.filter(|l| l.is_finite() && *l >= 0.0) else {
+                        continue;
+                    };
+                    let Ok(bound) = AmplificationPlant::new(m_e, m_h, k, loss, sea) else {
+                        continue;
+                    };
+                    let mb = layout
+                        .min_phase_margin_deg(f, &[bound])
+                        .map_err(|e| science("controller.f", e))?;
+                    found.push((
+                        mb,
+                        format!(
+                            "K = {k} Nm/rad, a bound of controller.k_range_nm_per_rad (loss factor {loss:.3} from subject {}'s power law, load {} kg)",
+                            subject.name, spec.load_kg
+                        ),
+                        key.clone(),
+                    ));
+                }
+            }
+            None if cfg.protocol.mode == ProtocolMode::Identification && spec.alpha > 1.0 => {
+                // Constant α: the loop is (α − 1) P(s), the filter flat (f = 0).
+                let layout = FractionalLayout {
+                    kp: spec.alpha - 1.0,
+                    omega_gc_hat_rad_s: 1.0,
+                    filters: 1,
+                    p1_rad_s: 1.0,
+                    r_pp: 10.0,
+                };
+                let m = layout
+                    .min_phase_margin_deg(0.0, &[at])
+                    .map_err(|e| science("experiment alpha", e))?;
+                let idx = table.index_of(n).unwrap_or(0);
+                found.push((
+                    m,
+                    holds,
+                    format!(
+                        "{}: experiment[{idx}].alpha: constant α = {}",
+                        cfg.protocol.experiments_file.display(),
+                        spec.alpha
+                    ),
+                ));
+            }
+            None => {}
+        }
+    }
+    let mut errors = Vec::new();
+    let mut warnings = Vec::new();
+    for (m, at, key) in &found {
+        if *m < REFUSE_BELOW_MARGIN_DEG {
+            errors.push(format!(
+                "{key} leaves the amplification loop a phase margin of {m:.1}° at {at}, below {REFUSE_BELOW_MARGIN_DEG}°: it would oscillate; lower the gain"
+            ));
+        } else if *m < 0.0 {
+            warnings.push(format!(
+                "{key} leaves the model loop a phase margin of {m:.1}° at {at} (refused below {REFUSE_BELOW_MARGIN_DEG}°; the model is conservative, but watch for oscillation)"
+            ));
+        }
+    }
+    let worst = found.iter().map(|(m, ..)| *m).fold(f64::INFINITY, f64::min);
+    let summary = match (c.f, found.is_empty()) {
+        (Some(f), false) => format!(
+            "α(s) = k_p F(s) + 1, f = {f}: smallest phase margin {worst:.1}° (at the subject's stiffness and the bounds of controller.k_range_nm_per_rad)"
+        ),
+        (None, false) => format!(
+            "constant α per experiment: smallest phase margin {worst:.1}° at the subject's stiffness"
+        ),
+        (Some(f), true) => format!("α(s) = k_p F(s) + 1, f = {f}"),
+        (None, true) => "constant α per experiment, no amplification loop (α ≤ 1)".into(),
+    };
+    Ok(Margins {
+        summary,
+        errors,
+        warnings,
+    })
 }
