@@ -809,6 +809,22 @@ fn a_broadband_window_gives_several_points() {
                 p.omega
             );
         }
+        // τ_s − τ_c = M_e θ̈ exactly here: the actuator side differs from
+        // S_h by the real −M_e ω² alone, so their imaginary parts agree (to
+        // the leakage allowed above), and it carries its own noise.
+        let got_h = Complex64::new(p.s_h_re, p.s_h_im);
+        assert!(
+            (hea.im - got_h.im).abs() < 0.05 * got_h.norm() + 0.1 * per_bin,
+            "ω {}: Im S_h-e {} vs Im S_h {}",
+            p.omega,
+            hea.im,
+            got_h.im
+        );
+        assert!(
+            p.s_he_noise_rel > 0.0 && p.s_he_noise_rel.is_finite(),
+            "{}",
+            p.s_he_noise_rel
+        );
         // τ_d = τ_s exactly here.
         assert!((Complex64::new(p.sea_re, p.sea_im) - 1.0).norm() < 1e-9);
     }
