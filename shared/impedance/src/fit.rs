@@ -450,7 +450,7 @@ fn fit_terms(
     if dof > 0 {
         let s2 = chi2 / dof as f64;
         let inv = chol.inverse();
-        let t = students_t_quantile(dof, 0.5 + CONFIDENCE_LEVEL / 2.0)?;
+        let t = interval_quantile(dof)?;
         let (mut se, mut ci) = ([0.0; 4], [0.0; 4]);
         for term in Term::ALL.into_iter().filter(|t| active(*t)) {
             let i = term.index();
@@ -481,6 +481,28 @@ fn fit_terms(
         dof,
         held_at_zero: held,
     })
+}
+
+/// Degrees of freedom whose 95 % quantile is kept after its first use.
+const CACHED_DOF: usize = 512;
+
+/// Student's t quantile of the 95 % intervals at `dof` degrees of freedom.
+/// The inverse CDF costs microseconds (more than a whole fit), so each value
+/// up to [`CACHED_DOF`] is computed once per process and kept.
+fn interval_quantile(dof: usize) -> Result<f64> {
+    use std::sync::OnceLock;
+    static CACHE: [OnceLock<f64>; CACHED_DOF] = [const { OnceLock::new() }; CACHED_DOF];
+    let q = 0.5 + CONFIDENCE_LEVEL / 2.0;
+    match CACHE.get(dof) {
+        Some(cell) => {
+            if let Some(t) = cell.get() {
+                return Ok(*t);
+            }
+            let t = students_t_quantile(dof, q)?;
+            Ok(*cell.get_or_init(|| t))
+        }
+        None => students_t_quantile(dof, q),
+    }
 }
 
 /// The `q` quantile of Student's t with `dof` degrees of freedom.
