@@ -712,6 +712,11 @@ pub fn band_groups(
 /// The average of `bins[group]`: `H` and the frequency weighted alike by
 /// `S_xx` (so an FRF that varies linearly across the band is unbiased at the
 /// reported frequency), coherence and `S_xx` plain means.
+///
+/// The reported frequency is the band's input-power-weighted mean
+/// frequency `Σ ω_k S_xx,k / Σ S_xx,k` (`S_xx,k` ∝ `|X_k|²`), not its
+/// centre: a band where one line dominates is labelled at that line (within
+/// the spread of its leakage), a flat band at its mean frequency.
 pub fn average_bins(bins: &[H1Bin], group: &[usize]) -> Option<H1Bin> {
     let g: Vec<&H1Bin> = group.iter().filter_map(|&i| bins.get(i)).collect();
     let w: f64 = g.iter().map(|b| b.s_xx).sum();

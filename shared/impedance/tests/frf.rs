@@ -509,3 +509,68 @@ fn band_selection_keeps_the_excited_coherent_bins_in_log_spaced_points() {
     assert!(welch_h1(&x[..100], &y[..100], 1000.0, 1024).is_err());
     assert!(welch_h1(&x, &y, 1000.0, 1000).is_err());
 }
+
+/// A bin at `omega` with input power `s_xx` and `H = h`.
+fn bin(omega: f64, s_xx: f64, h: Complex64) -> H1Bin {
+    H1Bin {
+        omega_rad_s: omega,
+        h,
+        coherence: 0.9,
+        s_xx,
+        segments: 8,
+    }
+}
+
+#[test]
+fn a_band_is_labelled_at_its_input_power_weighted_frequency() {
+    let width = 0.5; // bin spacing (rad/s)
+    let h = |w: f64| Complex64::new(30.0 - 0.02 * w * w, 2.0);
+    // One strong line at bin 11 (5.5 rad/s) among weak neighbours across a
+    // band of bins 2…14 (centre 4 rad/s): the label is the line's.
+    let bins: Vec<H1Bin> = (0..20)
+        .map(|k| {
+            let w = k as f64 * width;
+            let p = if k == 11 { 1.0 } else { 1e-3 };
+            bin(w, p, h(w))
+        })
+        .collect();
+    let group: Vec<usize> = (2..=14).collect();
+    let centre = (bins[2].omega_rad_s + bins[14].omega_rad_s) / 2.0;
+    let b = average_bins(&bins, &group).unwrap();
+    let line = bins[11].omega_rad_s;
+    assert!(
+        (b.omega_rad_s - line).abs() < width,
+        "labelled {} rad/s, line at {line}, band centre {centre}",
+        b.omega_rad_s
+    );
+    assert!((b.omega_rad_s - centre).abs() > 1.0, "{}", b.omega_rad_s);
+    // Exactly Σ ω S_xx / Σ S_xx.
+    let (num, den) = group.iter().fold((0.0, 0.0), |(n, d), &i| {
+        (n + bins[i].omega_rad_s * bins[i].s_xx, d + bins[i].s_xx)
+    });
+    assert!((b.omega_rad_s - num / den).abs() < 1e-12);
+    // H weighted alike: the line's H within the weak bins' share.
+    assert!((b.h - h(line)).norm() / h(line).norm() < 0.01, "{}", b.h);
+    // Coherence and S_xx: plain means; segments kept.
+    assert!((b.coherence - 0.9).abs() < 1e-12);
+    assert!((b.s_xx - den / group.len() as f64).abs() < 1e-15);
+    assert_eq!(b.segments, 8);
+
+    // A flat band: the mean frequency of its bins.
+    let flat: Vec<H1Bin> = (0..20)
+        .map(|k| bin(k as f64 * width, 2.5, h(k as f64 * width)))
+        .collect();
+    let b = average_bins(&flat, &group).unwrap();
+    let mean = group.iter().map(|&i| flat[i].omega_rad_s).sum::<f64>() / group.len() as f64;
+    assert!(
+        (b.omega_rad_s - mean).abs() < 1e-12,
+        "{} vs {mean}",
+        b.omega_rad_s
+    );
+    assert!((b.s_xx - 2.5).abs() < 1e-12);
+
+    // No input power, or no bins: no point.
+    let dead: Vec<H1Bin> = (0..4).map(|k| bin(k as f64, 0.0, h(1.0))).collect();
+    assert!(average_bins(&dead, &[1, 2]).is_none());
+    assert!(average_bins(&flat, &[]).is_none());
+}

@@ -13,7 +13,28 @@
 //! value: then α = 1 and the load 0 kg were written).
 //!
 //! The whole record becomes one analysis window of a broadband period
-//! (`ProtocolState.omega = 0`) unless `--omega` names a sine frequency.
+//! (`ProtocolState.omega = 0`) unless `--omega` names a sine frequency, or
+//! the angle is a single sine: without `--omega`, a record whose angle one
+//! sinusoid explains (≥ 80 % of its variance about mean and trend, at least
+//! two whole cycles) is imported as a sine period at that sinusoid's
+//! frequency (least-squares estimate; the metadata says `omega_detected =
+//! true`), so its S_h is labelled at the line, not at the FFT bins its
+//! leakage reaches.
+//!
+//! The time column is in `--time-unit` (s, ms or us; default s). It must
+//! increase and be uniformly sampled: a step above 1.5× the median step is
+//! a gap, refused naming its line, the times either side and its size (split
+//! the file there and import each part as its own trial); a median rate
+//! under 10 Hz or over 100 kHz in the declared unit is refused naming the
+//! unit that would make it plausible (e.g. `use --time-unit ms`).
+//!
+//! The output is refused when it is the input CSV itself (same device and
+//! inode), or, with `--study`, any of the study's CSVs or the study file.
+//! The recording is built in memory, written to a temporary file (mode
+//! 0640) in the output's directory, synced, and renamed over the output
+//! only when complete: a failure (no space, no permission, a bad cell)
+//! leaves any earlier file at that path intact and no partial file behind,
+//! and the error names the path and the OS error.
 //! Without an actuator-torque column there is no `S_h-e/α`: the recording's
 //! metadata says `fit_target = human`, and the fitter fits `S_h = τ/θ`.
 //!
@@ -23,15 +44,27 @@
 use std::cell::RefCell;
 use std::collections::BTreeMap;
 use std::io::{Cursor, Seek, SeekFrom, Write};
+use std::os::unix::fs::{MetadataExt, OpenOptionsExt};
 use std::path::{Path, PathBuf};
 use std::rc::Rc;
+use std::sync::atomic::{AtomicU64, Ordering};
 
 use anyhow::{bail, Context, Result};
 use clap::Args;
 use exo_messages::{ActuatorCommand, ProtocolState, SensorSample};
 use exo_recording::{Recording, RecordingWriter, DEFAULT_CHUNK_BYTES};
 
-pub use crate::study::{load_study, TrialSpec};
+pub use crate::study::{load_study, TimeUnit, TrialSpec};
+
+/// A time step above this multiple of the median step is a gap.
+const GAP_FACTOR: f64 = 1.5;
+/// The plausible sample rates (Hz): outside, the time unit is likely wrong.
+const RATE_RANGE_HZ: (f64, f64) = (10.0, 100e3);
+/// The fraction of the angle's variance one sinusoid must explain for a
+/// record without `--omega` to be imported as a sine period.
+const SINE_EXPLAINED: f64 = 0.8;
+/// Whole cycles a detected sine must span.
+const SINE_MIN_CYCLES: f64 = 2.0;
 
 /// Arguments of `exo import`.
 #[derive(Debug, Args)]
@@ -47,7 +80,7 @@ pub struct ImportArgs {
     /// `load_kg`, …), one recording per trial into the -o directory.
     #[arg(long, value_name = "STUDY.toml", conflicts_with_all = [
         "csv", "experiment", "condition", "alpha", "load_kg", "omega", "subject",
-        "flip_torque", "flip_angle", "time_col", "angle_col", "torque_col", "actuator_col",
+        "flip_torque", "flip_angle", "time_col", "time_unit", "angle_col", "torque_col", "actuator_col",
     ])]
     pub study: Option<PathBuf>,
     /// Experiment number of this trial (≥ 1): one per condition of a subject.
@@ -69,9 +102,12 @@ pub struct ImportArgs {
     /// and the metadata says load_assumed = true].
     #[arg(long, value_name = "KG", allow_hyphen_values = true, value_parser = crate::args::finite)]
     pub load_kg: Option<f64>,
-    /// Column of the time (s).
+    /// Column of the time (in --time-unit).
     #[arg(long, default_value = "time_s")]
     pub time_col: String,
+    /// Unit of the time column.
+    #[arg(long, value_enum, default_value_t = TimeUnit::S)]
+    pub time_unit: TimeUnit,
     /// Column of the joint angle (rad).
     #[arg(long, default_value = "position_rad")]
     pub angle_col: String,
@@ -111,6 +147,7 @@ impl ImportArgs {
             flip_torque: self.flip_torque,
             flip_angle: self.flip_angle,
             time_col: self.time_col.clone(),
+            time_unit: self.time_unit,
             angle_col: self.angle_col.clone(),
             torque_col: self.torque_col.clone(),
             actuator_col: self.actuator_col.clone(),
@@ -200,15 +237,227 @@ fn parse_csv(csv: &Path, spec: &TrialSpec) -> Result<Columns> {
     if c.t.len() < 16 {
         bail!("{name}: only {} samples", c.t.len());
     }
-    if let Some(k) = c.t.windows(2).position(|w| w[1] <= w[0]) {
+    check_time(&name.to_string(), &c.t, &line_no, spec.time_unit)?;
+    let scale = spec.time_unit.seconds();
+    for t in &mut c.t {
+        *t *= scale;
+    }
+    Ok(c)
+}
+
+/// `v` rounded to four significant digits (for messages).
+fn sig4(v: f64) -> f64 {
+    if v == 0.0 || !v.is_finite() {
+        return v;
+    }
+    let p = 10f64.powi(3 - v.abs().log10().floor() as i32);
+    (v * p).round() / p
+}
+
+/// Checks the time column `t` (in `unit`; `line_no[k]` is sample k's line):
+/// increasing, a plausible rate in `unit`, and no gap.
+fn check_time(name: &str, t: &[f64], line_no: &[usize], unit: TimeUnit) -> Result<()> {
+    if let Some(k) = t.windows(2).position(|w| w[1] <= w[0]) {
         bail!(
             "{name} line {}: time {} does not increase (previous {})",
             line_no[k + 1],
-            c.t[k + 1],
-            c.t[k]
+            t[k + 1],
+            t[k]
         );
     }
-    Ok(c)
+    let steps: Vec<f64> = t.windows(2).map(|w| w[1] - w[0]).collect();
+    let mut sorted = steps.clone();
+    sorted.sort_by(f64::total_cmp);
+    let median = sorted[sorted.len() / 2];
+    let (lo, hi) = RATE_RANGE_HZ;
+    let rate_in = |u: TimeUnit| 1.0 / (median * u.seconds());
+    let rate = rate_in(unit);
+    if !(lo..=hi).contains(&rate) {
+        // The unit that puts the rate nearest 1 kHz (log scale) within the range.
+        let likely = TimeUnit::ALL
+            .into_iter()
+            .filter(|&u| u != unit && (lo..=hi).contains(&rate_in(u)))
+            .min_by(|&a, &b| {
+                let d = |u: TimeUnit| (rate_in(u) / 1e3).ln().abs();
+                d(a).total_cmp(&d(b))
+            });
+        let hint = match likely {
+            Some(u) => format!(
+                "is the time column in {u}? use --time-unit {u} (study file: time_unit = \"{u}\"), \
+                 which gives {} Hz",
+                sig4(rate_in(u))
+            ),
+            None => "no time unit (s, ms, us) gives a plausible rate; check the time column".into(),
+        };
+        bail!(
+            "{name}: a sample rate of {} Hz in {unit} (median time step {} {unit}) is \
+             implausible (outside {lo} Hz–{} kHz): {hint}",
+            sig4(rate),
+            sig4(median),
+            hi / 1e3
+        );
+    }
+    if let Some(k) = steps.iter().position(|&d| d > GAP_FACTOR * median) {
+        bail!(
+            "{name} line {}: the time jumps from {} to {} {unit}, a gap of {} {unit} \
+             ({}× the median step of {} {unit}): the record is not uniformly sampled; \
+             split the file before line {} and import each part as its own trial",
+            line_no[k + 1],
+            t[k],
+            t[k + 1],
+            sig4(steps[k]),
+            sig4(steps[k] / median),
+            sig4(median),
+            line_no[k + 1]
+        );
+    }
+    Ok(())
+}
+
+/// Least-squares fit of `x ≈ c0 + c1 τ + a cos ωτ + b sin ωτ` (`τ = t − t0`):
+/// the fraction of the variance about mean and trend the sinusoid explains.
+fn sine_explained(t: &[f64], x: &[f64], omega: f64, tss: f64) -> f64 {
+    let t0 = t[0];
+    let mut ata = [[0.0f64; 4]; 4];
+    let mut aty = [0.0f64; 4];
+    let row = |tau: f64| {
+        let (s, c) = (omega * tau).sin_cos();
+        [1.0, tau, c, s]
+    };
+    for (&ti, &xi) in t.iter().zip(x) {
+        let r = row(ti - t0);
+        for i in 0..4 {
+            aty[i] += r[i] * xi;
+            for j in 0..4 {
+                ata[i][j] += r[i] * r[j];
+            }
+        }
+    }
+    let Some(c) = solve4(ata, aty) else {
+        return 0.0;
+    };
+    let rss: f64 = t
+        .iter()
+        .zip(x)
+        .map(|(&ti, &xi)| {
+            let r = row(ti - t0);
+            let f: f64 = (0..4).map(|i| r[i] * c[i]).sum();
+            (xi - f).powi(2)
+        })
+        .sum();
+    1.0 - rss / tss
+}
+
+/// Solves the 4 × 4 system `a c = y` (Gaussian elimination, partial pivoting).
+fn solve4(mut a: [[f64; 4]; 4], mut y: [f64; 4]) -> Option<[f64; 4]> {
+    for col in 0..4 {
+        let p = (col..4).max_by(|&i, &j| a[i][col].abs().total_cmp(&a[j][col].abs()))?;
+        if a[p][col].abs() < 1e-300 {
+            return None;
+        }
+        a.swap(col, p);
+        y.swap(col, p);
+        for r in col + 1..4 {
+            let f = a[r][col] / a[col][col];
+            let pivot = a[col];
+            for (x, p) in a[r].iter_mut().zip(pivot).skip(col) {
+                *x -= f * p;
+            }
+            y[r] -= f * y[col];
+        }
+    }
+    let mut c = [0.0; 4];
+    for r in (0..4).rev() {
+        let s: f64 = (r + 1..4).map(|k| a[r][k] * c[k]).sum();
+        c[r] = (y[r] - s) / a[r][r];
+    }
+    c.iter().all(|v| v.is_finite()).then_some(c)
+}
+
+/// The frequency (rad/s) of a single sine `x` sampled at `t` (s, uniform)
+/// and the fraction of its variance (about mean and trend) it explains, if
+/// one sinusoid explains at least [`SINE_EXPLAINED`] of it over at least
+/// [`SINE_MIN_CYCLES`] whole cycles. The peak of the Hann-windowed,
+/// zero-padded spectrum, refined by maximising the least-squares fit.
+fn detect_sine(t: &[f64], x: &[f64]) -> Option<(f64, f64)> {
+    let n = t.len();
+    let dt = (t[n - 1] - t[0]) / (n - 1) as f64;
+    let span = dt * n as f64;
+    // Mean and trend removed.
+    let (tm, xm) = (
+        t.iter().sum::<f64>() / n as f64,
+        x.iter().sum::<f64>() / n as f64,
+    );
+    let stt: f64 = t.iter().map(|&ti| (ti - tm).powi(2)).sum();
+    let slope = t
+        .iter()
+        .zip(x)
+        .map(|(&ti, &xi)| (ti - tm) * (xi - xm))
+        .sum::<f64>()
+        / stt;
+    let d: Vec<f64> = t
+        .iter()
+        .zip(x)
+        .map(|(&ti, &xi)| xi - xm - slope * (ti - tm))
+        .collect();
+    let tss: f64 = d.iter().map(|v| v * v).sum();
+    if !(tss > 0.0 && tss.is_finite()) {
+        return None;
+    }
+    let m = (n.next_power_of_two() * 4).min(n.next_power_of_two().max(1 << 22));
+    let mut a = vec![exo_impedance::Complex64::new(0.0, 0.0); m];
+    for (k, (slot, v)) in a.iter_mut().zip(&d).enumerate() {
+        let w = 0.5 - 0.5 * (std::f64::consts::TAU * k as f64 / n as f64).cos();
+        *slot = exo_impedance::Complex64::new(v * w, 0.0);
+    }
+    exo_impedance::frf::fft_in_place(&mut a).ok()?;
+    let peak = (1..m / 2).max_by(|&i, &j| a[i].norm_sqr().total_cmp(&a[j].norm_sqr()))?;
+    let bin = std::f64::consts::TAU / (m as f64 * dt);
+    let (mut lo, mut hi) = (
+        (peak as f64 - 2.0).max(0.5) * bin,
+        (peak as f64 + 2.0) * bin,
+    );
+    // Golden-section search of the explained fraction.
+    let g = (5f64.sqrt() - 1.0) / 2.0;
+    let f = |w: f64| sine_explained(t, x, w, tss);
+    let (mut w1, mut w2) = (hi - g * (hi - lo), lo + g * (hi - lo));
+    let (mut f1, mut f2) = (f(w1), f(w2));
+    for _ in 0..60 {
+        if f1 < f2 {
+            lo = w1;
+            w1 = w2;
+            f1 = f2;
+            w2 = lo + g * (hi - lo);
+            f2 = f(w2);
+        } else {
+            hi = w2;
+            w2 = w1;
+            f2 = f1;
+            w1 = hi - g * (hi - lo);
+            f1 = f(w1);
+        }
+    }
+    let omega = 0.5 * (lo + hi);
+    let explained = f(omega);
+    let cycles = omega * span / std::f64::consts::TAU;
+    (explained >= SINE_EXPLAINED && cycles >= SINE_MIN_CYCLES && omega < std::f64::consts::PI / dt)
+        .then_some((omega, explained))
+}
+
+/// `spec` with the detected sine's frequency when it names none (see the
+/// module documentation); the detection's explained fraction.
+fn with_detected_omega(spec: &TrialSpec, c: &Columns) -> (TrialSpec, Option<f64>) {
+    let mut spec = spec.clone();
+    if spec.omega.is_some() {
+        return (spec, None);
+    }
+    match detect_sine(&c.t, &c.theta) {
+        Some((w, explained)) => {
+            spec.omega = Some(w);
+            (spec, Some(explained))
+        }
+        None => (spec, None),
+    }
 }
 
 /// Writes one trial's recording; returns the sample rate (Hz).
@@ -217,6 +466,7 @@ fn write_trial<W: Write + Seek>(
     csv: &Path,
     spec: &TrialSpec,
     c: &Columns,
+    detected: bool,
 ) -> Result<f64> {
     let t = &c.t;
     let n = t.len();
@@ -235,6 +485,9 @@ fn write_trial<W: Write + Seek>(
     meta.insert("load_assumed".into(), flag(spec.load_kg.is_none()));
     if c.actuator.is_none() {
         meta.insert("fit_target".into(), "human".into());
+    }
+    if detected {
+        meta.insert("omega_detected".into(), "true".into());
     }
     w.write_metadata(exo_recording::RUN_METADATA, &meta)?;
     let state = |phase: u32, stamp_ns: u64| ProtocolState {
@@ -280,10 +533,96 @@ fn write_trial<W: Write + Seek>(
     Ok(rate)
 }
 
+/// Whether `a` and `b` are the same existing file (device and inode).
+fn same_file(a: &Path, b: &Path) -> bool {
+    match (std::fs::metadata(a), std::fs::metadata(b)) {
+        (Ok(x), Ok(y)) => x.dev() == y.dev() && x.ino() == y.ino(),
+        _ => false,
+    }
+}
+
+/// Writes `bytes` to `out` atomically: a temporary file (mode 0640) in
+/// `out`'s directory, synced, then renamed over `out`. On an error the
+/// temporary file is removed and any earlier `out` is left as it was.
+fn write_atomically(out: &Path, bytes: &[u8]) -> Result<()> {
+    static SERIAL: AtomicU64 = AtomicU64::new(0);
+    let shown = out.display();
+    let file_name = out
+        .file_name()
+        .with_context(|| format!("-o {shown}: names no file"))?;
+    let dir = out
+        .parent()
+        .filter(|d| !d.as_os_str().is_empty())
+        .unwrap_or(Path::new("."));
+    std::fs::create_dir_all(dir)
+        .with_context(|| format!("writing {shown}: creating its directory {}", dir.display()))?;
+    let tmp = dir.join(format!(
+        ".{}.{}-{}.tmp",
+        file_name.to_string_lossy(),
+        std::process::id(),
+        SERIAL.fetch_add(1, Ordering::Relaxed)
+    ));
+    let result = (|| -> std::io::Result<()> {
+        let mut f = std::fs::OpenOptions::new()
+            .write(true)
+            .create_new(true)
+            .mode(0o640)
+            .open(&tmp)?;
+        f.write_all(bytes)?;
+        f.sync_all()?;
+        drop(f);
+        std::fs::rename(&tmp, out)?;
+        // The rename is durable once the directory is synced (best effort).
+        if let Ok(d) = std::fs::File::open(dir) {
+            let _ = d.sync_all();
+        }
+        Ok(())
+    })();
+    result.map_err(|e| {
+        let _ = std::fs::remove_file(&tmp);
+        anyhow::anyhow!(
+            "writing {shown} (via the temporary file {}): {e}; any earlier {shown} is left as it was",
+            tmp.display()
+        )
+    })
+}
+
+/// What [`build`] returns: the file's bytes, the parsed columns, the rate
+/// (Hz), the spec as written (with a detected sine's ω) and the detected
+/// sine's explained fraction.
+type Built = (Vec<u8>, Columns, f64, TrialSpec, Option<f64>);
+
+/// The recording of `csv` under `spec`, built in memory (see [`Built`]).
+fn build(csv: &Path, spec: &TrialSpec) -> Result<Built> {
+    let c = parse_csv(csv, spec)?;
+    let (spec, detected) = with_detected_omega(spec, &c);
+    let buf = SharedBuffer::default();
+    let w = RecordingWriter::new(buf.clone(), csv, DEFAULT_CHUNK_BYTES)?;
+    let rate = write_trial(w, csv, &spec, &c, detected.is_some())?;
+    let bytes = buf.0.take().into_inner();
+    Ok((bytes, c, rate, spec, detected))
+}
+
 /// Imports one CSV into the recording `out` (see the module documentation).
 fn import_file(csv: &Path, spec: &TrialSpec, out: &Path) -> Result<()> {
-    let c = parse_csv(csv, spec)?;
-    let rate = write_trial(RecordingWriter::create(out)?, csv, spec, &c)?;
+    if same_file(csv, out) {
+        bail!(
+            "-o {}: is the input CSV {} itself; importing would overwrite it: name another output, e.g. {}",
+            out.display(),
+            csv.display(),
+            csv.with_extension("mcap").display()
+        );
+    }
+    let (bytes, c, rate, spec, detected) = build(csv, spec)?;
+    if let (Some(w), Some(x)) = (spec.omega, detected) {
+        eprintln!(
+            "exo import: {}: the angle is a single sine at {w:.4} rad/s ({:.1} % of its variance): \
+             imported as one sine period at that frequency (--omega overrides)",
+            csv.display(),
+            100.0 * x
+        );
+    }
+    write_atomically(out, &bytes)?;
     eprintln!(
         "exo import: {} samples at {rate:.1} Hz from {} → {} (subject {}, experiment {}, {:?})",
         c.t.len(),
@@ -326,11 +665,7 @@ impl Seek for SharedBuffer {
 pub fn recording_from_csv(path: &Path, spec: &TrialSpec) -> Result<Recording> {
     spec.validate()
         .map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?;
-    let c = parse_csv(path, spec)?;
-    let buf = SharedBuffer::default();
-    let w = RecordingWriter::new(buf.clone(), path, DEFAULT_CHUNK_BYTES)?;
-    write_trial(w, path, spec, &c)?;
-    let bytes = buf.0.take().into_inner();
+    let (bytes, ..) = build(path, spec)?;
     Ok(exo_recording::read_recording_bytes(
         &path.display().to_string(),
         &bytes,
@@ -338,7 +673,8 @@ pub fn recording_from_csv(path: &Path, spec: &TrialSpec) -> Result<Recording> {
 }
 
 /// Imports every trial of a study file into `dir`; returns the recordings
-/// written. On an error, the recordings this call already wrote are removed.
+/// written. On an error, the recordings this call already wrote are removed;
+/// the failed trial's path keeps any earlier file (see [`write_atomically`]).
 fn import_study(study: &Path, dir: &Path) -> Result<Vec<PathBuf>> {
     let trials = load_study(study)?;
     if dir.is_file() {
@@ -347,12 +683,29 @@ fn import_study(study: &Path, dir: &Path) -> Result<Vec<PathBuf>> {
             dir.display()
         );
     }
+    // No recording may replace one of the study's own files.
+    for (i, (_, spec)) in trials.iter().enumerate() {
+        let out = dir.join(spec.recording_name());
+        let inputs = trials.iter().map(|(c, _)| c.as_path());
+        if let Some(hit) = inputs
+            .chain(std::iter::once(study))
+            .find(|p| same_file(p, &out))
+        {
+            bail!(
+                "{}: trial {}: its recording {} is the study's own file {}; importing would \
+                 overwrite it: name another -o directory",
+                study.display(),
+                i + 1,
+                out.display(),
+                hit.display()
+            );
+        }
+    }
     std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
     let mut written = Vec::new();
     for (i, (csv, spec)) in trials.iter().enumerate() {
         let out = dir.join(spec.recording_name());
         if let Err(e) = import_file(csv, spec, &out) {
-            let _ = std::fs::remove_file(&out);
             for p in &written {
                 let _ = std::fs::remove_file(p);
             }

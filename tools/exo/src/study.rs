@@ -7,8 +7,9 @@
 //!
 //! ```toml
 //! subject = "S1"            # default for every trial
-//! flip_torque = true        # defaults too: flip_angle, time_col, angle_col,
-//!                           # torque_col, actuator_col
+//! flip_torque = true        # defaults too: flip_angle, time_col, time_unit,
+//!                           # angle_col, torque_col, actuator_col
+//! time_unit = "ms"          # unit of the time column: "s" (default), "ms", "us"
 //! [[trial]]
 //! file = "relaxed.csv"
 //! experiment = 1            # required, ≥ 1, one per subject
@@ -16,7 +17,7 @@
 //! alpha = 1.0               # optional (≥ 1); metadata alpha_assumed otherwise
 //! load_kg = 0.0             # optional (≥ 0); metadata load_assumed otherwise
 //! # optional per trial: subject, omega, flip_torque, flip_angle,
-//! # time_col, angle_col, torque_col, actuator_col
+//! # time_col, time_unit, angle_col, torque_col, actuator_col
 //! ```
 //!
 //! Unknown keys are refused, and every bad value is named with the study
@@ -28,6 +29,53 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{bail, Context, Result};
 use serde::Deserialize;
+
+/// The unit of a CSV's time column.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Deserialize, clap::ValueEnum)]
+pub enum TimeUnit {
+    /// Seconds.
+    #[default]
+    #[serde(rename = "s")]
+    #[value(name = "s")]
+    S,
+    /// Milliseconds.
+    #[serde(rename = "ms")]
+    #[value(name = "ms")]
+    Ms,
+    /// Microseconds.
+    #[serde(rename = "us")]
+    #[value(name = "us")]
+    Us,
+}
+
+impl TimeUnit {
+    /// Every unit, coarsest first.
+    pub const ALL: [TimeUnit; 3] = [TimeUnit::S, TimeUnit::Ms, TimeUnit::Us];
+
+    /// Seconds per unit.
+    pub fn seconds(self) -> f64 {
+        match self {
+            TimeUnit::S => 1.0,
+            TimeUnit::Ms => 1e-3,
+            TimeUnit::Us => 1e-6,
+        }
+    }
+
+    /// The unit's spelling (`s`, `ms`, `us`).
+    pub fn name(self) -> &'static str {
+        match self {
+            TimeUnit::S => "s",
+            TimeUnit::Ms => "ms",
+            TimeUnit::Us => "us",
+        }
+    }
+}
+
+impl fmt::Display for TimeUnit {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.name())
+    }
+}
 
 /// How to import one CSV: who and which experiment it is, and its columns.
 #[derive(Debug, Clone, PartialEq)]
@@ -50,8 +98,10 @@ pub struct TrialSpec {
     pub flip_torque: bool,
     /// Multiply the angle by −1.
     pub flip_angle: bool,
-    /// Column of the time (s).
+    /// Column of the time.
     pub time_col: String,
+    /// Unit of the time column (s, ms or us).
+    pub time_unit: TimeUnit,
     /// Column of the joint angle (rad).
     pub angle_col: String,
     /// Column of the human joint torque (Nm).
@@ -86,6 +136,7 @@ impl TrialSpec {
             flip_torque: false,
             flip_angle: false,
             time_col: "time_s".to_string(),
+            time_unit: TimeUnit::S,
             angle_col: "position_rad".to_string(),
             torque_col: "torque_nm".to_string(),
             actuator_col: None,
@@ -217,6 +268,7 @@ struct StudyToml {
     flip_torque: Option<bool>,
     flip_angle: Option<bool>,
     time_col: Option<String>,
+    time_unit: Option<TimeUnit>,
     angle_col: Option<String>,
     torque_col: Option<String>,
     actuator_col: Option<String>,
@@ -239,6 +291,7 @@ struct TrialToml {
     flip_torque: Option<bool>,
     flip_angle: Option<bool>,
     time_col: Option<String>,
+    time_unit: Option<TimeUnit>,
     angle_col: Option<String>,
     torque_col: Option<String>,
     actuator_col: Option<String>,
@@ -307,6 +360,7 @@ pub fn load_study(path: &Path) -> Result<Vec<(PathBuf, TrialSpec)>> {
             }
         }
         spec.actuator_col = t.actuator_col.or_else(|| top.actuator_col.clone());
+        spec.time_unit = t.time_unit.or(top.time_unit).unwrap_or_default();
         spec.validate().map_err(|e| anyhow::anyhow!("{at}: {e}"))?;
         if let Some(first) = seen.insert((spec.subject.clone(), spec.experiment), n) {
             bail!(
