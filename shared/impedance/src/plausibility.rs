@@ -320,7 +320,8 @@ mod tests {
 
     #[test]
     fn significance_is_beyond_the_interval_strictly() {
-        let h = |h_nm_per_rad, ci95| Implausibility::NegativeHystereticDamping { h_nm_per_rad, ci95 };
+        let h =
+            |h_nm_per_rad, ci95| Implausibility::NegativeHystereticDamping { h_nm_per_rad, ci95 };
         let b = |b_nm_s_per_rad, ci95| Implausibility::NegativeViscousDamping {
             b_nm_s_per_rad,
             ci95,
