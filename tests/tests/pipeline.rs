@@ -354,3 +354,74 @@ fn the_launcher_keeps_off_the_control_path_cpus() {
     };
     assert!(err.contains(&expected), "expected `{expected}` in:\n{err}");
 }
+
+/// The pids whose parent is `pid` (from `/proc/*/stat`).
+fn children_of(pid: u32) -> Vec<u32> {
+    let mut out = Vec::new();
+    for entry in std::fs::read_dir("/proc").unwrap().flatten() {
+        let Ok(child) = entry.file_name().to_string_lossy().parse::<u32>() else {
+            continue;
+        };
+        let Ok(stat) = std::fs::read_to_string(format!("/proc/{child}/stat")) else {
+            continue;
+        };
+        // pid (comm) state ppid …: the comm may hold spaces, so split after ')'.
+        let Some(rest) = stat.rsplit_once(')').map(|(_, r)| r) else {
+            continue;
+        };
+        let ppid = rest.split_whitespace().nth(1).and_then(|p| p.parse().ok());
+        if ppid == Some(pid) {
+            out.push(child);
+        }
+    }
+    out
+}
+
+/// Whether `pid` is alive (a zombie counts as gone: it runs no code).
+fn alive(pid: u32) -> bool {
+    std::fs::read_to_string(format!("/proc/{pid}/stat"))
+        .ok()
+        .and_then(|s| {
+            s.rsplit_once(')')
+                .map(|(_, r)| r.trim_start().starts_with('Z'))
+        })
+        .is_some_and(|zombie| !zombie)
+}
+
+/// kill -9 of `exo run`: every service it started stops too (they get
+/// SIGTERM when the supervisor dies) instead of running on as orphans.
+/// Waits are bounded and driven by what is observed; the time it takes is
+/// for the fault benchmark, not for this test.
+#[test]
+fn killing_the_launcher_stops_every_service_it_started() {
+    let sc = Scenario::new("orphans", &[]);
+    let mut launcher = std::process::Command::new(workspace_bin("exo"))
+        .args(["run", sc.config.to_str().unwrap()])
+        .stdin(std::process::Stdio::null())
+        .stdout(std::process::Stdio::null())
+        .stderr(std::process::Stdio::null())
+        .spawn()
+        .unwrap();
+    let pid = launcher.id();
+    // Wait (bounded) until the five services run and samples flow.
+    let samples =
+        sc.collect::<exo_messages::SensorSample>(exo_service_kit::channels::Channel::Sensor);
+    samples.wait_for(Duration::from_secs(120), "samples", |s| s.len() > 100);
+    let services = children_of(pid);
+    assert!(services.len() >= 5, "services of exo run: {services:?}");
+    kill_9(&mut launcher);
+    let _ = launcher.wait();
+    let deadline = std::time::Instant::now() + Duration::from_secs(60);
+    loop {
+        let left: Vec<u32> = services.iter().copied().filter(|p| alive(*p)).collect();
+        if left.is_empty() {
+            break;
+        }
+        assert!(
+            std::time::Instant::now() < deadline,
+            "services still running 60 s after exo run was killed: {left:?}"
+        );
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    drop(samples);
+}

@@ -147,12 +147,39 @@ const TAIL_LINES: usize = 15;
 
 type Tail = Arc<Mutex<VecDeque<String>>>;
 
+/// Makes the child get SIGTERM when the supervisor dies (`PR_SET_PDEATHSIG`),
+/// so a `kill -9` of `exo run` never leaves its services running as orphans:
+/// each stops as on Ctrl-C (the driver and the controller through their own
+/// safe paths). The signal follows the *thread* that spawned the child;
+/// every service is spawned from the supervisor's own thread, which lives
+/// as long as the run. If the supervisor died before the child set this up,
+/// the child ends itself at once.
+fn die_with_the_supervisor(cmd: &mut Command) {
+    use std::os::unix::process::CommandExt;
+    let supervisor = std::process::id();
+    // SAFETY: between fork and exec the closure calls only async-signal-safe
+    // functions (prctl, getppid, raise) and allocates nothing.
+    unsafe {
+        cmd.pre_exec(move || {
+            if libc::prctl(libc::PR_SET_PDEATHSIG, libc::SIGTERM) != 0 {
+                return Err(std::io::Error::last_os_error());
+            }
+            if u32::try_from(libc::getppid()) != Ok(supervisor) {
+                libc::raise(libc::SIGTERM);
+            }
+            Ok(())
+        });
+    }
+}
+
 fn spawn(spec: &ServiceSpec, logs: Logs, tail: &Tail) -> Result<Child> {
-    let mut child = Command::new(&spec.program)
-        .args(&spec.args)
+    let mut cmd = Command::new(&spec.program);
+    cmd.args(&spec.args)
         .stdin(Stdio::null())
         .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
+        .stderr(Stdio::piped());
+    die_with_the_supervisor(&mut cmd);
+    let mut child = cmd
         .spawn()
         .with_context(|| format!("starting {} ({})", spec.name, spec.program.display()))?;
     for (stream, is_err) in [
