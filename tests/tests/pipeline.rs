@@ -394,9 +394,14 @@ fn alive(pid: u32) -> bool {
 /// for the fault benchmark, not for this test.
 #[test]
 fn killing_the_launcher_stops_every_service_it_started() {
-    let sc = Scenario::new("orphans", &[]);
+    // A protocol far longer than the wait below (3000 s of rest between
+    // periods), and services that log nothing: a service that writes to the
+    // dead launcher's pipe dies of the broken pipe anyway (a panic, not a
+    // stop), which would hide a missing death signal.
+    let sc = Scenario::new("orphans", &[("rest_s = 1.0", "rest_s = 3000.0")]);
     let mut launcher = std::process::Command::new(workspace_bin("exo"))
         .args(["run", sc.config.to_str().unwrap()])
+        .env("RUST_LOG", "off")
         .stdin(std::process::Stdio::null())
         .stdout(std::process::Stdio::null())
         .stderr(std::process::Stdio::null())
