@@ -66,6 +66,23 @@ fn one_experiment_runs_end_to_end_through_the_launcher() {
         "no excitation seen"
     );
     assert!(stderr(&out).contains("protocol done"));
+    // The recording and the report are the user's and their group's only.
+    use std::os::unix::fs::PermissionsExt;
+    let text = stdout(&out);
+    for prefix in ["recording:", "report:"] {
+        let path = text
+            .lines()
+            .find_map(|l| l.strip_prefix(prefix))
+            .unwrap_or_else(|| panic!("no `{prefix}` line in:\n{text}"))
+            .trim();
+        let mode = std::fs::metadata(path).unwrap().permissions().mode() & 0o777;
+        assert_eq!(mode & 0o137, 0, "{path}: mode {mode:o}, at most 0640");
+        let dir = std::path::Path::new(path).parent().unwrap();
+        if dir != sc.dir {
+            let dmode = std::fs::metadata(dir).unwrap().permissions().mode() & 0o777;
+            assert_eq!(dmode & 0o027, 0, "{}: mode {dmode:o}", dir.display());
+        }
+    }
 }
 
 #[test]

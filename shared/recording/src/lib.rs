@@ -23,6 +23,7 @@
 #![warn(missing_docs)]
 
 pub mod cdr;
+pub mod files;
 pub mod reader;
 pub mod schema;
 pub mod writer;

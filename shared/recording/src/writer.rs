@@ -66,9 +66,9 @@ impl RecordingWriter<BufWriter<File>> {
     /// uncompressed bytes (at least 1024).
     pub fn create_with_chunk_bytes(path: &Path, chunk_bytes: u64) -> Result<Self, RecordingError> {
         if let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty()) {
-            std::fs::create_dir_all(dir).map_err(|e| RecordingError::io(path, e))?;
+            crate::files::create_output_dir(dir).map_err(|e| RecordingError::io(path, e))?;
         }
-        let f = File::create(path).map_err(|e| RecordingError::io(path, e))?;
+        let f = crate::files::create_output_file(path).map_err(|e| RecordingError::io(path, e))?;
         Self::new(BufWriter::new(f), path, chunk_bytes)
     }
 }

@@ -248,7 +248,8 @@ pub fn text(r: &Diagnosis) -> String {
 
 /// Writes the report, the updated model, the fitted subject and the JSON.
 pub fn write_outputs(dir: &Path, nominal: &PlantModel, d: &Dataset, r: &Diagnosis) -> Result<()> {
-    std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+    exo_recording::files::create_output_dir(dir)
+        .with_context(|| format!("creating {}", dir.display()))?;
     let updated = r.updated_plant(nominal);
     let mut plant = format!(
         "# Updated by exo diagnose from {}.\n# Terms added: {}.\n\n",
@@ -265,15 +266,16 @@ pub fn write_outputs(dir: &Path, nominal: &PlantModel, d: &Dataset, r: &Diagnosi
     );
     plant.push_str(&updated.to_toml_string());
     let p = dir.join("updated-plant.toml");
-    std::fs::write(&p, plant).with_context(|| format!("writing {}", p.display()))?;
+    exo_recording::files::write_output_file(&p, plant)
+        .with_context(|| format!("writing {}", p.display()))?;
     let p = dir.join("updated-subject.toml");
-    std::fs::write(&p, r.final_physics.subject_toml("diagnosed"))
+    exo_recording::files::write_output_file(&p, r.final_physics.subject_toml("diagnosed"))
         .with_context(|| format!("writing {}", p.display()))?;
     let p = dir.join("diagnosis.json");
-    std::fs::write(&p, serde_json::to_string_pretty(r)?)
+    exo_recording::files::write_output_file(&p, serde_json::to_string_pretty(r)?)
         .with_context(|| format!("writing {}", p.display()))?;
     let p = dir.join("report.html");
-    std::fs::write(&p, diagnose_report::html(d, r)?)
+    exo_recording::files::write_output_file(&p, diagnose_report::html(d, r)?)
         .with_context(|| format!("writing {}", p.display()))?;
     Ok(())
 }

@@ -641,7 +641,8 @@ fn csv_text(s: Option<&str>) -> String {
 }
 
 fn write_csv(dir: &Path, r: &FitReport) -> Result<()> {
-    std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+    exo_recording::files::create_output_dir(dir)
+        .with_context(|| format!("creating {}", dir.display()))?;
     let mut frf = String::from("subject,experiment,condition,period,omega_rad_s,s_h_re,s_h_im,s_h_e_alpha_re,s_h_e_alpha_im,s_h_e_actuator_re,s_h_e_actuator_im,s_h_phase_deg,coherence,noise_rel\n");
     let mut models = String::from("subject,experiment,condition,model,K,H,B,M,K_ci95,H_ci95,B_ci95,M_ci95,r2,rss,chi2_per_dof\n");
     for s in &r.subjects {
@@ -734,7 +735,8 @@ fn write_csv(dir: &Path, r: &FitReport) -> Result<()> {
         ("power_law.csv", pl),
     ] {
         let p = dir.join(name);
-        std::fs::write(&p, text).with_context(|| format!("writing {}", p.display()))?;
+        exo_recording::files::write_output_file(&p, text)
+            .with_context(|| format!("writing {}", p.display()))?;
     }
     Ok(())
 }

@@ -88,9 +88,11 @@ pub fn write_report(fit_args: &FitArgs, out: &Path) -> Result<PathBuf> {
         &report,
         &traces(&loaded),
     )?;
-    std::fs::create_dir_all(out).with_context(|| format!("creating {}", out.display()))?;
+    exo_recording::files::create_output_dir(out)
+        .with_context(|| format!("creating {}", out.display()))?;
     let path = out.join("report.html");
-    std::fs::write(&path, page).with_context(|| format!("writing {}", path.display()))?;
+    exo_recording::files::write_output_file(&path, page)
+        .with_context(|| format!("writing {}", path.display()))?;
     Ok(path)
 }
 

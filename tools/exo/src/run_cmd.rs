@@ -193,7 +193,7 @@ pub fn run_config(config: &std::path::Path, logs: Logs) -> Result<Option<PathBuf
         eprintln!("exo: warning: {w}");
     }
     let cfg = checked.cfg;
-    std::fs::create_dir_all(&cfg.run.output_dir).map_err(|e| {
+    exo_recording::files::create_output_dir(&cfg.run.output_dir).map_err(|e| {
         anyhow::anyhow!(
             "{}: run.output_dir: cannot create {}: {e}",
             config.display(),
