@@ -740,42 +740,8 @@ mod tests {
         Path::new(env!("CARGO_MANIFEST_DIR")).join("../../configs/plants")
     }
 
-    fn leaves(v: &Value, path: &str, out: &mut Vec<String>) {
-        match v {
-            Value::Integer(_) | Value::Float(_) => out.push(path.to_string()),
-            Value::Table(t) => {
-                for (k, v) in t {
-                    let p = if path.is_empty() {
-                        k.clone()
-                    } else {
-                        format!("{path}.{k}")
-                    };
-                    leaves(v, &p, out);
-                }
-            }
-            Value::Array(a) => {
-                for (i, v) in a.iter().enumerate() {
-                    leaves(v, &format!("{path}[{i}]"), out);
-                }
-            }
-            _ => {}
-        }
-    }
-
     fn leaf_mut<'a>(doc: &'a mut Table, path: &str) -> &'a mut Value {
-        let (path, index) = match path.split_once('[') {
-            Some((p, i)) => (p, Some(i.trim_end_matches(']').parse::<usize>().unwrap())),
-            None => (path, None),
-        };
-        let mut parts = path.split('.');
-        let mut v = doc.get_mut(parts.next().unwrap()).unwrap();
-        for part in parts {
-            v = v.as_table_mut().unwrap().get_mut(part).unwrap();
-        }
-        match index {
-            Some(i) => &mut v.as_array_mut().unwrap()[i],
-            None => v,
-        }
+        exo_config::toml_paths::leaf_mut(doc, path).unwrap_or_else(|| panic!("no key {path}"))
     }
 
     #[test]
@@ -792,8 +758,10 @@ mod tests {
     fn every_numeric_key_is_refused_by_name_or_accepted_within_its_range() {
         let text = std::fs::read_to_string(plants_dir().join("default.toml")).unwrap();
         let doc: Table = toml::from_str(&text).unwrap();
-        let mut keys = Vec::new();
-        leaves(&Value::Table(doc.clone()), "", &mut keys);
+        let keys: Vec<String> = exo_config::toml_paths::numeric_leaves(&Value::Table(doc.clone()))
+            .into_iter()
+            .map(|(k, _)| k)
+            .collect();
         assert!(keys.len() > 40, "only {} numeric keys", keys.len());
         let mut failures = Vec::new();
         for key in &keys {

@@ -489,6 +489,7 @@ pub const MAX_PERIOD: u32 = 10;
 mod experiments;
 mod run;
 mod subject;
+pub mod toml_paths;
 
 pub use experiments::{ExperimentSpec, ExperimentTable, ProtocolTiming, EXPERIMENT_RANGES};
 pub use run::{

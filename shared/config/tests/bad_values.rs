@@ -18,61 +18,9 @@ use exo_config::{
 };
 use toml::{Table, Value};
 
-/// A numeric leaf: its dotted path and whether it is an integer.
-fn numeric_leaves(v: &Value, path: &str, out: &mut Vec<(String, bool)>) {
-    match v {
-        Value::Integer(_) => out.push((path.to_string(), true)),
-        Value::Float(_) => out.push((path.to_string(), false)),
-        Value::Table(t) => {
-            for (k, v) in t {
-                let p = if path.is_empty() {
-                    k.clone()
-                } else {
-                    format!("{path}.{k}")
-                };
-                numeric_leaves(v, &p, out);
-            }
-        }
-        Value::Array(a) => {
-            for (i, v) in a.iter().enumerate() {
-                numeric_leaves(v, &format!("{path}[{i}]"), out);
-            }
-        }
-        _ => {}
-    }
-}
-
 /// The value at a dotted path (with `[i]` indices), mutably.
 fn leaf_mut<'a>(doc: &'a mut Table, path: &str) -> &'a mut Value {
-    let mut parts = path.split('.');
-    let first = parts.next().unwrap();
-    let (name, indices) = split_indices(first);
-    let mut v = doc.get_mut(name).unwrap();
-    for i in indices {
-        v = &mut v.as_array_mut().unwrap()[i];
-    }
-    for part in parts {
-        let (name, indices) = split_indices(part);
-        v = v.as_table_mut().unwrap().get_mut(name).unwrap();
-        for i in indices {
-            v = &mut v.as_array_mut().unwrap()[i];
-        }
-    }
-    v
-}
-
-fn split_indices(part: &str) -> (&str, Vec<usize>) {
-    match part.find('[') {
-        None => (part, vec![]),
-        Some(at) => (
-            &part[..at],
-            part[at..]
-                .split(['[', ']'])
-                .filter(|s| !s.is_empty())
-                .map(|s| s.parse().unwrap())
-                .collect(),
-        ),
-    }
+    exo_config::toml_paths::leaf_mut(doc, path).unwrap_or_else(|| panic!("no key {path}"))
 }
 
 /// The six bad values of a leaf holding `original`.
@@ -183,7 +131,9 @@ fn every_numeric_key_is_refused_by_name_or_accepted_within_its_documented_range(
         let text = std::fs::read_to_string(&path).unwrap();
         let doc: Table = toml::from_str(&text).unwrap();
         let mut leaves = Vec::new();
-        numeric_leaves(&Value::Table(doc.clone()), "", &mut leaves);
+        leaves.extend(exo_config::toml_paths::numeric_leaves(&Value::Table(
+            doc.clone(),
+        )));
         assert!(leaves.len() > 5, "{file}: no numeric keys found");
         for (key, _) in &leaves {
             let original = leaf_mut(&mut doc.clone(), key).clone();
