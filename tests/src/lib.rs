@@ -64,6 +64,19 @@ pub fn python() -> String {
     String::from_utf8(out.stdout).unwrap().trim().to_string()
 }
 
+/// The real human ankle recording beside the repository
+/// (`../shared/data/ankle-stiffness-reklab`), checked to be there.
+pub fn ankle_csv() -> PathBuf {
+    let csv =
+        workspace_root().join("../shared/data/ankle-stiffness-reklab/ankle_position_torque.csv");
+    assert!(
+        csv.is_file(),
+        "the real recording is expected at {}",
+        csv.display()
+    );
+    csv
+}
+
 /// The workspace's `configs/` directory.
 pub fn configs_dir() -> PathBuf {
     workspace_root().join("configs")

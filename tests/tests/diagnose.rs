@@ -158,8 +158,7 @@ fn a_python_written_recording_with_a_sensor_delay_and_complex_stiffness_is_diagn
 #[test]
 fn the_real_ankle_recording_is_diagnosed_against_an_m1_model() {
     let dir = scratch("ankle");
-    let csv =
-        workspace_root().join("../shared/data/ankle-stiffness-reklab/ankle_position_torque.csv");
+    let csv = ankle_csv();
     let rec = dir.join("ankle.mcap");
     let out = exo(&[
         "import",

@@ -431,13 +431,7 @@ fn bad_command_line_values_are_refused_naming_the_option() {
 
 #[test]
 fn the_real_ankle_recording_imports_through_a_study_file() {
-    let csv =
-        workspace_root().join("../shared/data/ankle-stiffness-reklab/ankle_position_torque.csv");
-    assert!(
-        csv.is_file(),
-        "the real recording is expected at {}",
-        csv.display()
-    );
+    let csv = ankle_csv();
     let csv = csv.canonicalize().unwrap();
     let dir = scratch("ankle");
     let study = dir.join("ankle.toml");

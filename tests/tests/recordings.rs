@@ -118,13 +118,7 @@ fn a_recording_written_by_an_independent_python_script_is_fitted() {
 
 #[test]
 fn the_real_ankle_recording_is_imported_fitted_and_reported() {
-    let csv =
-        workspace_root().join("../shared/data/ankle-stiffness-reklab/ankle_position_torque.csv");
-    assert!(
-        csv.is_file(),
-        "the real recording is expected at {}",
-        csv.display()
-    );
+    let csv = ankle_csv();
     let dir = std::env::temp_dir().join(format!("exo-it-ankle-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     let rec = dir.join("ankle.mcap");

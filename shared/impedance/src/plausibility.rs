@@ -142,10 +142,10 @@ impl Implausibility {
 
 impl std::fmt::Display for Implausibility {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        let beyond = if self.significant() {
-            "beyond its 95 % interval"
-        } else {
-            "though within its 95 % interval of zero"
+        let beyond = match (self.significant(), self) {
+            (true, _) => "beyond its 95 % interval",
+            (false, Implausibility::InertiaOutOfRange { .. }) => "within its 95 % interval",
+            (false, _) => "though within its 95 % interval of zero",
         };
         match *self {
             Implausibility::NegativeHystereticDamping { h_nm_per_rad, ci95 } => write!(
@@ -165,11 +165,6 @@ impl std::fmt::Display for Implausibility {
                 joint,
             } => {
                 let [lo, hi] = joint.inertia_range_kg_m2();
-                let beyond = if self.significant() {
-                    "beyond its 95 % interval"
-                } else {
-                    "within its 95 % interval"
-                };
                 if joint == Joint::Unspecified {
                     write!(
                         f,
