@@ -417,6 +417,19 @@ mod tests {
     }
 
     #[test]
+    fn before_the_start_the_protocol_is_idle_not_done() {
+        let t = table();
+        let p = Protocol::new(&t, &[1], None);
+        for t_s in [-1.0, f64::NAN] {
+            let s = p.at(t_s);
+            assert!(!s.done, "at {t_s}: {s:?}");
+            assert_eq!(s.experiment, 0);
+        }
+        // After its end it is done.
+        assert!(p.at(p.duration_s() + 1.0).done);
+    }
+
+    #[test]
     fn a_restart_and_an_operator_stop_follow_the_same_periods() {
         let t = table();
         let p = Protocol::new(&t, &[1, 4], Some(&[1, 4]));
