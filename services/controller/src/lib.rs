@@ -26,6 +26,7 @@
 
 pub mod amplification;
 pub mod controller;
+pub mod node;
 pub mod protocol;
 pub mod safety;
 

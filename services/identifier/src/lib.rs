@@ -237,6 +237,22 @@ impl Default for IdentifierSettings {
     }
 }
 
+impl IdentifierSettings {
+    /// The identifier's settings for run `cfg`: its rate, the arm of its
+    /// rig (M_e), the controller's design range and f bounds; the rest
+    /// default.
+    pub fn of_run(cfg: &exo_config::RunConfig) -> Self {
+        IdentifierSettings {
+            rate_hz: cfg.run.rate_hz,
+            arm_inertia_kg_m2: cfg.rig.arm_inertia_kg_m2,
+            load_lever_arm_m: cfg.rig.load_lever_arm_m,
+            k_range_nm_per_rad: cfg.controller.k_range_nm_per_rad,
+            f_bounds: cfg.controller.f_bounds,
+            ..IdentifierSettings::default()
+        }
+    }
+}
+
 /// A setting the identifier cannot work with.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 #[error("identifier settings: {field} = {value}: {why}")]
@@ -342,6 +358,38 @@ pub enum Event {
     /// recommended f yet): of interest live, not to a post-hoc analysis
     /// that fits every experiment itself.
     RefitNote(String),
+}
+
+impl Event {
+    /// Logs the event as the identifier process does: each FRF point, the
+    /// M2 refit with its F-test and recommended f, warnings as warnings.
+    pub fn log(&self) {
+        match self {
+            Event::Frf(p) => tracing::info!(
+                "identifier: experiment {} period {}: S_h({:.2} rad/s) = {:.2}{:+.2}j Nm/rad, coherence {:.3}",
+                p.experiment, p.period, p.omega, p.s_h_re, p.s_h_im, p.coherence
+            ),
+            Event::Estimate(e) if FitModel::from_u32(e.model) == Some(FitModel::M2) => {
+                let f_test = if e.f_critical > 0.0 {
+                    format!("F(M1−M3) = {:.1} (critical {:.2})", e.f_m1_m3, e.f_critical)
+                } else {
+                    "no F-tests yet (M3 needs 3 points)".to_string()
+                };
+                let f = if e.recommended_f > 0.0 {
+                    format!("; recommended f = {:.3}", e.recommended_f)
+                } else {
+                    String::new()
+                };
+                tracing::info!(
+                    "identifier: experiment {} M2 after {} points: K = {:.2} ± {:.2}, H = {:.2} ± {:.2} Nm/rad, M_h = {:.3} ± {:.3} kg·m², R² = {:.3}; {f_test}{f}",
+                    e.experiment, e.n_points, e.k_h, e.k_h_se, e.h_h, e.h_h_se, e.m_h, e.m_h_se, e.r2
+                );
+            }
+            Event::Estimate(_) => {}
+            Event::Warning(w) => tracing::warn!("identifier: {w}"),
+            Event::RefitNote(w) => tracing::info!("identifier: {w}"),
+        }
+    }
 }
 
 /// A fixed-capacity ring of time-stamped values, oldest overwritten.

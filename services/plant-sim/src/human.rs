@@ -3,6 +3,8 @@
 //! amplification experiments a voluntary sinusoid on top. The impedance pulls
 //! the forearm towards this equilibrium (equilibrium-point control).
 
+use exo_messages::ProtocolPhase;
+
 use crate::plant::HumanDrive;
 
 /// The subject's posture and voluntary motion.
@@ -31,13 +33,15 @@ impl PostureDrive {
         }
     }
 
-    /// Advances `dt_s` in protocol `phase` (the `ProtocolState.phase` number)
-    /// and returns the equilibrium the impedance pulls towards.
-    pub fn update(&mut self, dt_s: f64, phase: u32) -> HumanDrive {
-        let target = if (1..=4).contains(&phase) {
-            self.active_rad
-        } else {
-            self.rest_rad
+    /// Advances `dt_s` in protocol `phase` and returns the equilibrium the
+    /// impedance pulls towards. The arm is raised from the bias's ramp-in to
+    /// its ramp-out; the voluntary motion runs while the perturbation does
+    /// (settling and analysis).
+    pub fn update(&mut self, dt_s: f64, phase: ProtocolPhase) -> HumanDrive {
+        use ProtocolPhase::*;
+        let target = match phase {
+            RampIn | Settling | Analysis | RampOut => self.active_rad,
+            Idle | Rest => self.rest_rad,
         };
         let a = (-dt_s / self.time_constant_s).exp();
         let previous = self.posture_rad;
@@ -45,7 +49,7 @@ impl PostureDrive {
         let posture_rate = (self.posture_rad - previous) / dt_s;
         let (mut theta, mut omega) = (self.posture_rad, posture_rate);
         if let Some((amp, w)) = self.voluntary {
-            if phase == 2 || phase == 3 {
+            if matches!(phase, Settling | Analysis) {
                 self.motion_t_s += dt_s;
                 theta += amp * (w * self.motion_t_s).sin();
                 omega += amp * w * (w * self.motion_t_s).cos();
@@ -69,11 +73,11 @@ mod tests {
         let mut d = PostureDrive::new(0.3, 0.8, None);
         let mut last = HumanDrive::default();
         for _ in 0..5000 {
-            last = d.update(1e-3, 1);
+            last = d.update(1e-3, ProtocolPhase::RampIn);
         }
         assert!((last.theta_eq_rad - 0.8).abs() < 1e-3);
         for _ in 0..5000 {
-            last = d.update(1e-3, 5);
+            last = d.update(1e-3, ProtocolPhase::Rest);
         }
         assert!((last.theta_eq_rad - 0.3).abs() < 1e-3);
     }
@@ -83,7 +87,7 @@ mod tests {
         let mut d = PostureDrive::new(0.8, 0.8, Some((0.1, 10.0)));
         let mut drive = HumanDrive::default();
         for _ in 0..157 {
-            drive = d.update(1e-3, 3);
+            drive = d.update(1e-3, ProtocolPhase::Analysis);
         }
         // A quarter period of 10 rad/s is 157 ms: at the crest.
         assert!((drive.theta_eq_rad - 0.9).abs() < 1e-3, "{drive:?}");

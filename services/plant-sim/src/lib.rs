@@ -23,11 +23,13 @@
 pub mod expm;
 pub mod human;
 pub mod model;
+pub mod node;
 pub mod plant;
 pub mod prony;
 pub mod rng;
 
 pub use human::PostureDrive;
 pub use model::{PlantModel, PlantModelError};
+pub use node::{PlantNode, StepMismatch};
 pub use plant::{HumanDrive, Plant, PlantTruth, RawSensors};
 pub use prony::PronyBank;

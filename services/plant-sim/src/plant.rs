@@ -514,10 +514,9 @@ impl Plant {
         self.t_s += self.model.integration.step_s;
         self.drive.theta_eq_rad += self.drive.omega_eq_rad_s * self.model.integration.step_s;
         self.advance_reflex();
-        let t = self.truth();
-        self.theta_delay.push(t.theta_e_rad);
-        self.tau_c_delay.push(t.tau_c_nm);
-        self.tau_s_delay.push(t.tau_s_nm);
+        self.theta_delay.push(self.x[self.layout.th_e]);
+        self.tau_c_delay.push(self.tau_c_nm());
+        self.tau_s_delay.push(self.tau_s_nm());
     }
 
     /// Advances `duration_s` (rounded to whole steps) with the command held.
@@ -569,11 +568,31 @@ impl Plant {
     pub fn truth(&self) -> PlantTruth {
         let l = self.layout;
         let x = &self.x;
-        let tau_s = match l.sea {
-            Some(s) => x[s],
+        PlantTruth {
+            t_s: self.t_s,
+            theta_e_rad: x[l.th_e],
+            omega_e_rad_s: x[l.w_e],
+            theta_h_rad: x[l.th_h],
+            tau_c_nm: self.tau_c_nm(),
+            tau_s_nm: self.tau_s_nm(),
+            tau_g_nm: self.gravity_torque(x[l.th_e]),
+        }
+    }
+
+    /// The SEA spring torque τ_s (Nm), noise-free; the held command when
+    /// the SEA term is off.
+    fn tau_s_nm(&self) -> f64 {
+        match self.layout.sea {
+            Some(s) => self.x[s],
             None => self.tau_d_held,
-        };
-        let tau_c = if self.model.cuff.compliance.enabled {
+        }
+    }
+
+    /// The torque τ_c (Nm) the cuff applies to the forearm, noise-free.
+    fn tau_c_nm(&self) -> f64 {
+        let l = self.layout;
+        let x = &self.x;
+        if self.model.cuff.compliance.enabled {
             let c = self.model.cuff.compliance;
             c.stiffness_nm_per_rad * (x[l.th_e] - x[l.th_h])
                 + c.damping_nm_s_per_rad * (x[l.w_e] - x[l.w_h])
@@ -587,15 +606,6 @@ impl Plant {
                 acc += self.b[(l.w_e, j)] * self.u[j];
             }
             self.model.human.inertia_kg_m2 * acc - self.impedance_torque() - self.u[U_TAU_REFLEX]
-        };
-        PlantTruth {
-            t_s: self.t_s,
-            theta_e_rad: x[l.th_e],
-            omega_e_rad_s: x[l.w_e],
-            theta_h_rad: x[l.th_h],
-            tau_c_nm: tau_c,
-            tau_s_nm: tau_s,
-            tau_g_nm: self.gravity_torque(x[l.th_e]),
         }
     }
 

@@ -140,6 +140,20 @@ impl Drops {
         ]
     }
 
+    /// The `exo.drops` metadata record: per topic, samples missed; how many
+    /// records the writer's queue discarded (`discarded`); and the frames
+    /// the sensor driver itself skipped (its own gaps, not missed here).
+    pub fn metadata(&self, discarded: u64) -> BTreeMap<String, String> {
+        let counted = self.counted();
+        let mut m = drops_metadata(counted.iter().copied());
+        m.insert("writer_queue_discarded".into(), discarded.to_string());
+        m.insert(
+            "exo/sensor.skipped_by_driver".into(),
+            self.sensor.skipped_upstream.to_string(),
+        );
+        m
+    }
+
     /// Samples missed over all topics.
     pub fn total(&self) -> u64 {
         self.counted().iter().map(|(_, c)| c.dropped).sum()
@@ -321,6 +335,40 @@ pub fn run_metadata(cfg: &RunConfig, config_file: &Path) -> BTreeMap<String, Str
         format!("{:?}", cfg.protocol.mode).to_lowercase(),
     );
     m
+}
+
+/// A run's recording file as the recorder writes it.
+pub type FileWriter = RecordingWriter<std::io::BufWriter<std::fs::File>>;
+
+/// Starts the recording of run `cfg` (read from `config_file`) at `path`:
+/// the contract's schemas and channels, the `exo` metadata, and the run's
+/// configuration, plant model and subject attached (a file that cannot be
+/// attached is a warning, not a failed run). Used by the recorder process
+/// and by the in-process simulation alike.
+pub fn start_recording(
+    path: &Path,
+    cfg: &RunConfig,
+    config_file: &Path,
+) -> Result<FileWriter, RecordingError> {
+    let mut w = RecordingWriter::create(path)?;
+    w.register_contract()?;
+    w.write_metadata("exo", &run_metadata(cfg, config_file))?;
+    for (name, file) in [
+        ("config.toml", config_file),
+        ("plant.toml", cfg.plant_model.as_path()),
+        ("subject.toml", cfg.subject_file.as_path()),
+    ] {
+        match std::fs::read(file) {
+            Ok(bytes) => {
+                if let Err(e) = w.attach(name, "application/toml", &bytes, 0) {
+                    tracing::warn!("recorder: attaching {}: {e}", file.display());
+                }
+            }
+            Err(e) => tracing::warn!("recorder: cannot attach {}: {e}", file.display()),
+        }
+    }
+    w.flush()?;
+    Ok(w)
 }
 
 /// The `exo.drops` metadata record: per topic, samples missed.

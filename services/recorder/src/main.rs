@@ -5,7 +5,6 @@
 //! what is still buffered, writes the drop counts and the summary, and exits.
 //! Killed with SIGKILL, it leaves a file whose complete chunks are readable.
 
-use std::io::BufWriter;
 use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
 
 use anyhow::{Context, Result};
@@ -15,16 +14,15 @@ use exo_messages::{
     ProtocolState, SensorSample,
 };
 use exo_recorder::{
-    batch_channel, default_output, drops_metadata, run_metadata, BatchReceiver, BatchSender, Drops,
+    batch_channel, default_output, start_recording, BatchReceiver, BatchSender, Drops, FileWriter,
     Record, WriterGone,
 };
-use exo_recording::RecordingWriter;
 use exo_service_kit::channels::Channel;
 use exo_service_kit::ipc::{Inbox, Ipc, MAX_BUFFER, OFF_PATH_COALESCE};
 use exo_service_kit::{init_logging, ServiceArgs, StopFlag};
 use tracing::{error, info, warn};
 
-type Writer = RecordingWriter<BufWriter<std::fs::File>>;
+type Writer = FileWriter;
 
 /// Records per hand-off batch, and how many batches may wait for the writer:
 /// 256 × 4 096 records (≤ 190 MB, allocated only as a stall needs them) ride
@@ -137,17 +135,6 @@ fn write_batches(mut w: Writer, batches: BatchReceiver) -> Result<(Writer, Drops
     }
 }
 
-fn attach_file(w: &mut Writer, name: &str, path: &std::path::Path) {
-    match std::fs::read(path) {
-        Ok(bytes) => {
-            if let Err(e) = w.attach(name, "application/toml", &bytes, 0) {
-                warn!("recorder: attaching {}: {e}", path.display());
-            }
-        }
-        Err(e) => warn!("recorder: cannot attach {}: {e}", path.display()),
-    }
-}
-
 fn run(args: ServiceArgs) -> Result<()> {
     let cfg = RunConfig::from_file(&args.config)?;
     let stop = StopFlag::install()?;
@@ -164,13 +151,7 @@ fn run(args: ServiceArgs) -> Result<()> {
         args.iceoryx2_config.as_deref(),
     )?;
     let taps = Taps::open(&ipc)?;
-    let mut w = RecordingWriter::create(&path)?;
-    w.register_contract()?;
-    w.write_metadata("exo", &run_metadata(&cfg, &args.config))?;
-    attach_file(&mut w, "config.toml", &args.config);
-    attach_file(&mut w, "plant.toml", &cfg.plant_model);
-    attach_file(&mut w, "subject.toml", &cfg.subject_file);
-    w.flush()?;
+    let w = start_recording(&path, &cfg, &args.config)?;
     info!("recorder: writing {}", path.display());
     let (mut out, batches) = batch_channel(BATCH_RECORDS, MAX_PENDING_BATCHES);
     let writer = std::thread::Builder::new()
@@ -188,15 +169,7 @@ fn run(args: ServiceArgs) -> Result<()> {
         .with_context(|| format!("writing {}", path.display()))?;
     let received = received?;
     let counted = drops.counted();
-    let mut drops_meta = drops_metadata(counted.iter().copied());
-    drops_meta.insert("writer_queue_discarded".into(), discarded.to_string());
-    // Frames the sensor driver never got (it fell behind): the control
-    // path's miss, recorded here but not counted as the recorder's.
-    drops_meta.insert(
-        "exo/sensor.skipped_by_driver".into(),
-        drops.sensor.skipped_upstream.to_string(),
-    );
-    w.write_metadata("exo.drops", &drops_meta)?;
+    w.write_metadata("exo.drops", &drops.metadata(discarded))?;
     let written = w.messages_written();
     w.finish()
         .with_context(|| format!("finishing {}", path.display()))?;

@@ -7,6 +7,7 @@
 use std::time::Duration;
 
 use exo_messages::{BusMotorCommand, BusSensorFrame};
+use exo_sensor_driver::node::raw_frame;
 use exo_sensor_driver::{HardwareBus, RawFrame};
 use exo_service_kit::channels::Channel;
 use exo_service_kit::ipc::{Connect, Inbox, Ipc, IpcError, Outbox};
@@ -57,14 +58,7 @@ impl HardwareBus for SimulatorBus {
             self.motor.send(m)?;
             return Ok(None);
         }
-        Ok(Some(RawFrame {
-            seq: frame.seq,
-            stamp_ns: frame.stamp_ns,
-            encoder_counts: frame.encoder_counts,
-            cuff_wrench: frame.cuff_wrench,
-            sea_deflection_counts: frame.sea_deflection_counts,
-            status: frame.status,
-        }))
+        Ok(Some(raw_frame(&frame)))
     }
 
     fn write(

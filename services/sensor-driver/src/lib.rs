@@ -14,12 +14,14 @@
 
 pub mod calibration;
 pub mod driver;
+pub mod node;
 pub mod round_trip;
 
 pub use calibration::{Calibration, VelocityFilter};
 pub use driver::{
     status, CalibratedSample, CommandSource, Driver, DriverOutput, RawFrame, SafetyEvent,
 };
+pub use node::DriverNode;
 pub use round_trip::{RoundTrip, RoundTripReport};
 
 /// A hardware bus: where raw frames come from and motor torques go.

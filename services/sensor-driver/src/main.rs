@@ -27,11 +27,8 @@ mod backends;
 mod replay;
 
 use exo_config::{BusBackend, RunConfig, TimingMode};
-use exo_messages::operator::{KnownKinds, SeenSeqs};
-use exo_messages::{
-    ActuatorCommand, OperatorCommand, OperatorCommandKind, ProtocolState, SensorSample,
-};
-use exo_sensor_driver::{Calibration, Driver, HardwareBus, RoundTrip};
+use exo_messages::{ActuatorCommand, OperatorCommand, ProtocolState, SensorSample};
+use exo_sensor_driver::{Calibration, DriverNode, HardwareBus, RoundTrip};
 use exo_service_kit::channels::Channel;
 use exo_service_kit::ipc::{settle_connections, Inbox, Ipc, Outbox, REALTIME_SETTLE};
 use exo_service_kit::latency::fmt_us;
@@ -43,7 +40,7 @@ use exo_service_kit::{
     init_logging, monotonic_ns, request_realtime, RealtimeProcess, RealtimeRequest, ServiceArgs,
     StopFlag,
 };
-use tracing::{debug, error, info, warn};
+use tracing::{error, info};
 
 const RESEND_AFTER: Duration = Duration::from_millis(200);
 const STARTUP_PATIENCE: Duration = Duration::from_secs(60);
@@ -87,19 +84,7 @@ fn run(driver_args: DriverArgs) -> Result<()> {
         &cfg.run.instance,
         args.iceoryx2_config.as_deref(),
     )?;
-    let load = cfg
-        .protocol
-        .experiments
-        .first()
-        .and_then(|n| cfg.experiment_table().get(*n))
-        .map_or(0.0, |e| e.load_kg);
-    let mut driver = Driver::new(
-        &cfg.rig,
-        cfg.run.rate_hz,
-        cfg.safety.safe_state,
-        cfg.controller.limits.torque_nm,
-        load,
-    );
+    let mut driver = DriverNode::new(&cfg);
     let lockstep = cfg.run.timing == TimingMode::Lockstep;
     let deadline = Duration::from_secs_f64(
         if lockstep {
@@ -216,80 +201,34 @@ struct Timing {
 /// (bounded) for the controller's command, write the torque back.
 fn serve<B: HardwareBus>(
     bus: &mut B,
-    driver: &mut Driver,
+    driver: &mut DriverNode,
     ports: &Ports,
     timing: Timing,
     stop: &StopFlag,
     round_trip: &mut RoundTrip,
 ) -> Result<()> {
     let mut armed = false;
-    let mut reported_latch = false;
-    let mut operator_seqs = SeenSeqs::default();
     while !stop.requested() {
         let Some(frame) = bus.read(Duration::from_millis(100))? else {
             continue;
         };
         while let Some(p) = ports.protocol_in.try_recv()? {
-            driver.set_load_kg(p.load_kg);
+            driver.on_protocol(&p);
         }
         while let Some(op) = ports.operator_in.try_recv()? {
-            if !operator_seqs.first_time(op.seq) {
-                info!(
-                    "sensor-driver: operator command seq {}: already handled; ignored",
-                    op.seq
-                );
-                continue;
-            }
-            match OperatorCommandKind::from_u32(op.kind) {
-                Some(kind @ OperatorCommandKind::ResetFault) if op.validate().is_err() => warn!(
-                    "sensor-driver: operator command seq {}: {kind} refused: value {} is not finite; nothing changed",
-                    op.seq, op.value
-                ),
-                Some(OperatorCommandKind::ResetFault) => {
-                    match driver.latched() {
-                        Some(event) => info!(
-                            "sensor-driver: operator command seq {}: safe state reset (was: {event:?}); commands are applied again",
-                            op.seq
-                        ),
-                        None => info!(
-                            "sensor-driver: operator command seq {}: reset (no safe state was latched)",
-                            op.seq
-                        ),
-                    }
-                    driver.reset();
-                    reported_latch = false;
-                }
-                Some(kind) => debug!(
-                    "sensor-driver: operator command seq {}: {kind} is the controller's",
-                    op.seq
-                ),
-                None => warn!(
-                    "sensor-driver: operator command seq {}: unknown operator command kind {} refused (known kinds: {KnownKinds}); nothing changed",
-                    op.seq, op.kind
-                ),
-            }
+            driver.on_operator(&op);
         }
-        let s = driver.on_frame(&frame);
-        let sample = SensorSample {
-            seq: s.seq,
-            stamp_ns: s.stamp_ns,
-            theta_e: s.theta_e,
-            omega_e: s.omega_e,
-            tau_c: s.tau_c,
-            tau_s: s.tau_s,
-            status: s.status,
-            _pad: 0,
-        };
+        let sample = driver.on_frame(&frame, 0);
         let was_armed = armed;
         let sent_ns = monotonic_ns();
         ports.sample_out.send(sample)?;
         let started = Instant::now();
         let mut last_send = started;
         let out = loop {
-            if driver.latched().is_some() {
+            if let Some(o) = driver.latched_output() {
                 // Latched: no need to wait for the controller.
                 while ports.command_in.try_recv()?.is_some() {}
-                break driver.on_deadline().unwrap_or_else(|| driver.safe_output());
+                break o;
             }
             let remaining = timing
                 .deadline
@@ -299,8 +238,8 @@ fn serve<B: HardwareBus>(
                 if cmd.sensor_seq == frame.seq {
                     let received_ns = monotonic_ns();
                     armed = true;
-                    if let Some(o) = driver.on_command(cmd.sensor_seq, cmd.tau_d) {
-                        if was_armed && driver.latched().is_none() {
+                    if let Some(o) = driver.answer(&cmd) {
+                        if was_armed && driver.driver().latched().is_none() {
                             round_trip.record(sent_ns, received_ns);
                         }
                         break o;
@@ -326,16 +265,10 @@ fn serve<B: HardwareBus>(
                 continue;
             }
             if started.elapsed() >= timing.deadline {
-                break driver.on_deadline().unwrap_or_else(|| driver.safe_output());
+                break driver.on_deadline();
             }
         };
-        if let (Some(event), false) = (driver.latched(), reported_latch) {
-            error!(
-                "sensor-driver: safe state latched at frame {}: {event:?} → {:?}",
-                frame.seq, out.source
-            );
-            reported_latch = true;
-        }
+        driver.report_latch(&out);
         bus.write(frame.seq, frame.stamp_ns, out.tau_motor_nm, true)?;
     }
     Ok(())
@@ -371,7 +304,7 @@ fn report_round_trip(round_trip: &RoundTrip, file: Option<&Path>) -> Result<()> 
 /// (status `REPLAY`). Ends when the recording does.
 fn replay(
     bus: &mut ReplayBus,
-    driver: &mut Driver,
+    driver: &mut DriverNode,
     sample_out: &Outbox<SensorSample>,
     protocol_out: &Outbox<ProtocolState>,
     command_out: &Outbox<ActuatorCommand>,
@@ -390,17 +323,7 @@ fn replay(
             command_out.send(bus.commands[ic])?;
             ic += 1;
         }
-        let s = driver.on_frame(&frame);
-        sample_out.send(SensorSample {
-            seq: s.seq,
-            stamp_ns: s.stamp_ns,
-            theta_e: s.theta_e,
-            omega_e: s.omega_e,
-            tau_c: s.tau_c,
-            tau_s: s.tau_s,
-            status: s.status | exo_messages::status::REPLAY,
-            _pad: 0,
-        })?;
+        sample_out.send(driver.on_frame(&frame, exo_messages::status::REPLAY))?;
     }
     for p in &bus.protocol[ip..] {
         protocol_out.send(*p)?;

@@ -5,6 +5,7 @@
 //!   amplification controller (gains, filter, discrete coefficients, margins,
 //!   predicted amplification, Bode plot).
 //! - `exo run CONFIG`: start and supervise the processes of a run.
+//! - `exo sim CONFIG`: the same run in one process (lockstep, no IPC).
 //! - `exo tune SUBJECT`: the paper's tuning experiment, automated.
 //! - `exo fit`, `exo report`, `exo import`: recordings to the paper's tables and figures.
 //! - `exo reproduce`: the paper's modelling study, simulated and compared.
@@ -25,6 +26,7 @@ mod report;
 mod report_cmd;
 mod reproduce_cmd;
 mod run_cmd;
+mod sim_cmd;
 mod stability;
 mod study;
 mod supervisor;
@@ -50,6 +52,9 @@ enum Command {
     /// Start and supervise the processes of a run configuration (plant
     /// simulator or hardware driver, controller, identifier, recorder).
     Run(run_cmd::RunArgs),
+    /// The same run in one process: the nodes stepped in lockstep with no
+    /// shared memory, recorded to the same contract, fitted and reported.
+    Sim(sim_cmd::SimArgs),
     /// The paper's tuning experiment on a simulated subject: raise f until a
     /// spring-release test oscillates at low and high stiffness, take the
     /// lower, subtract 0.12; printed beside the model's prediction.
@@ -83,6 +88,7 @@ fn main() {
     let result = match cli.command {
         Command::Design(args) => design_cmd::run(&args),
         Command::Run(args) => run_cmd::run(&args),
+        Command::Sim(args) => sim_cmd::run(&args),
         Command::Tune(args) => tune_cmd::run(&args),
         Command::Fit(args) => fit_cmd::run(&args),
         Command::Report(args) => report_cmd::run(&args),

@@ -282,14 +282,20 @@ pub fn run(args: &RunArgs) -> Result<()> {
     let Some(recording) = run_config(&args.config, Logs::Forward)? else {
         return Ok(());
     };
-    // Only the identification protocol excites the subject for a fit (a
-    // replay republishes whatever the recording's protocol was).
     let cfg = RunConfig::from_file(&args.config)?;
-    let identification = cfg.protocol.mode == ProtocolMode::Identification;
-    if args.no_report || !identification {
+    fit_and_report(&cfg, &recording, args.no_report)
+}
+
+/// After a run: fits the recording and writes its report beside it
+/// (`<recording>-report/`), printing the tables and `recording: PATH`,
+/// `report: PATH`; only for the identification protocol, which alone
+/// excites the subject for a fit (a replay republishes whatever the
+/// recording's protocol was), and not with `no_report`.
+pub fn fit_and_report(cfg: &RunConfig, recording: &Path, no_report: bool) -> Result<()> {
+    if no_report || cfg.protocol.mode != ProtocolMode::Identification {
         return Ok(());
     }
-    let fit_args = crate::fit_cmd::FitArgs::for_recordings(vec![recording.clone()]);
+    let fit_args = crate::fit_cmd::FitArgs::for_recordings(vec![recording.to_path_buf()]);
     let (_, report) = crate::fit_cmd::fit(&fit_args)?;
     print!("{}", crate::fit_cmd::tables(&report));
     let stem = recording

@@ -1,0 +1,221 @@
+//! The plant simulator as a node: a plain type stepped tick by tick, with
+//! no IPC inside. The process (`main.rs`) and the in-process simulation
+//! (`exo-sim`) both drive it the same way, once per control period:
+//!
+//! 1. [`PlantNode::on_protocol`] for every protocol state that has arrived
+//!    (the subject's impedance, the running sine, the load follow it);
+//! 2. [`PlantNode::frame`]: the raw bus frame of this tick;
+//! 3. [`PlantNode::on_motor`] with the motor command answering it, then
+//!    [`PlantNode::advance`] one control period.
+//!
+//! In lockstep the frame's time stamp is the tick times the period
+//! ([`PlantNode::lockstep_stamp_ns`]), so a run is a function of its
+//! configuration and seed.
+
+use exo_config::{ProtocolMode, ReleaseSettings, RunConfig, Subject};
+use exo_messages::{BusMotorCommand, BusSensorFrame, ProtocolPhase, ProtocolState};
+use tracing::info;
+
+use crate::{Plant, PlantModel, PlantTruth, PostureDrive};
+
+/// Why a plant node cannot be built from a run configuration.
+#[derive(Debug, thiserror::Error)]
+#[error("{model}: integration.step_s = {step_s} does not divide the control period {period_s} s")]
+pub struct StepMismatch {
+    /// The plant model file.
+    pub model: String,
+    /// Its integration step (s).
+    pub step_s: f64,
+    /// The run's control period (s).
+    pub period_s: f64,
+}
+
+/// The simulated hardware, one control period per tick.
+pub struct PlantNode {
+    plant: Plant,
+    drive: PostureDrive,
+    subject: Subject,
+    release: Option<ReleaseSettings>,
+    released: bool,
+    protocol: ProtocolState,
+    period_s: f64,
+    period_ns: u64,
+    tick: u64,
+    max_ticks: Option<u64>,
+    tau_motor_nm: f64,
+    inject_fault_at: Option<u64>,
+}
+
+impl PlantNode {
+    /// The plant of run `cfg` with plant model `model`. `inject_fault_at`
+    /// (tests): from that tick on the cuff sensor reads NaN.
+    pub fn new(
+        cfg: &RunConfig,
+        model: &PlantModel,
+        inject_fault_at: Option<u64>,
+    ) -> Result<Self, StepMismatch> {
+        let period_s = 1.0 / cfg.run.rate_hz;
+        let steps = period_s / model.integration.step_s;
+        if (steps - steps.round()).abs() > 1e-9 {
+            return Err(StepMismatch {
+                model: cfg.plant_model.display().to_string(),
+                step_s: model.integration.step_s,
+                period_s,
+            });
+        }
+        let mut plant = Plant::new(model);
+        let subject = cfg.subject().clone();
+        let voluntary = match (cfg.protocol.mode, cfg.voluntary) {
+            (ProtocolMode::Voluntary, Some(v)) => Some(v),
+            _ => None,
+        };
+        let drive = PostureDrive::new(
+            model.human.rest_angle_rad,
+            model.human.active_angle_rad,
+            voluntary.map(|v| (v.amplitude_rad, v.omega_rad_s)),
+        );
+        let set_impedance = |plant: &mut Plant, experiment: u32| {
+            if let Some(e) = subject.get(experiment) {
+                plant.set_human_impedance(e.stiffness_nm_per_rad, e.hysteretic_damping_nm_per_rad);
+            }
+        };
+        if let Some(v) = voluntary {
+            set_impedance(&mut plant, v.experiment);
+            plant.set_excitation_omega(v.omega_rad_s);
+        }
+        // Spring-release test: the springs pull until the analysis phase starts.
+        let release = cfg
+            .release
+            .filter(|_| cfg.protocol.mode == ProtocolMode::Release);
+        if let Some(r) = release {
+            set_impedance(&mut plant, r.experiment);
+            plant.set_external_torque_nm(r.spring_torque_nm);
+        }
+        Ok(PlantNode {
+            plant,
+            drive,
+            subject,
+            release,
+            released: false,
+            protocol: ProtocolState::default(),
+            period_s,
+            period_ns: (period_s * 1e9).round() as u64,
+            tick: 0,
+            max_ticks: cfg.run.max_sim_time_s.map(|t| (t / period_s).ceil() as u64),
+            tau_motor_nm: 0.0,
+            inject_fault_at,
+        })
+    }
+
+    /// Takes a protocol state: a new experiment sets the subject's
+    /// impedance, a running sine its frequency (B_eq = H/ω follows it;
+    /// without one, as in voluntary motion or a spring release, the plant
+    /// keeps its setting), a load its mass.
+    pub fn on_protocol(&mut self, p: &ProtocolState) {
+        let now = (p.experiment, p.omega, p.load_kg);
+        let before = (
+            self.protocol.experiment,
+            self.protocol.omega,
+            self.protocol.load_kg,
+        );
+        if now != before {
+            if let Some(e) = self.subject.get(p.experiment) {
+                self.plant
+                    .set_human_impedance(e.stiffness_nm_per_rad, e.hysteretic_damping_nm_per_rad);
+            }
+            if p.omega > 0.0 && p.amplitude > 0.0 {
+                self.plant.set_excitation_omega(p.omega);
+            }
+            if p.load_kg > 0.0 {
+                self.plant.set_load_kg(p.load_kg);
+            }
+        }
+        self.protocol = *p;
+    }
+
+    /// The raw bus frame of the current tick, stamped `stamp_ns`. In a
+    /// spring-release run the springs come off when the analysis phase
+    /// starts.
+    pub fn frame(&mut self, stamp_ns: u64) -> BusSensorFrame {
+        if self.release.is_some()
+            && !self.released
+            && self.protocol.phase == ProtocolPhase::Analysis.as_u32()
+        {
+            self.plant.set_external_torque_nm(0.0);
+            self.released = true;
+            info!(
+                "plant-sim: springs released at sim {:.3} s",
+                self.plant.truth().t_s
+            );
+        }
+        let raw = self.plant.raw_sensors();
+        let mut cuff_wrench = raw.cuff_wrench;
+        if self.inject_fault_at.is_some_and(|n| self.tick >= n) {
+            cuff_wrench[1] = f64::NAN;
+        }
+        BusSensorFrame {
+            seq: self.tick,
+            stamp_ns,
+            encoder_counts: raw.encoder_counts,
+            cuff_wrench,
+            sea_deflection_counts: raw.sea_deflection_counts,
+            status: 0,
+            _pad: 0,
+        }
+    }
+
+    /// Takes a motor command; returns whether it answers the current tick's
+    /// frame (an older one is ignored). A disabled motor gives no torque.
+    pub fn on_motor(&mut self, cmd: &BusMotorCommand) -> bool {
+        let answers = cmd.frame_seq == self.tick;
+        if answers {
+            self.hold_motor(cmd);
+        }
+        answers
+    }
+
+    /// Takes a motor command whatever frame it answers (real time: the
+    /// latest command is held until the next).
+    pub fn hold_motor(&mut self, cmd: &BusMotorCommand) {
+        self.tau_motor_nm = if cmd.enable != 0 {
+            cmd.tau_motor_nm
+        } else {
+            0.0
+        };
+    }
+
+    /// Advances one control period with the motor torque held, the subject
+    /// following the protocol's phase.
+    pub fn advance(&mut self) {
+        let phase = ProtocolPhase::from_u32(self.protocol.phase).unwrap_or(ProtocolPhase::Idle);
+        self.plant
+            .set_drive(self.drive.update(self.period_s, phase));
+        self.plant.advance(self.period_s, self.tau_motor_nm);
+        self.tick += 1;
+    }
+
+    /// Ticks advanced so far (the next frame's `seq`).
+    pub fn tick(&self) -> u64 {
+        self.tick
+    }
+
+    /// The control period (ns).
+    pub fn period_ns(&self) -> u64 {
+        self.period_ns
+    }
+
+    /// The time stamp of the current tick in lockstep: tick × period.
+    pub fn lockstep_stamp_ns(&self) -> u64 {
+        self.tick * self.period_ns
+    }
+
+    /// Whether the run's bound (`run.max_sim_time_s`) is reached.
+    pub fn finished(&self) -> bool {
+        self.max_ticks.is_some_and(|m| self.tick >= m)
+    }
+
+    /// The simulated physical state (ground truth, not a measurement).
+    pub fn truth(&self) -> PlantTruth {
+        self.plant.truth()
+    }
+}

@@ -1,0 +1,175 @@
+//! The sensor driver as a node: a plain type stepped frame by frame, with
+//! no IPC inside (ros2_control's read → update → write, with the bus and
+//! the channels left to the caller). The process (`main.rs`, any
+//! [`HardwareBus`](crate::HardwareBus)) and the in-process simulation
+//! (`exo-sim`) drive it the same way, once per frame:
+//!
+//! 1. [`DriverNode::on_protocol`] and [`DriverNode::on_operator`] for what
+//!    has arrived;
+//! 2. [`DriverNode::on_frame`]: the calibrated sample to publish;
+//! 3. [`DriverNode::answer`] with the controller's command (or
+//!    [`DriverNode::on_deadline`] when none came in time): the torque to
+//!    write to the bus.
+
+use exo_config::RunConfig;
+use exo_messages::operator::{KnownKinds, SeenSeqs};
+use exo_messages::{
+    ActuatorCommand, BusSensorFrame, OperatorCommand, OperatorCommandKind, ProtocolState,
+    SensorSample,
+};
+use tracing::{debug, error, info, warn};
+
+use crate::{Driver, DriverOutput, RawFrame};
+
+/// The driver with its operator bookkeeping, one frame per step.
+pub struct DriverNode {
+    driver: Driver,
+    operator_seqs: SeenSeqs,
+    reported_latch: bool,
+    frame_seq: u64,
+}
+
+impl DriverNode {
+    /// The driver of run `cfg`; the gravity-only safe state starts with the
+    /// first experiment's load.
+    pub fn new(cfg: &RunConfig) -> Self {
+        let load_kg = cfg
+            .protocol
+            .experiments
+            .first()
+            .and_then(|n| cfg.experiment_table().get(*n))
+            .map_or(0.0, |e| e.load_kg);
+        DriverNode {
+            driver: Driver::new(
+                &cfg.rig,
+                cfg.run.rate_hz,
+                cfg.safety.safe_state,
+                cfg.controller.limits.torque_nm,
+                load_kg,
+            ),
+            operator_seqs: SeenSeqs::default(),
+            reported_latch: false,
+            frame_seq: 0,
+        }
+    }
+
+    /// The driver itself (calibration, latch).
+    pub fn driver(&self) -> &Driver {
+        &self.driver
+    }
+
+    /// Takes a protocol state: the load the gravity-only safe state holds.
+    pub fn on_protocol(&mut self, p: &ProtocolState) {
+        self.driver.set_load_kg(p.load_kg);
+    }
+
+    /// Takes an operator command: acts on `ResetFault` (clears the latched
+    /// safe state), each `seq` once; the other kinds are the controller's;
+    /// an unknown kind or a non-finite value is refused with a warning.
+    pub fn on_operator(&mut self, op: &OperatorCommand) {
+        if !self.operator_seqs.first_time(op.seq) {
+            info!(
+                "sensor-driver: operator command seq {}: already handled; ignored",
+                op.seq
+            );
+            return;
+        }
+        match OperatorCommandKind::from_u32(op.kind) {
+            Some(kind @ OperatorCommandKind::ResetFault) if op.validate().is_err() => warn!(
+                "sensor-driver: operator command seq {}: {kind} refused: value {} is not finite; nothing changed",
+                op.seq, op.value
+            ),
+            Some(OperatorCommandKind::ResetFault) => {
+                match self.driver.latched() {
+                    Some(event) => info!(
+                        "sensor-driver: operator command seq {}: safe state reset (was: {event:?}); commands are applied again",
+                        op.seq
+                    ),
+                    None => info!(
+                        "sensor-driver: operator command seq {}: reset (no safe state was latched)",
+                        op.seq
+                    ),
+                }
+                self.driver.reset();
+                self.reported_latch = false;
+            }
+            Some(kind) => debug!(
+                "sensor-driver: operator command seq {}: {kind} is the controller's",
+                op.seq
+            ),
+            None => warn!(
+                "sensor-driver: operator command seq {}: unknown operator command kind {} refused (known kinds: {KnownKinds}); nothing changed",
+                op.seq, op.kind
+            ),
+        }
+    }
+
+    /// Calibrates one raw frame into the sample to publish; `extra_status`
+    /// is or-ed into its status (e.g. `REPLAY`).
+    pub fn on_frame(&mut self, frame: &RawFrame, extra_status: u32) -> SensorSample {
+        self.frame_seq = frame.seq;
+        let s = self.driver.on_frame(frame);
+        SensorSample {
+            seq: s.seq,
+            stamp_ns: s.stamp_ns,
+            theta_e: s.theta_e,
+            omega_e: s.omega_e,
+            tau_c: s.tau_c,
+            tau_s: s.tau_s,
+            status: s.status | extra_status,
+            _pad: 0,
+        }
+    }
+
+    /// The torque for the current frame when the safe state is latched: no
+    /// need to wait for the controller.
+    pub fn latched_output(&mut self) -> Option<DriverOutput> {
+        self.driver.latched().map(|_| self.on_deadline())
+    }
+
+    /// Takes the controller's command; the torque to write when it answers
+    /// the current frame (a stale or repeated one gives `None`: keep
+    /// waiting until the deadline).
+    pub fn answer(&mut self, cmd: &ActuatorCommand) -> Option<DriverOutput> {
+        if cmd.sensor_seq != self.frame_seq {
+            return None;
+        }
+        self.driver.on_command(cmd.sensor_seq, cmd.tau_d)
+    }
+
+    /// No command for the current frame within the deadline: the latched
+    /// safe-state torque.
+    pub fn on_deadline(&mut self) -> DriverOutput {
+        self.driver
+            .on_deadline()
+            .unwrap_or_else(|| self.driver.safe_output())
+    }
+
+    /// The safe-state torque without latching (start-up, shutdown).
+    pub fn safe_output(&self) -> DriverOutput {
+        self.driver.safe_output()
+    }
+
+    /// Logs a newly latched safe state once (at the frame it latched at).
+    pub fn report_latch(&mut self, out: &DriverOutput) {
+        if let (Some(event), false) = (self.driver.latched(), self.reported_latch) {
+            error!(
+                "sensor-driver: safe state latched at frame {}: {event:?} → {:?}",
+                self.frame_seq, out.source
+            );
+            self.reported_latch = true;
+        }
+    }
+}
+
+/// A bus frame of the plant simulator as the driver's raw frame.
+pub fn raw_frame(f: &BusSensorFrame) -> RawFrame {
+    RawFrame {
+        seq: f.seq,
+        stamp_ns: f.stamp_ns,
+        encoder_counts: f.encoder_counts,
+        cuff_wrench: f.cuff_wrench,
+        sea_deflection_counts: f.sea_deflection_counts,
+        status: f.status,
+    }
+}

@@ -1,0 +1,71 @@
+//! `exo sim CONFIG`: the run in one process. The nodes the processes step
+//! (`exo-sim`) are stepped here in lockstep with no shared memory; the
+//! recording is the one `exo run` writes through the five processes (the
+//! same contract, message for message), then fitted and reported as
+//! `exo run` does.
+
+use std::path::PathBuf;
+use std::time::Instant;
+
+use anyhow::{Context, Result};
+use clap::Args;
+use exo_config::TimingMode;
+use exo_plant_sim::PlantModel;
+use exo_sim::Ended;
+
+use crate::run_cmd::{check_or_fail, fit_and_report, recording_path};
+
+/// `exo sim` arguments.
+#[derive(Debug, Args)]
+pub struct SimArgs {
+    /// The run configuration (e.g. configs/default.toml); its timing is
+    /// taken as lockstep whatever it says.
+    pub config: PathBuf,
+    /// Do not fit the recording and write the report after the run.
+    #[arg(long)]
+    pub no_report: bool,
+    /// Write the recording here instead of
+    /// `<run.output_dir>/<instance>-<subject>-<unix seconds>.mcap`.
+    #[arg(long, value_name = "FILE")]
+    pub output: Option<PathBuf>,
+}
+
+/// Runs `exo sim`.
+pub fn run(args: &SimArgs) -> Result<()> {
+    exo_service_kit::init_logging("sim");
+    let checked = check_or_fail(&args.config)?;
+    for w in &checked.warnings {
+        eprintln!("exo: warning: {w}");
+    }
+    let cfg = checked.cfg;
+    if cfg.run.timing != TimingMode::Lockstep {
+        eprintln!(
+            "exo: note: {} asks for real-time timing; `exo sim` steps the nodes in lockstep",
+            args.config.display()
+        );
+    }
+    let model = PlantModel::from_file(&cfg.plant_model)?;
+    let recording = args.output.clone().unwrap_or_else(|| recording_path(&cfg));
+    eprintln!(
+        "exo: simulating {} in one process ({} Hz, subject {})",
+        args.config.display(),
+        cfg.run.rate_hz,
+        cfg.subject().name
+    );
+    let started = Instant::now();
+    let done = exo_sim::record(&cfg, &args.config, &model, &recording)
+        .with_context(|| format!("simulating {}", args.config.display()))?;
+    let wall_s = started.elapsed().as_secs_f64();
+    let sim_s = done.sim_s;
+    eprintln!(
+        "exo: {} after {sim_s:.1} s simulated in {wall_s:.2} s ({:.0}× real time), {} messages",
+        match done.ended {
+            Ended::ControllerFinished => "protocol done",
+            Ended::Bound => "run.max_sim_time_s reached",
+        },
+        sim_s / wall_s.max(1e-9),
+        done.messages
+    );
+    eprintln!("exo: recording {}", recording.display());
+    fit_and_report(&cfg, &recording, args.no_report)
+}
