@@ -96,7 +96,12 @@ impl Delay {
     /// Pushes the newest value, returns the one `steps` steps old.
     fn push(&mut self, v: f64) -> f64 {
         self.buf[self.head] = v;
-        self.head = (self.head + 1) % self.buf.len();
+        // A compare, not `%`: an integer division per push is most of a
+        // delay line's cost at 10 kHz.
+        self.head += 1;
+        if self.head == self.buf.len() {
+            self.head = 0;
+        }
         self.buf[self.head]
     }
     /// The value pushed `steps` pushes ago (the one `push` returned last).
@@ -116,8 +121,9 @@ pub struct Plant {
     layout: Layout,
     bank: PronyBank,
     b_human: f64,
-    phi: DMatrix<f64>,
-    gamma: DMatrix<f64>,
+    /// `[Φ Γ]` of one step, row by row (`n × (n + N_INPUTS)`, row-major):
+    /// `x⁺ = Φ x + Γ u` as one dot product per state, in registers.
+    phi_gamma_rows: Vec<f64>,
     a: DMatrix<f64>,
     b: DMatrix<f64>,
     x: DVector<f64>,
@@ -169,8 +175,7 @@ impl Plant {
                 tau_s: vec![],
             },
             b_human: 0.0,
-            phi: DMatrix::zeros(0, 0),
-            gamma: DMatrix::zeros(0, 0),
+            phi_gamma_rows: Vec::new(),
             a: DMatrix::zeros(0, 0),
             b: DMatrix::zeros(0, 0),
             x: DVector::zeros(0),
@@ -467,8 +472,14 @@ impl Plant {
         self.layout = l;
         self.a = a;
         self.b = b;
-        self.phi = phi;
-        self.gamma = gamma;
+        self.phi_gamma_rows = (0..n)
+            .flat_map(|i| {
+                let (phi, gamma) = (&phi, &gamma);
+                (0..n)
+                    .map(move |j| phi[(i, j)])
+                    .chain((0..N_INPUTS).map(move |j| gamma[(i, j)]))
+            })
+            .collect();
         self.x = x;
         self.x_next = DVector::zeros(n);
     }
@@ -508,8 +519,23 @@ impl Plant {
         self.u[U_OMEGA_EQ] = self.drive.omega_eq_rad_s;
         self.u[U_TAU_NL] = self.nonlinear_torque();
         self.u[U_TAU_REFLEX] = self.reflex_torque();
-        self.x_next.gemv(1.0, &self.phi, &self.x, 0.0);
-        self.x_next.gemv(1.0, &self.gamma, &self.u, 1.0);
+        let (x, u) = (self.x.as_slice(), self.u.as_slice());
+        let width = x.len() + u.len();
+        for (next, row) in self
+            .x_next
+            .iter_mut()
+            .zip(self.phi_gamma_rows.chunks_exact(width))
+        {
+            let (phi, gamma) = row.split_at(x.len());
+            let mut acc = 0.0;
+            for (p, xj) in phi.iter().zip(x) {
+                acc += p * xj;
+            }
+            for (g, uj) in gamma.iter().zip(u) {
+                acc += g * uj;
+            }
+            *next = acc;
+        }
         std::mem::swap(&mut self.x, &mut self.x_next);
         self.t_s += self.model.integration.step_s;
         self.drive.theta_eq_rad += self.drive.omega_eq_rad_s * self.model.integration.step_s;

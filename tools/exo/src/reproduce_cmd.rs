@@ -23,15 +23,11 @@ use anyhow::{bail, Context, Result};
 use clap::Args;
 use exo_config::{ReportedPowerLaw, RunConfig, Subject};
 use exo_impedance::{fit_power_law, Complex64};
-use exo_messages::{status, ActuatorCommand, ControlMode, SensorSample};
-use exo_service_kit::channels::Channel;
-use exo_service_kit::collect::Collector;
+use exo_messages::{status, ControlMode};
 use serde::Serialize;
 
 use crate::analysis::{group_of, FRow, FitReport};
 use crate::fit_cmd::{fit, FitArgs};
-use crate::run_cmd::{services_of, Progress};
-use crate::supervisor::{supervise_checked, Ended, Logs};
 use crate::tune_cmd::subject_path;
 
 /// Arguments of `exo reproduce`.
@@ -195,36 +191,37 @@ pub fn simulate(
     let run_file = dir.join(format!("{name}.toml"));
     let text = toml::to_string(&cfg).context("writing the subject's run file")?;
     std::fs::write(&run_file, text).with_context(|| format!("writing {}", run_file.display()))?;
-    // Validate as `exo run` would, before any process starts.
+    // Validate as `exo run` would.
     let cfg = RunConfig::from_file(&run_file)?;
-    exo_plant_sim::PlantModel::from_file(&cfg.plant_model)?;
+    let model = exo_plant_sim::PlantModel::from_file(&cfg.plant_model)?;
     let recording = dir.join(format!("{name}.mcap"));
-    let mut progress = Progress::per_experiment(&cfg.run.instance)?;
-    let watch = SafeStateWatch::start(&cfg.run.instance)?;
-    let ended = supervise_checked(
-        services_of(&cfg, &run_file, Some(&recording))?,
-        Logs::Quiet,
-        || {
-            progress.poll();
-            match watch.latched() {
-                Some(what) => bail!(
-                    "{what}, {}; the run is stopped (the recording so far is {})",
-                    locate(&cfg, what.sim_s),
-                    recording.display()
-                ),
-                None => Ok(()),
-            }
-        },
-    )
-    .with_context(|| format!("simulating subject {name} ({})", run_file.display()))?;
-    progress.poll();
-    match ended {
-        Ended::By("controller") => Ok(recording),
-        Ended::By(other) => bail!(
-            "subject {name}: the run reached its bound of {bound_s:.1} s simulated ({other} stopped) before the controller finished the protocol ({})",
+    let mut sim = exo_sim::Sim::new(&cfg, &model)
+        .with_context(|| format!("simulating subject {name} ({})", run_file.display()))?;
+    let mut file = exo_sim::FileSink::create(&recording, &cfg, &run_file)?;
+    let mut latched = None;
+    let ended = sim.run(|r| -> Result<()> {
+        file.write(r)?;
+        latched = latched.or_else(|| Latched::of(&r));
+        match latched {
+            Some(_) => bail!("safe state"),
+            None => Ok(()),
+        }
+    });
+    file.finish()
+        .with_context(|| format!("finishing {}", recording.display()))?;
+    if let Some(what) = latched {
+        bail!(
+            "subject {name}: {what}, {}; the run is stopped (the recording so far is {})",
+            locate(&cfg, what.sim_s),
+            recording.display()
+        );
+    }
+    match ended.with_context(|| format!("simulating subject {name} ({})", run_file.display()))? {
+        exo_sim::Ended::ControllerFinished => Ok(recording),
+        exo_sim::Ended::Bound => bail!(
+            "subject {name}: the run reached its bound of {bound_s:.1} s simulated before the controller finished the protocol ({})",
             run_file.display()
         ),
-        Ended::Signal => bail!("subject {name}: interrupted"),
     }
 }
 
@@ -275,48 +272,26 @@ impl std::fmt::Display for Latched {
     }
 }
 
-/// Watches the commands (the controller's mode) and the samples (the
-/// driver's safe-state bit) for a latched safe state, keeping only those.
-struct SafeStateWatch {
-    commands: Collector<ActuatorCommand>,
-    samples: Collector<SensorSample>,
-}
-
-impl SafeStateWatch {
-    fn start(instance: &str) -> Result<Self> {
-        let node = format!("exo_repro_watch_{}", std::process::id());
-        Ok(SafeStateWatch {
-            commands: Collector::start_filtered(
-                &node,
-                instance,
-                Channel::Command,
-                |c: &ActuatorCommand| {
-                    ControlMode::from_u32(c.mode).is_some_and(ControlMode::is_safe_state)
-                },
-            )
-            .context("watching the commands for a safe state")?,
-            samples: Collector::start_filtered(
-                &node,
-                instance,
-                Channel::Sensor,
-                |s: &SensorSample| s.status & status::SAFE_STATE != 0,
-            )
-            .context("watching the samples for the driver's safe state")?,
-        })
-    }
-
-    fn latched(&self) -> Option<Latched> {
-        let command = self.commands.latest().map(|c| Latched {
-            who: "controller",
-            mode: ControlMode::from_u32(c.mode).map_or("?", ControlMode::name),
-            sim_s: c.stamp_ns as f64 * 1e-9,
-        });
-        let sample = self.samples.latest().map(|s| Latched {
-            who: "sensor driver",
-            mode: "status bit SAFE_STATE",
-            sim_s: s.stamp_ns as f64 * 1e-9,
-        });
-        command.or(sample)
+impl Latched {
+    /// The safe state a published message shows: a command in a safe-state
+    /// mode (the controller's), or a sample with the driver's `SAFE_STATE`
+    /// bit.
+    fn of(r: &exo_sim::Record) -> Option<Latched> {
+        match r {
+            exo_sim::Record::Command(c) => ControlMode::from_u32(c.mode)
+                .filter(|m| m.is_safe_state())
+                .map(|m| Latched {
+                    who: "controller",
+                    mode: m.name(),
+                    sim_s: c.stamp_ns as f64 * 1e-9,
+                }),
+            exo_sim::Record::Sensor(s) if s.status & status::SAFE_STATE != 0 => Some(Latched {
+                who: "sensor driver",
+                mode: "status bit SAFE_STATE",
+                sim_s: s.stamp_ns as f64 * 1e-9,
+            }),
+            _ => None,
+        }
     }
 }
 

@@ -110,7 +110,6 @@ pub fn services_of(
 /// one, simulated time (from the samples' stamps) and wall time.
 pub struct Progress {
     protocol: Collector<ProtocolState>,
-    every_period: bool,
     seen: usize,
     last: (u32, u32),
     first_stamp_ns: Option<u64>,
@@ -120,20 +119,10 @@ pub struct Progress {
 impl Progress {
     /// Watches the protocol channel of `instance`; a line per period.
     pub fn start(instance: &str) -> Result<Self> {
-        Self::watch(instance, true)
-    }
-
-    /// A line per experiment only (long runs).
-    pub fn per_experiment(instance: &str) -> Result<Self> {
-        Self::watch(instance, false)
-    }
-
-    fn watch(instance: &str, every_period: bool) -> Result<Self> {
         let node = format!("exo_progress_{}", std::process::id());
         Ok(Progress {
             protocol: Collector::start(&node, instance, Channel::Protocol)
                 .context("watching the protocol channel for progress")?,
-            every_period,
             seen: 0,
             last: (0, 0),
             first_stamp_ns: None,
@@ -146,12 +135,7 @@ impl Progress {
         let states = self.protocol.snapshot();
         for p in &states[self.seen.min(states.len())..] {
             let first = *self.first_stamp_ns.get_or_insert(p.stamp_ns);
-            let new = if self.every_period {
-                (p.experiment, p.period) != self.last
-            } else {
-                p.experiment != self.last.0
-            };
-            if new && p.experiment > 0 {
+            if (p.experiment, p.period) != self.last && p.experiment > 0 {
                 let sim_s = p.stamp_ns.saturating_sub(first) as f64 * 1e-9;
                 let wall_s = self.wall.elapsed().as_secs_f64();
                 eprintln!(

@@ -1,6 +1,7 @@
 //! `exo tune SUBJECT`: the paper's tuning experiment (section "Loop Shaping
-//! Experiments"), automated on the simulated subject through the real
-//! processes.
+//! Experiments"), automated on the simulated subject: each trial steps the
+//! run's nodes in one process (`exo-sim`), which records what the five
+//! processes would (tests/tests/determinism.rs).
 //!
 //! For the subject's low stiffness (Table I experiment 1: 10 kg grip, 0 Nm
 //! bias) and high stiffness (experiment 7: 27 kg, 8 Nm), the fractional
@@ -26,16 +27,13 @@ use exo_impedance::loop_shaping::{marginal_fractional_order, FractionalLayout};
 use exo_impedance::{
     nominal_crossover, proportional_gain, AmplificationPlant, SeaModel, StiffnessRange,
 };
-use exo_messages::{ActuatorCommand, ControlMode, ProtocolPhase, ProtocolState, SensorSample};
+use exo_messages::{ControlMode, ProtocolPhase};
 use exo_plant_sim::model::HysteresisMode;
 use exo_plant_sim::PlantModel;
-use exo_service_kit::channels::Channel;
-use exo_service_kit::collect::Collector;
+use exo_sim::Record;
 use serde::Serialize;
 
-use crate::run_cmd::services_of;
 use crate::stability::{Detector, StabilityReport, Verdict};
-use crate::supervisor::{supervise, Logs};
 
 /// The paper's margin below the marginal order (section "Tuning Results").
 const PAPER_MARGIN_F: f64 = 0.12;
@@ -185,6 +183,7 @@ fn check_args(a: &TuneArgs) -> Result<()> {
 struct Bench {
     base: RunConfig,
     plant_file: PathBuf,
+    plant: PlantModel,
     dir: PathBuf,
     remove_dir: bool,
     args_release: (f64, f64, f64),
@@ -228,13 +227,20 @@ impl Bench {
         std::fs::write(&path, text).with_context(|| format!("writing {}", path.display()))?;
         // Validate as `exo run` would.
         let cfg = RunConfig::from_file(&path)?;
-        let node = format!("exo_tune_{}", std::process::id());
-        let sensor = Collector::<SensorSample>::start(&node, &instance, Channel::Sensor)?;
-        let command = Collector::<ActuatorCommand>::start(&node, &instance, Channel::Command)?;
-        let protocol = Collector::<ProtocolState>::start(&node, &instance, Channel::Protocol)?;
-        supervise(services_of(&cfg, &path, None)?, Logs::Quiet, || {})
+        let (mut samples, mut commands, mut states) = (Vec::new(), Vec::new(), Vec::new());
+        exo_sim::Sim::new(&cfg, &self.plant)
+            .and_then(|mut sim| {
+                sim.run(|r| -> Result<(), exo_sim::SimError> {
+                    match r {
+                        Record::Sensor(s) => samples.push(s),
+                        Record::Command(c) => commands.push(c),
+                        Record::Protocol(p) => states.push(p),
+                        _ => {}
+                    }
+                    Ok(())
+                })
+            })
             .with_context(|| format!("trial f = {f:.3} at experiment {experiment}"))?;
-        let (samples, commands, states) = (sensor.finish()?, command.finish()?, protocol.finish()?);
         let release_ns = states
             .iter()
             .find(|p| p.phase == ProtocolPhase::Analysis.as_u32())
@@ -357,6 +363,7 @@ pub fn run(args: &TuneArgs) -> Result<()> {
     let mut bench = Bench {
         base,
         plant_file,
+        plant: plant.clone(),
         dir,
         remove_dir,
         args_release: (args.spring_torque_nm, args.hold_s, args.observe_s),
