@@ -363,7 +363,7 @@ pub fn run(args: &TuneArgs) -> Result<()> {
     let mut bench = Bench {
         base,
         plant_file,
-        plant: plant.clone(),
+        plant,
         dir,
         remove_dir,
         args_release: (args.spring_torque_nm, args.hold_s, args.observe_s),
