@@ -722,7 +722,11 @@ impl PlantModel {
 
     /// Exoskeleton inertia with `load_kg` (kg·m²).
     pub fn exo_inertia_kg_m2(&self, load_kg: f64) -> f64 {
-        self.exo.arm_inertia_kg_m2 + load_kg * self.exo.load_lever_arm_m * self.exo.load_lever_arm_m
+        exo_impedance::exo_inertia_kg_m2(
+            self.exo.arm_inertia_kg_m2,
+            load_kg,
+            self.exo.load_lever_arm_m,
+        )
     }
 }
 

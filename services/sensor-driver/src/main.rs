@@ -26,6 +26,7 @@ use anyhow::{bail, Context, Result};
 mod backends;
 mod replay;
 
+use exo_analysis::Played;
 use exo_config::{BusBackend, RunConfig, TimingMode};
 use exo_messages::{ActuatorCommand, OperatorCommand, ProtocolState, SensorSample};
 use exo_sensor_driver::{Calibration, DriverNode, HardwareBus, RoundTrip};
@@ -310,22 +311,22 @@ fn replay(
     command_out: &Outbox<ActuatorCommand>,
     stop: &StopFlag,
 ) -> Result<()> {
-    let (mut ip, mut ic) = (0, 0);
+    let (protocol, commands) = (
+        std::mem::take(&mut bus.protocol),
+        std::mem::take(&mut bus.commands),
+    );
+    let mut merge = exo_analysis::Merge::new(&protocol, &commands);
     while !stop.requested() {
         let Some(frame) = bus.read(Duration::ZERO)? else {
             break;
         };
-        while ip < bus.protocol.len() && bus.protocol[ip].stamp_ns <= frame.stamp_ns {
-            protocol_out.send(bus.protocol[ip])?;
-            ip += 1;
-        }
-        while ic < bus.commands.len() && bus.commands[ic].stamp_ns <= frame.stamp_ns {
-            command_out.send(bus.commands[ic])?;
-            ic += 1;
-        }
+        merge.up_to(frame.stamp_ns, |x| match x {
+            Played::Protocol(p) => protocol_out.send(*p),
+            Played::Command(c) => command_out.send(*c),
+        })?;
         sample_out.send(driver.on_frame(&frame, exo_messages::status::REPLAY))?;
     }
-    for p in &bus.protocol[ip..] {
+    for p in merge.remaining_protocol() {
         protocol_out.send(*p)?;
     }
     // Let the subscribers take the last samples before the process (and its

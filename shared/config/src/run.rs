@@ -974,6 +974,10 @@ impl RunConfig {
 
     /// Exoskeleton inertia with `load_kg` at the load lever arm (kg·m²): `M_e`.
     pub fn exo_inertia_kg_m2(&self, load_kg: f64) -> f64 {
-        self.rig.arm_inertia_kg_m2 + load_kg * self.rig.load_lever_arm_m * self.rig.load_lever_arm_m
+        exo_impedance::exo_inertia_kg_m2(
+            self.rig.arm_inertia_kg_m2,
+            load_kg,
+            self.rig.load_lever_arm_m,
+        )
     }
 }

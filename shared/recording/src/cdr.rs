@@ -199,7 +199,7 @@ pub trait Recordable: exo_messages::Message {
     fn fields() -> Vec<(&'static str, &'static str)>;
     /// The ros2msg schema text: one `type name` line per field.
     fn schema() -> String {
-        crate::schema::schema_text(&Self::fields())
+        crate::ros2msg::schema_text(&Self::fields())
     }
     /// `(name, value)` of every field, in schema order.
     fn field_values(&self) -> Vec<(&'static str, FieldValue)>;

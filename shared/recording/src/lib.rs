@@ -25,6 +25,7 @@
 pub mod cdr;
 pub mod files;
 pub mod reader;
+pub mod ros2msg;
 pub mod schema;
 pub mod writer;
 

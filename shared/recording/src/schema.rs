@@ -15,6 +15,7 @@ use exo_messages::{
 };
 
 use crate::cdr::{recordable, Recordable};
+use crate::ros2msg::{parse_ros2msg, schema_text};
 
 /// The MCAP profile of a recording.
 pub const PROFILE: &str = "ros2";
@@ -188,40 +189,6 @@ pub fn contract() -> Vec<TopicSchema> {
 /// The contract row of `topic`, if it is a contract topic.
 pub fn find(topic: &str) -> Option<TopicSchema> {
     contract().into_iter().find(|t| t.topic == topic)
-}
-
-/// ros2msg text of a field list: one `type name` line per field.
-pub fn schema_text(fields: &[(&str, &str)]) -> String {
-    let mut s = String::new();
-    for (name, ty) in fields {
-        s.push_str(ty);
-        s.push(' ');
-        s.push_str(name);
-        s.push('\n');
-    }
-    s
-}
-
-/// The `(type, name)` of every field of a ros2msg schema text, in order.
-/// Comments (`# …`), blank lines, constants (`TYPE NAME=VALUE`) and default
-/// values (a third token) are skipped; reading stops at the `===` line that
-/// starts the definitions of nested types.
-pub fn parse_ros2msg(text: &str) -> Vec<(String, String)> {
-    let mut out = Vec::new();
-    for line in text.lines() {
-        if line.trim_start().starts_with("===") {
-            break;
-        }
-        let line = line.split('#').next().unwrap_or("").trim();
-        if line.is_empty() || line.contains('=') {
-            continue;
-        }
-        let mut tok = line.split_whitespace();
-        if let (Some(ty), Some(name)) = (tok.next(), tok.next()) {
-            out.push((ty.to_string(), name.to_string()));
-        }
-    }
-    out
 }
 
 /// How a file's schema text fits the contract's field list.

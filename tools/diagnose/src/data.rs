@@ -217,38 +217,24 @@ struct Span {
 }
 
 fn spans(r: &Recording) -> Vec<Span> {
-    let mut out = Vec::new();
-    let mut open: Option<Span> = None;
-    for p in &r.protocol {
-        let same = open
-            .as_ref()
-            .is_some_and(|s| s.experiment == p.experiment && s.period == p.period);
-        if p.phase == 3 && same {
-            continue;
-        }
-        if let Some(mut s) = open.take() {
-            s.end_ns = p.stamp_ns;
-            out.push(s);
-        }
-        if p.phase == 3 {
-            open = Some(Span {
+    let stream_end = r.sensor.last().map(|s| s.stamp_ns + 1);
+    exo_analysis::analysis_windows(&r.protocol)
+        .into_iter()
+        .filter_map(|w| {
+            let p = w.state;
+            Some(Span {
                 experiment: p.experiment,
                 period: p.period,
-                start_ns: p.stamp_ns,
-                end_ns: u64::MAX,
+                start_ns: w.start_ns,
+                end_ns: w.end_ns.or(stream_end)?,
                 omega: p.omega,
                 load_kg: p.load_kg,
                 bias_nm: p.bias_nm,
                 alpha: p.alpha,
                 amplitude: p.amplitude,
-            });
-        }
-    }
-    if let (Some(mut s), Some(last)) = (open, r.sensor.last()) {
-        s.end_ns = last.stamp_ns + 1;
-        out.push(s);
-    }
-    out
+            })
+        })
+        .collect()
 }
 
 /// Reduces recordings to observations. Never fails on user data: what

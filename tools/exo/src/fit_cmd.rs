@@ -9,12 +9,13 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{bail, Context, Result};
 use clap::{Args, ValueEnum};
-use exo_identifier::{effective_alpha, Event, FitSource, Identifier, IdentifierSettings};
+use exo_analysis::{effective_alpha, FitSource, Played};
+use exo_identifier::{Event, Identifier, IdentifierSettings};
 use exo_impedance::{exo_inertia_kg_m2, DampingSign, Joint};
 use exo_messages::{ActuatorCommand, FrfPoint, ProtocolState, SensorSample};
 use exo_recording::{read_recording_topics, Recordable, Recording};
 
-use crate::analysis::{analyse, AnalysisSettings, ExperimentData, FitReport, SubjectData};
+use exo_analysis::study::{analyse, AnalysisSettings, ExperimentData, FitReport, SubjectData};
 
 /// Arguments of `exo fit`.
 #[derive(Debug, Args)]
@@ -158,22 +159,20 @@ pub fn identify(
     s: IdentifierSettings,
 ) -> (BTreeMap<u32, Vec<FrfPoint>>, Vec<String>) {
     let mut id = Identifier::new(s);
-    // Merge by time stamp: protocol state, then command, then sample at equal stamps.
-    let (mut ip, mut ic) = (0, 0);
     let mut events = Vec::new();
     let mut warnings = Vec::new();
+    let mut merge = exo_analysis::Merge::new(&r.protocol, &r.command);
     for smp in &r.sensor {
-        while ip < r.protocol.len() && r.protocol[ip].stamp_ns <= smp.stamp_ns {
-            id.on_protocol(&r.protocol[ip], &mut events);
-            ip += 1;
-        }
-        while ic < r.command.len() && r.command[ic].stamp_ns <= smp.stamp_ns {
-            id.on_command(&r.command[ic]);
-            ic += 1;
-        }
+        let _ = merge.up_to(smp.stamp_ns, |x| -> Result<(), std::convert::Infallible> {
+            match x {
+                Played::Protocol(p) => id.on_protocol(p, &mut events),
+                Played::Command(c) => id.on_command(c),
+            }
+            Ok(())
+        });
         id.on_sample(smp, &mut events);
     }
-    for p in &r.protocol[ip..] {
+    for p in merge.remaining_protocol() {
         id.on_protocol(p, &mut events);
     }
     id.flush(&mut events);
@@ -753,21 +752,4 @@ pub fn run(a: &FitArgs) -> Result<()> {
         print!("{}", tables(&report));
     }
     Ok(())
-}
-
-/// The protocol's analysis windows of a recording, for time plots: (experiment, period, start, end).
-pub fn analysis_windows(protocol: &[ProtocolState]) -> Vec<(u32, u32, u64, u64)> {
-    let mut out = Vec::new();
-    let mut open: Option<(u32, u32, u64)> = None;
-    for p in protocol {
-        match (p.phase == 3, open) {
-            (true, None) => open = Some((p.experiment, p.period, p.stamp_ns)),
-            (false, Some((e, n, s))) => {
-                out.push((e, n, s, p.stamp_ns));
-                open = None;
-            }
-            _ => {}
-        }
-    }
-    out
 }

@@ -12,7 +12,6 @@
 //! - `exo diagnose`, `exo diagnose-bench`: what a plant model leaves out.
 //! - `exo op`: the operator console (reset, adopt f, start, stop).
 
-mod analysis;
 mod args;
 mod design_cmd;
 mod diagnose_bench;
@@ -27,7 +26,6 @@ mod report_cmd;
 mod reproduce_cmd;
 mod run_cmd;
 mod sim_cmd;
-mod stability;
 mod study;
 mod supervisor;
 mod tune_cmd;

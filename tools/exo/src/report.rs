@@ -11,7 +11,7 @@ use anyhow::{anyhow, Result};
 use exo_impedance::{Complex64, DynamicStiffness};
 use plotters::prelude::*;
 
-use crate::analysis::{FitReport, ModelRow, SubjectReport};
+use exo_analysis::study::{FitReport, ModelRow, SubjectReport};
 
 /// A stretch of recorded signals for the time-response figure.
 #[derive(Debug, Clone, Default)]
@@ -179,7 +179,7 @@ pub fn bode_svg(s: &SubjectReport) -> Result<String> {
 /// F-test bars on a log scale (Fig. 4): `F_{M1−M3}` and `F_{M2−M3}` per
 /// group, with each group's critical value drawn as a black tick.
 pub fn ftest_svg(r: &FitReport) -> Result<String> {
-    let groups: Vec<&crate::analysis::FPair> = r.f_tests.all_groups().collect();
+    let groups: Vec<&exo_analysis::study::FPair> = r.f_tests.all_groups().collect();
     let mut svg = String::new();
     {
         let root = SVGBackend::with_string(&mut svg, (900, 360)).into_drawing_area();

@@ -6,7 +6,7 @@ use std::path::{Path, PathBuf};
 use anyhow::{Context, Result};
 use clap::Args;
 
-use crate::fit_cmd::{analysis_windows, fit, FitArgs, Loaded};
+use crate::fit_cmd::{fit, FitArgs, Loaded};
 use crate::report::{html, TimeTrace};
 
 /// Arguments of `exo report`.
@@ -25,7 +25,11 @@ fn traces(loaded: &[Loaded]) -> Vec<TimeTrace> {
     let mut out = Vec::new();
     for l in loaded {
         let r = &l.recording;
-        let windows = analysis_windows(&r.protocol);
+        // Closed windows only: a window the record ends in has no span to plot.
+        let windows: Vec<(u32, u32, u64, u64)> = exo_analysis::analysis_windows(&r.protocol)
+            .into_iter()
+            .filter_map(|w| Some((w.state.experiment, w.state.period, w.start_ns, w.end_ns?)))
+            .collect();
         // The middle window of the first experiment, or the whole record.
         let pick = windows
             .iter()

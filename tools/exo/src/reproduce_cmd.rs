@@ -26,9 +26,9 @@ use exo_impedance::{fit_power_law, Complex64};
 use exo_messages::{status, ControlMode};
 use serde::Serialize;
 
-use crate::analysis::{group_of, FRow, FitReport};
 use crate::fit_cmd::{fit, FitArgs};
 use crate::tune_cmd::subject_path;
+use exo_analysis::study::{group_of, FRow, FitReport};
 
 /// Arguments of `exo reproduce`.
 #[derive(Debug, Args)]

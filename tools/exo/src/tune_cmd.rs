@@ -33,7 +33,7 @@ use exo_plant_sim::PlantModel;
 use exo_sim::Record;
 use serde::Serialize;
 
-use crate::stability::{Detector, StabilityReport, Verdict};
+use exo_analysis::stability::{Detector, StabilityReport, Verdict};
 
 /// The paper's margin below the marginal order (section "Tuning Results").
 const PAPER_MARGIN_F: f64 = 0.12;

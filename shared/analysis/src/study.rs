@@ -9,12 +9,12 @@
 //! layout), the power law of M2's (K, H) per subject, and the fractional
 //! order eq. f recommends.
 //!
-//! Pure: no file I/O; [`crate::fit_cmd`] reads the recordings and prints.
+//! Pure: no file I/O; `exo fit` reads the recordings and prints.
 
 use std::collections::BTreeMap;
 
+use crate::refit::{fit_models, FitSource, ModelFitError};
 use anyhow::{bail, Result};
-use exo_identifier::{fit_models, FitSource, ModelFitError};
 use exo_impedance::{
     check_fit, fit_power_law, fractional_order, paper_f_tests, recreate_coupled, Complex64,
     DampingSign, FTest, ImpedanceModel, Implausibility, Joint, ModelComparison, ModelFit,
@@ -330,7 +330,7 @@ pub fn source_of(e: &ExperimentData, s: &AnalysisSettings) -> FitSource {
 }
 
 /// Fits one experiment's points with M1, M2 and M3, each on its own
-/// ([`exo_identifier::fit_models`]: the online identifier's fit).
+/// ([`crate::refit::fit_models`]: the online identifier's fit).
 pub fn fit_experiment(
     e: &ExperimentData,
     s: &AnalysisSettings,

@@ -1,0 +1,25 @@
+//! # exo-analysis
+//!
+//! The analysis exo's identifier and tools share, each concept once:
+//!
+//! - [`refit`]: which measured FRF the parameters come from and the M1–M3
+//!   refit of an experiment's points (the online identifier and `exo fit`);
+//! - [`windows`]: the analysis windows of a protocol stream;
+//! - [`merge`]: a recording's protocol states and commands played in time
+//!   beside its samples;
+//! - [`study`]: the paper's "Modeling Results" per subject — fits, F-tests,
+//!   phase and M2 tables, power laws, the recommended f;
+//! - [`stability`]: the spring-release test's verdict (`exo tune`).
+//!
+//! `M_e` is `exo_impedance::exo_inertia_kg_m2`, the one formula the rig
+//! configuration, the plant model and the identifier all call.
+
+pub mod merge;
+pub mod refit;
+pub mod stability;
+pub mod study;
+pub mod windows;
+
+pub use merge::{Merge, Played};
+pub use refit::{effective_alpha, fit_models, FitSource, ModelFitError};
+pub use windows::{analysis_windows, AnalysisWindow};
