@@ -402,7 +402,9 @@ fn reset_clears_the_drivers_latched_safe_state() {
         .iter()
         .filter(|s| s.seq >= cleared)
         .all(|s| s.status & status::SAFE_STATE == 0));
-    // The controller had no fault to reset.
+    // The restarted controller followed the driver's safe state (it saw
+    // SAFE_STATE samples) without a latch of its own: the driver's reset
+    // ended both.
     assert!(sc
         .log("exo-controller")
         .contains("fault latch reset (no fault was latched)"));

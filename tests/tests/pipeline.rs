@@ -447,3 +447,34 @@ fn killing_the_launcher_stops_every_service_it_started() {
     }
     drop(samples);
 }
+
+/// A run that latches its safe state on the way finishes, names the fault
+/// and exits with code 3 ("finished with faults"), not 0: through the
+/// processes and in one process alike. The angle limit is set below the
+/// posture the subject takes in a period, so the controller latches there.
+#[test]
+fn a_run_that_latches_names_the_fault_and_exits_3() {
+    let sc = Scenario::new(
+        "latch3",
+        &[
+            ("periods = [1, 4, 7]", "periods = [1]"),
+            ("experiments = [1, 7]", "experiments = [1]"),
+            ("theta_rad = [-0.6, 2.6]", "theta_rad = [-0.6, 0.5]"),
+        ],
+    );
+    for args in [
+        vec!["run", sc.config.to_str().unwrap(), "--no-report"],
+        vec!["sim", sc.config.to_str().unwrap(), "--no-report"],
+    ] {
+        let out = exo(&args);
+        let err = stderr(&out);
+        assert_eq!(out.status.code(), Some(3), "exo {}:\n{err}", args[0]);
+        assert!(
+            err.contains("exo: fault: the controller commanded its safe state (SafeGravityOnly)"),
+            "exo {}:\n{err}",
+            args[0]
+        );
+        assert!(err.contains("the run finished with faults"), "{err}");
+        assert!(err.contains("exo: recording "), "{err}");
+    }
+}

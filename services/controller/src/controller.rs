@@ -51,8 +51,11 @@ pub struct TickInput {
     pub tau_c_nm: f64,
     /// τ_s (Nm), the SEA spring torque.
     pub tau_s_nm: f64,
-    /// Whether the driver flagged a sensor fault.
-    pub sensor_fault: bool,
+    /// The sample's status bits (`exo_messages::status`): a fault bit
+    /// ([`status::FAULT_MASK`](exo_messages::status::FAULT_MASK)) or the
+    /// driver's `SAFE_STATE` latches the controller's safe state, so the
+    /// two never disagree.
+    pub status: u32,
 }
 
 /// The controller's answer to one sample.
@@ -373,6 +376,8 @@ pub struct Controller {
     amplifier: Amplifier,
     limits: Limits,
     latch: FaultLatch,
+    /// Whether the last sample carried the driver's `SAFE_STATE`.
+    driver_was_safe: bool,
     rig: RigSettings,
     safe_state: SafeState,
     rate_hz: f64,
@@ -499,6 +504,7 @@ impl Controller {
             amplifier,
             limits: Limits::new(&cfg.controller.limits, cfg.run.rate_hz),
             latch: FaultLatch::default(),
+            driver_was_safe: false,
             rig: cfg.rig,
             safe_state: cfg.safety.safe_state,
             rate_hz: cfg.run.rate_hz,
@@ -868,7 +874,15 @@ impl Controller {
         } else {
             0.0
         };
-        let (mode, tau_g, tau_a, tau_b, tau_x) = if self.latch.is_latched() {
+        // The driver's latched safe state is followed, not latched here:
+        // it lasts exactly as long as the driver's (an operator reset clears
+        // both), so the two never disagree whichever hears the reset first.
+        let driver_safe = s.status & exo_messages::status::SAFE_STATE != 0;
+        if self.driver_was_safe && !driver_safe {
+            self.amplifier.reset();
+        }
+        self.driver_was_safe = driver_safe;
+        let (mode, tau_g, tau_a, tau_b, tau_x) = if self.latch.is_latched() || driver_safe {
             match self.safe_state {
                 SafeState::GravityOnly => (Mode::SafeGravityOnly, gravity, 0.0, 0.0, 0.0),
                 SafeState::ZeroTorque => (Mode::SafeZeroTorque, 0.0, 0.0, 0.0, 0.0),
@@ -902,7 +916,10 @@ impl Controller {
             tau_bias_nm: tau_b,
             tau_excitation_nm: tau_x,
             mode,
-            fault: self.latch.fault(),
+            fault: self
+                .latch
+                .fault()
+                .or(driver_safe.then_some(Fault::DriverSafeState)),
             protocol: p,
         }
     }
@@ -919,8 +936,8 @@ impl Controller {
                 return;
             }
         }
-        if s.sensor_fault {
-            self.latch.raise(Fault::SensorStatus { status: 1 });
+        if s.status & exo_messages::status::FAULT_MASK != 0 {
+            self.latch.raise(Fault::SensorStatus { status: s.status });
         }
         let [lo, hi] = self.limits.theta_rad;
         if s.theta_e_rad < lo || s.theta_e_rad > hi {
@@ -988,7 +1005,7 @@ mod tests {
             omega_e_rad_s: 0.0,
             tau_c_nm: tau_c,
             tau_s_nm: 0.0,
-            sensor_fault: false,
+            status: 0,
         }
     }
 
@@ -1045,6 +1062,49 @@ mod tests {
         let t = k.tick(&sample(end + 10, 0.3, 0.0));
         assert_eq!(t.mode, Mode::Done);
         assert!(t.protocol_over());
+    }
+
+    #[test]
+    fn the_controller_follows_a_fault_bit_and_the_drivers_safe_state() {
+        use exo_messages::status;
+        // Bits that are not faults (a replayed, stale or skipped-after sample) change nothing.
+        let mut k = Controller::from_config(&cfg()).unwrap();
+        for (seq, bits) in [status::REPLAY, status::STALE, status::FRAMES_SKIPPED]
+            .into_iter()
+            .enumerate()
+        {
+            let mut s = sample(seq as u64, 0.3, 0.0);
+            s.status = bits;
+            assert_eq!(k.tick(&s).mode, Mode::Run, "{bits:#x}");
+        }
+        for bits in [
+            status::ENCODER_FAULT,
+            status::FT_FAULT,
+            status::SEA_FAULT,
+            status::BUS_FAULT,
+        ] {
+            let mut k = Controller::from_config(&cfg()).unwrap();
+            let mut s = sample(0, 0.3, 0.0);
+            s.status = bits;
+            let t = k.tick(&s);
+            assert_eq!(t.fault, Some(Fault::SensorStatus { status: bits }));
+            assert_eq!(t.mode, Mode::SafeGravityOnly);
+        }
+        // The driver latched: the controller follows it for as long as its
+        // samples say so (an operator reset clears both), never in Run.
+        let mut k = Controller::from_config(&cfg()).unwrap();
+        k.tick(&sample(0, 0.3, 0.0));
+        for seq in 1..50 {
+            let mut s = sample(seq, 0.3, 1.0);
+            s.status = status::SAFE_STATE;
+            let t = k.tick(&s);
+            assert_eq!(t.fault, Some(Fault::DriverSafeState));
+            assert_eq!(t.mode, Mode::SafeGravityOnly);
+            assert_eq!(t.tau_amplification_nm, 0.0);
+        }
+        assert_eq!(k.fault(), None, "followed, not latched here");
+        let t = k.tick(&sample(50, 0.3, 0.0));
+        assert_eq!((t.mode, t.fault), (Mode::Run, None));
     }
 
     #[test]

@@ -21,9 +21,6 @@ use tracing::{error, info, warn};
 use crate::controller::{Mode, OperatorOutcome};
 use crate::{Controller, ControllerError, Fault, TickInput};
 
-/// `status` bits meaning "do not act on this sample" (`exo_messages::status`).
-const FAULT_MASK: u32 = 0b1111;
-
 /// The wire code of a controller mode (`exo_messages::ControlMode`).
 pub fn mode_code(m: Mode) -> ControlMode {
     match m {
@@ -139,7 +136,7 @@ impl ControllerNode {
             omega_e_rad_s: s.omega_e,
             tau_c_nm: s.tau_c,
             tau_s_nm: s.tau_s,
-            sensor_fault: s.status & FAULT_MASK != 0,
+            status: s.status,
         });
         let p = tick.protocol;
         let key = (p.experiment, p.period, p.phase as u32);

@@ -27,6 +27,10 @@ pub enum Fault {
     },
     /// No sample arrived within the deadline.
     SampleTimeout,
+    /// The sensor driver latched its safe state (the sample's `SAFE_STATE`
+    /// bit): the controller follows it, so it never commands mode `Run`
+    /// while the driver holds the actuator safe.
+    DriverSafeState,
 }
 
 impl std::fmt::Display for Fault {
@@ -44,6 +48,7 @@ impl std::fmt::Display for Fault {
             }
             Fault::SensorStatus { status } => write!(f, "sensor reports fault flags {status:#x}"),
             Fault::SampleTimeout => write!(f, "no sensor sample within the deadline"),
+            Fault::DriverSafeState => write!(f, "the sensor driver latched its safe state"),
         }
     }
 }

@@ -71,7 +71,7 @@ fn controller_tick_operator_commands_and_adopting_f_do_not_allocate() {
             omega_e_rad_s: 0.05 * t.cos(),
             tau_c_nm: (3.0 * t).sin(),
             tau_s_nm: 0.0,
-            sensor_fault: false,
+            status: 0,
         });
         acc += tick.tau_d_nm;
     }

@@ -12,9 +12,10 @@
 //! ([`PlantNode::lockstep_stamp_ns`]), so a run is a function of its
 //! configuration and seed.
 
-use exo_config::{ProtocolMode, ReleaseSettings, RunConfig, Subject};
+use exo_config::{ProtocolMode, ReleaseSettings, RunConfig, Subject, TimingMode};
+use exo_messages::bus_status::DRIVE_FAULT;
 use exo_messages::{BusMotorCommand, BusSensorFrame, ProtocolPhase, ProtocolState};
-use tracing::info;
+use tracing::{info, warn};
 
 use crate::{Plant, PlantModel, PlantTruth, PostureDrive};
 
@@ -44,6 +45,23 @@ pub struct PlantNode {
     max_ticks: Option<u64>,
     tau_motor_nm: f64,
     inject_fault_at: Option<u64>,
+    watchdog: DriveWatchdog,
+}
+
+/// The simulated drive's watchdog (as an EtherCAT drive's sync-manager
+/// watchdog, `safety.drive_watchdog_ms`): in real time, a drive that gets no
+/// motor command for longer than its limit applies zero torque and reports
+/// `DRIVE_FAULT` in every frame until it is disabled and enabled again
+/// (a command with `enable = 0`, then one with `enable = 1`; the sensor
+/// driver sends that pair on an operator reset). In lockstep the plant
+/// waits for every answer, so there is no watchdog.
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct DriveWatchdog {
+    /// Ticks without a command allowed (`None`: lockstep, no watchdog).
+    limit_ticks: Option<u64>,
+    ticks_without_command: u64,
+    fault: bool,
+    disabled_since_fault: bool,
 }
 
 impl PlantNode {
@@ -104,6 +122,13 @@ impl PlantNode {
             max_ticks: cfg.run.max_sim_time_s.map(|t| (t / period_s).ceil() as u64),
             tau_motor_nm: 0.0,
             inject_fault_at,
+            watchdog: DriveWatchdog {
+                limit_ticks: (cfg.run.timing == TimingMode::Realtime)
+                    .then(|| (cfg.safety.drive_watchdog_ms * 1e-3 / period_s).ceil() as u64),
+                ticks_without_command: 0,
+                fault: false,
+                disabled_since_fault: false,
+            },
         })
     }
 
@@ -159,7 +184,7 @@ impl PlantNode {
             encoder_counts: raw.encoder_counts,
             cuff_wrench,
             sea_deflection_counts: raw.sea_deflection_counts,
-            status: 0,
+            status: if self.watchdog.fault { DRIVE_FAULT } else { 0 },
             _pad: 0,
         }
     }
@@ -177,16 +202,49 @@ impl PlantNode {
     /// Takes a motor command whatever frame it answers (real time: the
     /// latest command is held until the next).
     pub fn hold_motor(&mut self, cmd: &BusMotorCommand) {
-        self.tau_motor_nm = if cmd.enable != 0 {
+        let d = &mut self.watchdog;
+        d.ticks_without_command = 0;
+        if d.fault {
+            if cmd.enable == 0 {
+                d.disabled_since_fault = true;
+            } else if d.disabled_since_fault {
+                d.fault = false;
+                info!("plant-sim: drive fault reset (disabled, then enabled)");
+            }
+        }
+        self.tau_motor_nm = if cmd.enable != 0 && !d.fault {
             cmd.tau_motor_nm
         } else {
             0.0
         };
     }
 
+    /// The motor torque (Nm) the drive applies now.
+    pub fn tau_motor_nm(&self) -> f64 {
+        self.tau_motor_nm
+    }
+
+    /// Whether the drive's watchdog has tripped (torque off, `DRIVE_FAULT`).
+    pub fn drive_fault(&self) -> bool {
+        self.watchdog.fault
+    }
+
     /// Advances one control period with the motor torque held, the subject
     /// following the protocol's phase.
     pub fn advance(&mut self) {
+        let d = &mut self.watchdog;
+        if let Some(limit) = d.limit_ticks {
+            d.ticks_without_command += 1;
+            if d.ticks_without_command > limit && !d.fault {
+                d.fault = true;
+                d.disabled_since_fault = false;
+                self.tau_motor_nm = 0.0;
+                warn!(
+                    "plant-sim: drive watchdog: no motor command for {} ticks; torque off, DRIVE_FAULT until the drive is disabled and enabled again",
+                    d.ticks_without_command
+                );
+            }
+        }
         let phase = ProtocolPhase::from_u32(self.protocol.phase).unwrap_or(ProtocolPhase::Idle);
         self.plant
             .set_drive(self.drive.update(self.period_s, phase));
@@ -217,5 +275,77 @@ impl PlantNode {
     /// The simulated physical state (ground truth, not a measurement).
     pub fn truth(&self) -> PlantTruth {
         self.plant.truth()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn node(timing: TimingMode) -> PlantNode {
+        let mut cfg =
+            RunConfig::from_file(&exo_config::configs_dir().join("default.toml")).unwrap();
+        cfg.run.timing = timing;
+        cfg.safety.drive_watchdog_ms = 10.0;
+        let model = PlantModel::from_file(&cfg.plant_model).unwrap();
+        PlantNode::new(&cfg, &model, None).unwrap()
+    }
+
+    fn motor(node: &PlantNode, tau: f64, enable: u32) -> BusMotorCommand {
+        BusMotorCommand {
+            frame_seq: node.tick(),
+            tau_motor_nm: tau,
+            enable,
+            ..Default::default()
+        }
+    }
+
+    #[test]
+    fn the_drive_watchdog_zeroes_the_torque_until_the_drive_is_disabled_and_enabled() {
+        let mut n = node(TimingMode::Realtime);
+        for _ in 0..5 {
+            n.frame(0);
+            let m = motor(&n, 2.0, 1);
+            n.hold_motor(&m);
+            n.advance();
+        }
+        assert_eq!(n.tau_motor_nm(), 2.0);
+        // The last command's tick and 9 more (10 ms at 1 kHz since that
+        // command) are within the watchdog ...
+        for _ in 0..9 {
+            assert_eq!(n.frame(0).status, 0);
+            n.advance();
+        }
+        assert!(!n.drive_fault());
+        assert_eq!(n.tau_motor_nm(), 2.0);
+        // ... an 11th millisecond is not.
+        n.advance();
+        assert!(n.drive_fault());
+        assert_eq!(n.frame(0).status, DRIVE_FAULT);
+        assert_eq!(n.tau_motor_nm(), 0.0);
+        // Commands alone do not clear it.
+        let m = motor(&n, 3.0, 1);
+        n.hold_motor(&m);
+        assert!(n.drive_fault());
+        assert_eq!(n.tau_motor_nm(), 0.0);
+        // Disabled, then enabled: cleared, and the torque follows again.
+        let m = motor(&n, 3.0, 0);
+        n.hold_motor(&m);
+        assert!(n.drive_fault());
+        let m = motor(&n, 3.0, 1);
+        n.hold_motor(&m);
+        assert!(!n.drive_fault());
+        assert_eq!(n.tau_motor_nm(), 3.0);
+        assert_eq!(n.frame(0).status, 0);
+    }
+
+    #[test]
+    fn in_lockstep_there_is_no_watchdog() {
+        let mut n = node(TimingMode::Lockstep);
+        for _ in 0..1000 {
+            n.advance();
+        }
+        assert!(!n.drive_fault());
+        assert_eq!(n.frame(0).status, 0);
     }
 }

@@ -67,6 +67,12 @@ pub enum SafetyEvent {
         /// The frame it answered.
         frame_seq: u64,
     },
+    /// No bus frame arrived within the bus deadline (a silent bus, a
+    /// stalled drive or plant).
+    BusSilent {
+        /// The last frame received.
+        last_frame_seq: u64,
+    },
 }
 
 /// What to write to the bus for the current frame.
@@ -191,6 +197,21 @@ impl Driver {
             tau_motor_nm: tau_d_nm.clamp(-self.torque_limit_nm, self.torque_limit_nm),
             source: CommandSource::Controller,
         })
+    }
+
+    /// No bus frame within the bus deadline: latches the safe state and
+    /// returns the sample to publish in place of the missing frame: the
+    /// last one's values, stamped `stamp_ns`, numbered after it, flagged
+    /// `BUS_FAULT | STALE | SAFE_STATE`.
+    pub fn on_bus_silent(&mut self, stamp_ns: u64) -> CalibratedSample {
+        let last_frame_seq = self.current_frame.unwrap_or(0);
+        self.latch(SafetyEvent::BusSilent { last_frame_seq });
+        CalibratedSample {
+            seq: self.current_frame.map_or(0, |s| s + 1),
+            stamp_ns,
+            status: status::BUS_FAULT | status::STALE | status::SAFE_STATE,
+            ..self.last_good
+        }
     }
 
     /// The deadline for the current frame passed without a fresh command:

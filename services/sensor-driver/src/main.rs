@@ -102,7 +102,11 @@ fn run(driver_args: DriverArgs) -> Result<()> {
         protocol_in: ipc.inbox::<ProtocolState>(Channel::Protocol, 64)?,
         operator_in: ipc.inbox::<OperatorCommand>(Channel::Operator, 16)?,
     };
-    let timing = Timing { deadline, lockstep };
+    let timing = Timing {
+        deadline,
+        bus_deadline: Duration::from_secs_f64(cfg.safety.bus_deadline_ms / 1000.0),
+        lockstep,
+    };
     if cfg.run.timing == TimingMode::Realtime {
         request_realtime(
             "sensor-driver",
@@ -191,10 +195,11 @@ struct Ports {
     operator_in: Inbox<OperatorCommand>,
 }
 
-/// The command deadline and the timing mode.
+/// The command and bus deadlines and the timing mode.
 #[derive(Clone, Copy)]
 struct Timing {
     deadline: Duration,
+    bus_deadline: Duration,
     lockstep: bool,
 }
 
@@ -209,10 +214,38 @@ fn serve<B: HardwareBus>(
     round_trip: &mut RoundTrip,
 ) -> Result<()> {
     let mut armed = false;
+    let mut last_frame_at = Instant::now();
+    let mut silence_flagged = false;
     while !stop.requested() {
-        let Some(frame) = bus.read(Duration::from_millis(100))? else {
+        // In real time, once the stream runs, a silent bus is the driver's
+        // to detect: it does not wait for the next frame.
+        let watch_bus = armed && !timing.lockstep;
+        let wait = if watch_bus {
+            timing
+                .bus_deadline
+                .saturating_sub(last_frame_at.elapsed())
+                .min(Duration::from_millis(100))
+        } else {
+            Duration::from_millis(100)
+        };
+        let Some(frame) = bus.read(wait)? else {
+            if watch_bus && !silence_flagged && last_frame_at.elapsed() >= timing.bus_deadline {
+                let sample = driver.on_bus_silent(monotonic_ns());
+                ports.sample_out.send(sample)?;
+                let out = driver.safe_output();
+                driver.report_latch(&out);
+                bus.write(
+                    sample.seq,
+                    sample.stamp_ns,
+                    out.tau_motor_nm,
+                    driver.motor_enable(),
+                )?;
+                silence_flagged = true;
+            }
             continue;
         };
+        last_frame_at = Instant::now();
+        silence_flagged = false;
         while let Some(p) = ports.protocol_in.try_recv()? {
             driver.on_protocol(&p);
         }
@@ -270,7 +303,12 @@ fn serve<B: HardwareBus>(
             }
         };
         driver.report_latch(&out);
-        bus.write(frame.seq, frame.stamp_ns, out.tau_motor_nm, true)?;
+        bus.write(
+            frame.seq,
+            frame.stamp_ns,
+            out.tau_motor_nm,
+            driver.motor_enable(),
+        )?;
     }
     Ok(())
 }

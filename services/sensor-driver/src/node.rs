@@ -19,7 +19,7 @@ use exo_messages::{
 };
 use tracing::{debug, error, info, warn};
 
-use crate::{Driver, DriverOutput, RawFrame};
+use crate::{CalibratedSample, Driver, DriverOutput, RawFrame};
 
 /// The driver with its operator bookkeeping, one frame per step.
 pub struct DriverNode {
@@ -27,6 +27,7 @@ pub struct DriverNode {
     operator_seqs: SeenSeqs,
     reported_latch: bool,
     frame_seq: u64,
+    drive_reset_pending: bool,
 }
 
 impl DriverNode {
@@ -50,6 +51,7 @@ impl DriverNode {
             operator_seqs: SeenSeqs::default(),
             reported_latch: false,
             frame_seq: 0,
+            drive_reset_pending: false,
         }
     }
 
@@ -92,6 +94,7 @@ impl DriverNode {
                 }
                 self.driver.reset();
                 self.reported_latch = false;
+                self.drive_reset_pending = true;
             }
             Some(kind) => debug!(
                 "sensor-driver: operator command seq {}: {kind} is the controller's",
@@ -109,16 +112,24 @@ impl DriverNode {
     pub fn on_frame(&mut self, frame: &RawFrame, extra_status: u32) -> SensorSample {
         self.frame_seq = frame.seq;
         let s = self.driver.on_frame(frame);
-        SensorSample {
-            seq: s.seq,
-            stamp_ns: s.stamp_ns,
-            theta_e: s.theta_e,
-            omega_e: s.omega_e,
-            tau_c: s.tau_c,
-            tau_s: s.tau_s,
-            status: s.status | extra_status,
-            _pad: 0,
-        }
+        message(&s, extra_status)
+    }
+
+    /// Whether the motor is enabled in the command written for the current
+    /// frame: after an operator reset, one command disables the drive,
+    /// which resets a drive fault (a tripped watchdog) when the next
+    /// enables it again.
+    pub fn motor_enable(&mut self) -> bool {
+        !std::mem::take(&mut self.drive_reset_pending)
+    }
+
+    /// No bus frame within `safety.bus_deadline_ms`: latches the safe state
+    /// and returns the flagged sample to publish
+    /// ([`Driver::on_bus_silent`](crate::Driver::on_bus_silent)).
+    pub fn on_bus_silent(&mut self, stamp_ns: u64) -> SensorSample {
+        let s = self.driver.on_bus_silent(stamp_ns);
+        self.frame_seq = s.seq;
+        message(&s, 0)
     }
 
     /// The torque for the current frame when the safe state is latched: no
@@ -162,6 +173,20 @@ impl DriverNode {
     }
 }
 
+/// The message of a calibrated sample, with `extra_status` or-ed in.
+fn message(s: &CalibratedSample, extra_status: u32) -> SensorSample {
+    SensorSample {
+        seq: s.seq,
+        stamp_ns: s.stamp_ns,
+        theta_e: s.theta_e,
+        omega_e: s.omega_e,
+        tau_c: s.tau_c,
+        tau_s: s.tau_s,
+        status: s.status | extra_status,
+        _pad: 0,
+    }
+}
+
 /// A bus frame of the plant simulator as the driver's raw frame.
 pub fn raw_frame(f: &BusSensorFrame) -> RawFrame {
     RawFrame {
@@ -171,5 +196,80 @@ pub fn raw_frame(f: &BusSensorFrame) -> RawFrame {
         cuff_wrench: f.cuff_wrench,
         sea_deflection_counts: f.sea_deflection_counts,
         status: f.status,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use exo_messages::status;
+
+    fn node() -> DriverNode {
+        let cfg = RunConfig::from_file(&exo_config::configs_dir().join("default.toml")).unwrap();
+        DriverNode::new(&cfg)
+    }
+
+    fn frame(seq: u64) -> RawFrame {
+        RawFrame {
+            seq,
+            stamp_ns: seq * 1_000_000,
+            ..Default::default()
+        }
+    }
+
+    fn command(sensor_seq: u64, tau_d: f64) -> ActuatorCommand {
+        ActuatorCommand {
+            sensor_seq,
+            tau_d,
+            ..Default::default()
+        }
+    }
+
+    #[test]
+    fn a_silent_bus_gives_a_flagged_sample_and_latches_until_a_reset() {
+        let mut n = node();
+        for k in 0..3 {
+            let s = n.on_frame(&frame(k), 0);
+            assert_eq!(s.status, 0);
+            assert!(n.answer(&command(k, 1.5)).is_some());
+        }
+        let s = n.on_bus_silent(7_000_000);
+        assert_eq!(s.seq, 3, "numbered after the last frame");
+        assert_eq!(s.stamp_ns, 7_000_000);
+        assert_eq!(
+            s.status,
+            status::BUS_FAULT | status::STALE | status::SAFE_STATE
+        );
+        assert_eq!(
+            n.driver().latched(),
+            Some(crate::SafetyEvent::BusSilent { last_frame_seq: 2 })
+        );
+        // The bus comes back: still latched, the controller's torque is not applied.
+        let s = n.on_frame(&frame(3), 0);
+        assert_ne!(s.status & status::SAFE_STATE, 0);
+        assert!(n.latched_output().is_some());
+        // An operator reset clears it; the next command written disables
+        // the drive once (resetting a drive fault), then enables it.
+        n.on_operator(&OperatorCommand {
+            seq: 1,
+            kind: OperatorCommandKind::ResetFault.as_u32(),
+            ..Default::default()
+        });
+        assert!(n.driver().latched().is_none());
+        assert!(!n.motor_enable());
+        assert!(n.motor_enable());
+        let s = n.on_frame(&frame(4), 0);
+        assert_eq!(s.status & status::SAFE_STATE, 0);
+        let out = n.answer(&command(4, 1.5)).unwrap();
+        assert_eq!(out.tau_motor_nm, 1.5);
+    }
+
+    #[test]
+    fn a_command_for_another_frame_is_not_an_answer() {
+        let mut n = node();
+        n.on_frame(&frame(5), 0);
+        assert!(n.answer(&command(4, 1.0)).is_none());
+        assert!(n.answer(&command(5, 1.0)).is_some());
+        assert!(n.motor_enable(), "no reset: always enabled");
     }
 }

@@ -75,6 +75,8 @@ pub const RUN_RANGES: Ranges = &[
     ("safety.command_deadline_ms", Range::above(0.0, 1000.0)),
     ("safety.sample_deadline_ms", Range::above(0.0, 1000.0)),
     ("safety.lockstep_timeout_ms", Range::above(0.0, 60_000.0)),
+    ("safety.drive_watchdog_ms", Range::above(0.0, 1000.0)),
+    ("safety.bus_deadline_ms", Range::above(0.0, 1000.0)),
     ("rig.arm_inertia_kg_m2", Range::above(0.0, 10.0)),
     ("rig.arm_mass_kg", Range::closed(0.0, 50.0)),
     ("rig.arm_com_m", Range::closed(0.0, 2.0)),
@@ -432,10 +434,32 @@ pub struct SafetySettings {
     /// same simulated tick. Range (0, 60 000] (a minute).
     #[serde(default = "default_lockstep_timeout_ms")]
     pub lockstep_timeout_ms: f64,
+    /// The drive's watchdog (as an EtherCAT drive's sync-manager watchdog):
+    /// in real time, with no motor command for this long (ms) the drive
+    /// applies zero torque and reports `DRIVE_FAULT` until it is re-enabled.
+    /// The simulated drive (plant-sim) implements it; a hardware backend
+    /// configures its drive's watchdog from it. Range (0, 1000], and at
+    /// least one control period.
+    #[serde(default = "default_drive_watchdog_ms")]
+    pub drive_watchdog_ms: f64,
+    /// In real time, with no bus frame for this long (ms) the sensor driver
+    /// publishes a sample flagged `BUS_FAULT | SAFE_STATE` from its own
+    /// timer, latches its safe state and commands it. Range (0, 1000], and
+    /// at least one control period.
+    #[serde(default = "default_bus_deadline_ms")]
+    pub bus_deadline_ms: f64,
 }
 
 fn default_lockstep_timeout_ms() -> f64 {
     1000.0
+}
+
+fn default_drive_watchdog_ms() -> f64 {
+    10.0
+}
+
+fn default_bus_deadline_ms() -> f64 {
+    5.0
 }
 
 /// `[rig]`: what the software believes about the hardware (calibration and
@@ -908,6 +932,8 @@ impl RunConfig {
                 self.safety.command_deadline_ms,
             ),
             ("safety.sample_deadline_ms", self.safety.sample_deadline_ms),
+            ("safety.drive_watchdog_ms", self.safety.drive_watchdog_ms),
+            ("safety.bus_deadline_ms", self.safety.bus_deadline_ms),
         ] {
             if c.key(key, v) && rate_ok && v < period_ms {
                 c.note(

@@ -17,6 +17,7 @@ mod design_cmd;
 mod diagnose_bench;
 mod diagnose_cmd;
 mod diagnose_report;
+mod faults;
 mod fit_cmd;
 mod import_cmd;
 mod op_cmd;
@@ -98,6 +99,11 @@ fn main() {
     };
     if let Err(err) = result {
         eprintln!("exo: error: {err:#}");
-        std::process::exit(1);
+        let code = if err.downcast_ref::<faults::FinishedWithFaults>().is_some() {
+            faults::FINISHED_WITH_FAULTS
+        } else {
+            1
+        };
+        std::process::exit(code);
     }
 }

@@ -169,8 +169,9 @@ pub fn recording_path(cfg: &RunConfig) -> PathBuf {
 }
 
 /// Validates a run file, then starts and supervises its processes with
-/// progress lines; returns the recording's path when the recorder ran.
-pub fn run_config(config: &std::path::Path, logs: Logs) -> Result<Option<PathBuf>> {
+/// progress lines; returns the recording's path when the recorder ran and
+/// the faults the run met.
+pub fn run_config(config: &std::path::Path, logs: Logs) -> Result<Finished> {
     // Validate everything before any process starts.
     let checked = check_or_fail(config)?;
     for w in &checked.warnings {
@@ -199,6 +200,7 @@ pub fn run_config(config: &std::path::Path, logs: Logs) -> Result<Option<PathBuf
     );
     keep_off_the_control_path(&cfg);
     let mut progress = Progress::start(&cfg.run.instance)?;
+    let watch = crate::faults::FaultWatch::start(&cfg.run.instance)?;
     let outcome = supervise(services, logs, || progress.poll())
         .with_context(|| format!("run of {}", config.display()));
     progress.poll();
@@ -206,7 +208,31 @@ pub fn run_config(config: &std::path::Path, logs: Logs) -> Result<Option<PathBuf
     if let Some(r) = &recording {
         eprintln!("exo: recording {}", r.display());
     }
-    Ok(recording)
+    let faults = watch.faults()?;
+    for f in &faults {
+        eprintln!("exo: fault: {f}");
+    }
+    Ok(Finished { recording, faults })
+}
+
+/// A run the processes finished.
+pub struct Finished {
+    /// The recording, when the recorder ran.
+    pub recording: Option<PathBuf>,
+    /// The faults seen on the way ([`crate::faults::FaultWatch`]).
+    pub faults: Vec<String>,
+}
+
+impl Finished {
+    /// `Ok` for a run without faults, else the error naming them (exit
+    /// code [`crate::faults::FINISHED_WITH_FAULTS`]).
+    pub fn check(self) -> Result<()> {
+        if self.faults.is_empty() {
+            Ok(())
+        } else {
+            Err(crate::faults::FinishedWithFaults(self.faults).into())
+        }
+    }
 }
 
 /// In real time with the driver or the controller pinned (`[realtime]`),
@@ -263,11 +289,12 @@ pub fn run(args: &RunArgs) -> Result<()> {
         }
         return Ok(());
     }
-    let Some(recording) = run_config(&args.config, Logs::Forward)? else {
-        return Ok(());
-    };
-    let cfg = RunConfig::from_file(&args.config)?;
-    fit_and_report(&cfg, &recording, args.no_report)
+    let finished = run_config(&args.config, Logs::Forward)?;
+    if let Some(recording) = &finished.recording {
+        let cfg = RunConfig::from_file(&args.config)?;
+        fit_and_report(&cfg, recording, args.no_report)?;
+    }
+    finished.check()
 }
 
 /// After a run: fits the recording and writes its report beside it

@@ -11,9 +11,10 @@ use anyhow::{Context, Result};
 use clap::Args;
 use exo_config::TimingMode;
 use exo_plant_sim::PlantModel;
-use exo_sim::Ended;
+use exo_sim::{Ended, FileSink, Record, Sim};
 
-use crate::run_cmd::{check_or_fail, fit_and_report, recording_path};
+use crate::faults::{describe, is_fault_command, is_fault_sample};
+use crate::run_cmd::{check_or_fail, fit_and_report, recording_path, Finished};
 
 /// `exo sim` arguments.
 #[derive(Debug, Args)]
@@ -53,19 +54,41 @@ pub fn run(args: &SimArgs) -> Result<()> {
         cfg.subject().name
     );
     let started = Instant::now();
-    let done = exo_sim::record(&cfg, &args.config, &model, &recording)
+    let mut sim = Sim::new(&cfg, &model)?;
+    let mut file = FileSink::create(&recording, &cfg, &args.config)?;
+    let (mut fault_commands, mut fault_samples) = (Vec::new(), Vec::new());
+    let ended = sim
+        .run(|r| {
+            match r {
+                Record::Command(c) if is_fault_command(&c) => fault_commands.push(c),
+                Record::Sensor(s) if is_fault_sample(&s) => fault_samples.push(s),
+                _ => {}
+            }
+            file.write(r)
+        })
         .with_context(|| format!("simulating {}", args.config.display()))?;
+    let messages = file
+        .finish()
+        .with_context(|| format!("finishing {}", recording.display()))?;
     let wall_s = started.elapsed().as_secs_f64();
-    let sim_s = done.sim_s;
+    let sim_s = sim.plant().tick() as f64 * sim.plant().period_ns() as f64 * 1e-9;
     eprintln!(
-        "exo: {} after {sim_s:.1} s simulated in {wall_s:.2} s ({:.0}× real time), {} messages",
-        match done.ended {
+        "exo: {} after {sim_s:.1} s simulated in {wall_s:.2} s ({:.0}× real time), {messages} messages",
+        match ended {
             Ended::ControllerFinished => "protocol done",
             Ended::Bound => "run.max_sim_time_s reached",
         },
         sim_s / wall_s.max(1e-9),
-        done.messages
     );
     eprintln!("exo: recording {}", recording.display());
-    fit_and_report(&cfg, &recording, args.no_report)
+    let faults = describe(&fault_commands, &fault_samples);
+    for f in &faults {
+        eprintln!("exo: fault: {f}");
+    }
+    fit_and_report(&cfg, &recording, args.no_report)?;
+    Finished {
+        recording: Some(recording),
+        faults,
+    }
+    .check()
 }

@@ -136,7 +136,7 @@ impl Sim {
                 stamp_ns: frame.stamp_ns,
                 frame_seq: frame.seq,
                 tau_motor_nm: out.tau_motor_nm,
-                enable: 1,
+                enable: u32::from(self.driver.motor_enable()),
                 ..Default::default()
             };
             self.motor_seq += 1;
@@ -207,33 +207,4 @@ impl FileSink {
         self.writer.finish()?;
         Ok(written)
     }
-}
-
-/// What [`record`] wrote.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Recorded {
-    /// How the run ended.
-    pub ended: Ended,
-    /// Messages written.
-    pub messages: u64,
-    /// Simulated time (s): the plant's ticks times the period.
-    pub sim_s: f64,
-}
-
-/// Simulates run `cfg` (read from `config_file`) with plant model `model`
-/// into the recording `path`.
-pub fn record(
-    cfg: &RunConfig,
-    config_file: &Path,
-    model: &PlantModel,
-    path: &Path,
-) -> Result<Recorded, SimError> {
-    let mut sim = Sim::new(cfg, model)?;
-    let mut file = FileSink::create(path, cfg, config_file)?;
-    let ended = sim.run(|r| file.write(r))?;
-    Ok(Recorded {
-        ended,
-        messages: file.finish()?,
-        sim_s: sim.plant().tick() as f64 * sim.plant().period_ns() as f64 * 1e-9,
-    })
 }

@@ -1,0 +1,114 @@
+//! What `exo run` watches for besides the processes' exits: the safe state
+//! the controller or the sensor driver latched, and bus or drive faults,
+//! seen on the run's own channels. A run that finishes with any of them is
+//! named in the summary and exits with [`FINISHED_WITH_FAULTS`], not 0.
+
+use anyhow::{Context, Result};
+use exo_messages::{status, ActuatorCommand, ControlMode, SensorSample};
+use exo_service_kit::channels::Channel;
+use exo_service_kit::collect::Collector;
+
+/// The exit code of a run that ended normally with a fault on the way
+/// (1 is a run that could not finish).
+pub const FINISHED_WITH_FAULTS: i32 = 3;
+
+/// A run that finished, with the faults it met.
+#[derive(Debug)]
+pub struct FinishedWithFaults(pub Vec<String>);
+
+impl std::fmt::Display for FinishedWithFaults {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(
+            f,
+            "the run finished with faults (exit code {FINISHED_WITH_FAULTS}):\n  {}",
+            self.0.join("\n  ")
+        )
+    }
+}
+
+impl std::error::Error for FinishedWithFaults {}
+
+/// Keeps the commands in a safe-state mode and the samples flagged with a
+/// safe state or a bus fault, as they are published.
+pub struct FaultWatch {
+    commands: Collector<ActuatorCommand>,
+    samples: Collector<SensorSample>,
+}
+
+impl FaultWatch {
+    /// Starts watching run `instance` (before its processes start).
+    pub fn start(instance: &str) -> Result<Self> {
+        let node = format!("exo_faults_{}", std::process::id());
+        Ok(FaultWatch {
+            commands: Collector::start_filtered(
+                &node,
+                instance,
+                Channel::Command,
+                is_fault_command,
+            )
+            .context("watching the commands for a safe state")?,
+            samples: Collector::start_filtered(&node, instance, Channel::Sensor, is_fault_sample)
+                .context("watching the samples for faults")?,
+        })
+    }
+
+    /// The faults seen ([`describe`]).
+    pub fn faults(self) -> Result<Vec<String>> {
+        Ok(describe(&self.commands.finish()?, &self.samples.finish()?))
+    }
+}
+
+/// A command in a safe-state mode.
+pub fn is_fault_command(c: &ActuatorCommand) -> bool {
+    ControlMode::from_u32(c.mode).is_some_and(ControlMode::is_safe_state)
+}
+
+/// A sample flagged with the driver's safe state or a fault.
+pub fn is_fault_sample(s: &SensorSample) -> bool {
+    s.status & (status::SAFE_STATE | status::FAULT_MASK) != 0
+}
+
+/// The faults in the commands and samples that passed [`is_fault_command`]
+/// and [`is_fault_sample`], one line each: the first of each kind, with its
+/// simulated time and how many messages carried it.
+pub fn describe(commands: &[ActuatorCommand], samples: &[SensorSample]) -> Vec<String> {
+    {
+        let mut out = Vec::new();
+        if let Some(c) = commands.first() {
+            out.push(format!(
+                "the controller commanded its safe state ({}) from sample {} ({:.3} s), {} commands in all",
+                ControlMode::from_u32(c.mode).map_or("?", ControlMode::name),
+                c.sensor_seq,
+                c.stamp_ns as f64 * 1e-9,
+                commands.len()
+            ));
+        }
+        for (bit, what) in [
+            (
+                status::SAFE_STATE,
+                "the sensor driver latched its safe state",
+            ),
+            (status::BUS_FAULT, "the bus or the drive reported a fault"),
+            (status::ENCODER_FAULT, "the joint encoder reported a fault"),
+            (
+                status::FT_FAULT,
+                "the cuff force/torque sensor reported a fault",
+            ),
+            (
+                status::SEA_FAULT,
+                "the SEA deflection sensor reported a fault",
+            ),
+        ] {
+            let mut flagged = samples.iter().filter(|s| s.status & bit != 0);
+            if let Some(first) = flagged.next() {
+                out.push(format!(
+                    "{what} at sample {} ({:.3} s), {} samples in all",
+                    first.seq,
+                    first.stamp_ns as f64 * 1e-9,
+                    1 + flagged.count()
+                ));
+            }
+        }
+        out
+    }
+}
