@@ -478,3 +478,50 @@ fn a_run_that_latches_names_the_fault_and_exits_3() {
         assert!(err.contains("exo: recording "), "{err}");
     }
 }
+
+/// A second controller on a running instance is refused at start (the
+/// command channel allows one publisher) and exits non-zero naming the
+/// channel and the instance, while the first goes on.
+#[test]
+fn a_second_controller_on_a_running_instance_is_refused() {
+    let sc = Scenario::new("second", SHORT_RUN);
+    let commands = sc.collect::<ActuatorCommand>(Channel::Command);
+    let mut procs = vec![
+        sc.spawn("exo-plant-sim", &[]),
+        sc.spawn("exo-sensor-driver", &[]),
+        sc.spawn("exo-controller", &[]),
+    ];
+    commands.wait_for(
+        Duration::from_secs(120),
+        "the first controller's commands",
+        |c| c.len() > 100,
+    );
+    let second_log = sc.dir.join("second-controller.log");
+    let mut second = std::process::Command::new(workspace_bin("exo-controller"))
+        .arg("--config")
+        .arg(&sc.config)
+        .stdin(std::process::Stdio::null())
+        .stdout(std::process::Stdio::null())
+        .stderr(std::fs::File::create(&second_log).unwrap())
+        .spawn()
+        .unwrap();
+    let status = wait_exit(
+        &mut second,
+        Duration::from_secs(60),
+        "the second controller",
+    );
+    let log = std::fs::read_to_string(&second_log).unwrap();
+    assert!(!status.success(), "{log}");
+    assert!(
+        log.contains("already has its publisher (the controller)") && log.contains(&sc.instance),
+        "{log}"
+    );
+    // The first controller still answers.
+    let before = commands.snapshot().len();
+    commands.wait_for(Duration::from_secs(120), "more commands", |c| {
+        c.len() > before + 100
+    });
+    for p in &mut procs {
+        terminate(p);
+    }
+}

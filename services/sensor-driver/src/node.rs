@@ -27,6 +27,7 @@ pub struct DriverNode {
     operator_seqs: SeenSeqs,
     reported_latch: bool,
     frame_seq: u64,
+    drive_faulted: bool,
     drive_reset_pending: bool,
 }
 
@@ -51,6 +52,7 @@ impl DriverNode {
             operator_seqs: SeenSeqs::default(),
             reported_latch: false,
             frame_seq: 0,
+            drive_faulted: false,
             drive_reset_pending: false,
         }
     }
@@ -94,7 +96,8 @@ impl DriverNode {
                 }
                 self.driver.reset();
                 self.reported_latch = false;
-                self.drive_reset_pending = true;
+                // A faulted drive (its watchdog tripped) is reset too.
+                self.drive_reset_pending = self.drive_faulted;
             }
             Some(kind) => debug!(
                 "sensor-driver: operator command seq {}: {kind} is the controller's",
@@ -111,14 +114,15 @@ impl DriverNode {
     /// is or-ed into its status (e.g. `REPLAY`).
     pub fn on_frame(&mut self, frame: &RawFrame, extra_status: u32) -> SensorSample {
         self.frame_seq = frame.seq;
+        self.drive_faulted = frame.status & exo_messages::bus_status::DRIVE_FAULT != 0;
         let s = self.driver.on_frame(frame);
         message(&s, extra_status)
     }
 
     /// Whether the motor is enabled in the command written for the current
-    /// frame: after an operator reset, one command disables the drive,
-    /// which resets a drive fault (a tripped watchdog) when the next
-    /// enables it again.
+    /// frame: after an operator reset while the drive reports
+    /// `DRIVE_FAULT`, one command disables the drive, which resets the
+    /// fault (a tripped watchdog) when the next enables it again.
     pub fn motor_enable(&mut self) -> bool {
         !std::mem::take(&mut self.drive_reset_pending)
     }
@@ -256,12 +260,33 @@ mod tests {
             ..Default::default()
         });
         assert!(n.driver().latched().is_none());
-        assert!(!n.motor_enable());
-        assert!(n.motor_enable());
+        assert!(
+            n.motor_enable(),
+            "the drive reported no fault: not disabled"
+        );
         let s = n.on_frame(&frame(4), 0);
         assert_eq!(s.status & status::SAFE_STATE, 0);
         let out = n.answer(&command(4, 1.5)).unwrap();
         assert_eq!(out.tau_motor_nm, 1.5);
+    }
+
+    #[test]
+    fn a_reset_disables_a_faulted_drive_once_then_enables_it() {
+        let mut n = node();
+        let faulted = RawFrame {
+            status: exo_messages::bus_status::DRIVE_FAULT,
+            ..frame(0)
+        };
+        let s = n.on_frame(&faulted, 0);
+        assert_ne!(s.status & status::BUS_FAULT, 0);
+        assert!(n.motor_enable(), "no reset yet");
+        n.on_operator(&OperatorCommand {
+            seq: 1,
+            kind: OperatorCommandKind::ResetFault.as_u32(),
+            ..Default::default()
+        });
+        assert!(!n.motor_enable());
+        assert!(n.motor_enable());
     }
 
     #[test]

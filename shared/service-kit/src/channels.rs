@@ -39,6 +39,11 @@ pub struct ChannelInfo {
     pub subscribers: &'static [&'static str],
     /// Whether a wake-up event accompanies each sample (`<name>/event`).
     pub has_event: bool,
+    /// How many publishers the channel allows: 1 for the control path's
+    /// channels (samples, commands, the bus), so a second controller,
+    /// driver or plant on a running instance is refused at start instead
+    /// of interleaving its messages with the first's.
+    pub max_publishers: usize,
 }
 
 /// Every channel of exo.
@@ -50,6 +55,7 @@ pub const CHANNELS: [ChannelInfo; 8] = [
         publisher: "sensor-driver",
         subscribers: &["controller", "identifier", "recorder"],
         has_event: true,
+        max_publishers: 1,
     },
     ChannelInfo {
         channel: Channel::Command,
@@ -58,6 +64,7 @@ pub const CHANNELS: [ChannelInfo; 8] = [
         publisher: "controller",
         subscribers: &["sensor-driver", "identifier", "recorder"],
         has_event: true,
+        max_publishers: 1,
     },
     ChannelInfo {
         channel: Channel::Protocol,
@@ -66,6 +73,7 @@ pub const CHANNELS: [ChannelInfo; 8] = [
         publisher: "controller",
         subscribers: &["plant-sim", "sensor-driver", "identifier", "recorder"],
         has_event: false,
+        max_publishers: 4,
     },
     ChannelInfo {
         channel: Channel::BusSensor,
@@ -74,6 +82,7 @@ pub const CHANNELS: [ChannelInfo; 8] = [
         publisher: "plant-sim",
         subscribers: &["sensor-driver"],
         has_event: true,
+        max_publishers: 1,
     },
     ChannelInfo {
         channel: Channel::BusMotor,
@@ -82,6 +91,7 @@ pub const CHANNELS: [ChannelInfo; 8] = [
         publisher: "sensor-driver",
         subscribers: &["plant-sim"],
         has_event: true,
+        max_publishers: 1,
     },
     ChannelInfo {
         channel: Channel::IdentifierFrf,
@@ -90,6 +100,7 @@ pub const CHANNELS: [ChannelInfo; 8] = [
         publisher: "identifier",
         subscribers: &["recorder"],
         has_event: false,
+        max_publishers: 4,
     },
     ChannelInfo {
         channel: Channel::IdentifierEstimate,
@@ -98,6 +109,7 @@ pub const CHANNELS: [ChannelInfo; 8] = [
         publisher: "identifier",
         subscribers: &["controller", "recorder"],
         has_event: false,
+        max_publishers: 4,
     },
     ChannelInfo {
         channel: Channel::Operator,
@@ -106,6 +118,7 @@ pub const CHANNELS: [ChannelInfo; 8] = [
         publisher: "operator",
         subscribers: &["controller", "sensor-driver"],
         has_event: false,
+        max_publishers: 4,
     },
 ];
 

@@ -57,6 +57,19 @@ pub enum IpcError {
         /// What went wrong.
         message: String,
     },
+    /// A second publisher on a channel that allows one
+    /// ([`ChannelInfo::max_publishers`](crate::channels::ChannelInfo)).
+    #[error("`{service}` already has its publisher (the {owner}): only one process may publish on it; is another {owner} running on instance `{instance}`? ({message})")]
+    SecondPublisher {
+        /// Service name.
+        service: String,
+        /// The process that publishes on it.
+        owner: &'static str,
+        /// The run's instance.
+        instance: String,
+        /// What iceoryx2 said.
+        message: String,
+    },
     /// A service or port could not be opened, or an operation on it failed.
     #[error("{what} on `{service}`: {message}")]
     Port {
@@ -162,7 +175,7 @@ impl Ipc {
             .node
             .service_builder(&sn)
             .publish_subscribe::<T>()
-            .max_publishers(4)
+            .max_publishers(ch.info().max_publishers)
             .max_subscribers(8)
             .max_nodes(16)
             .history_size(1)
@@ -219,10 +232,19 @@ impl Ipc {
         ch: Channel,
     ) -> Result<Outbox<T>, IpcError> {
         let (name, f) = self.pubsub::<T>(ch)?;
-        let publisher = f
-            .publisher_builder()
-            .create()
-            .map_err(|e| port_err("create publisher", &name, e))?;
+        let info = ch.info();
+        let publisher = f.publisher_builder().create().map_err(|e| {
+            if info.max_publishers == 1 && f.dynamic_config().number_of_publishers() >= 1 {
+                IpcError::SecondPublisher {
+                    service: name.clone(),
+                    owner: info.publisher,
+                    instance: self.instance.clone(),
+                    message: format!("{e:?}"),
+                }
+            } else {
+                port_err("create publisher", &name, e)
+            }
+        })?;
         let notifier = match self.event(ch)? {
             Some((en, ef)) => Some(
                 ef.notifier_builder()

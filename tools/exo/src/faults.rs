@@ -2,9 +2,17 @@
 //! the controller or the sensor driver latched, and bus or drive faults,
 //! seen on the run's own channels. A run that finishes with any of them is
 //! named in the summary and exits with [`FINISHED_WITH_FAULTS`], not 0.
+//!
+//! The run's end is not a fault: once the controller has finished the
+//! protocol (its first command in mode `Done`) or the plant has stopped
+//! (its last bus frame), the driver latching for want of commands or
+//! frames is the shutdown, so what is stamped after that is left out.
+
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::Arc;
 
 use anyhow::{Context, Result};
-use exo_messages::{status, ActuatorCommand, ControlMode, SensorSample};
+use exo_messages::{status, ActuatorCommand, BusSensorFrame, ControlMode, SensorSample};
 use exo_service_kit::channels::Channel;
 use exo_service_kit::collect::Collector;
 
@@ -33,28 +41,69 @@ impl std::error::Error for FinishedWithFaults {}
 pub struct FaultWatch {
     commands: Collector<ActuatorCommand>,
     samples: Collector<SensorSample>,
+    frames: Collector<BusSensorFrame>,
+    /// Stamp (ns) of the first `Done` command.
+    done_ns: Arc<AtomicU64>,
+    /// Stamp (ns) of the last bus frame.
+    last_frame_ns: Arc<AtomicU64>,
 }
 
 impl FaultWatch {
     /// Starts watching run `instance` (before its processes start).
     pub fn start(instance: &str) -> Result<Self> {
         let node = format!("exo_faults_{}", std::process::id());
+        let done_ns = Arc::new(AtomicU64::new(u64::MAX));
+        let last_frame_ns = Arc::new(AtomicU64::new(u64::MAX));
+        let (done, last) = (Arc::clone(&done_ns), Arc::clone(&last_frame_ns));
         Ok(FaultWatch {
             commands: Collector::start_filtered(
                 &node,
                 instance,
                 Channel::Command,
-                is_fault_command,
+                move |c: &ActuatorCommand| {
+                    if c.mode == ControlMode::Done.as_u32() {
+                        done.fetch_min(c.stamp_ns, Ordering::Relaxed);
+                    }
+                    is_fault_command(c)
+                },
             )
             .context("watching the commands for a safe state")?,
             samples: Collector::start_filtered(&node, instance, Channel::Sensor, is_fault_sample)
                 .context("watching the samples for faults")?,
+            // Keeps no frame, only the last one's stamp.
+            frames: Collector::start_filtered(
+                &node,
+                instance,
+                Channel::BusSensor,
+                move |f: &BusSensorFrame| {
+                    last.store(f.stamp_ns, Ordering::Relaxed);
+                    false
+                },
+            )
+            .context("watching the bus for its last frame")?,
+            done_ns,
+            last_frame_ns,
         })
     }
 
-    /// The faults seen ([`describe`]).
+    /// The faults seen before the run's end ([`describe`]).
     pub fn faults(self) -> Result<Vec<String>> {
-        Ok(describe(&self.commands.finish()?, &self.samples.finish()?))
+        let (commands, samples) = (self.commands.finish()?, self.samples.finish()?);
+        self.frames.finish()?;
+        let end_ns = self
+            .done_ns
+            .load(Ordering::Relaxed)
+            .min(self.last_frame_ns.load(Ordering::Relaxed));
+        let before_end = |stamp_ns: u64| stamp_ns <= end_ns;
+        let commands: Vec<_> = commands
+            .into_iter()
+            .filter(|c| before_end(c.stamp_ns))
+            .collect();
+        let samples: Vec<_> = samples
+            .into_iter()
+            .filter(|s| before_end(s.stamp_ns))
+            .collect();
+        Ok(describe(&commands, &samples))
     }
 }
 
@@ -76,7 +125,7 @@ pub fn describe(commands: &[ActuatorCommand], samples: &[SensorSample]) -> Vec<S
         let mut out = Vec::new();
         if let Some(c) = commands.first() {
             out.push(format!(
-                "the controller commanded its safe state ({}) from sample {} ({:.3} s), {} commands in all",
+                "the controller commanded its safe state ({}) from sample {} (stamp {:.3} s), {} commands in all",
                 ControlMode::from_u32(c.mode).map_or("?", ControlMode::name),
                 c.sensor_seq,
                 c.stamp_ns as f64 * 1e-9,
@@ -102,7 +151,7 @@ pub fn describe(commands: &[ActuatorCommand], samples: &[SensorSample]) -> Vec<S
             let mut flagged = samples.iter().filter(|s| s.status & bit != 0);
             if let Some(first) = flagged.next() {
                 out.push(format!(
-                    "{what} at sample {} ({:.3} s), {} samples in all",
+                    "{what} at sample {} (stamp {:.3} s), {} samples in all",
                     first.seq,
                     first.stamp_ns as f64 * 1e-9,
                     1 + flagged.count()

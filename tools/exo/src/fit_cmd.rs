@@ -1,7 +1,7 @@
 //! `exo fit RECORDING.mcap …`: the paper's post-hoc analysis of contract
 //! recordings, whoever wrote them. Each recording's samples, commands and
 //! protocol states go through the identifier's own code (the same that runs
-//! online), then [`crate::analysis`] makes the paper's tables.
+//! online), then [`exo_analysis::study`] makes the paper's tables.
 
 use std::collections::BTreeMap;
 use std::fmt::Write as _;

@@ -6,7 +6,7 @@
 //! For the subject's low stiffness (Table I experiment 1: 10 kg grip, 0 Nm
 //! bias) and high stiffness (experiment 7: 27 kg, 8 Nm), the fractional
 //! order f is raised in steps of `--step` from 0 until a spring-release test
-//! ([`crate::stability`]) oscillates, then the boundary is bisected to
+//! ([`exo_analysis::stability`]) oscillates, then the boundary is bisected to
 //! `--resolution`. The marginal f is the lower of the two boundaries; the
 //! tuned f subtracts 0.12 from it (the paper's margin of about 10.8°). Beside
 //! it the tool prints the model's prediction: the same boundary computed from
