@@ -340,3 +340,78 @@ fn a_recording_replayed_through_the_driver_is_identified_again() {
         );
     }
 }
+
+/// A recorder killed and restarted mid-run never truncates what was
+/// written: the new one continues in `<stem>-part2.mcap`, and the readers
+/// (and so `exo fit`) take the two as one recording, naming the samples
+/// neither holds.
+#[test]
+fn a_restarted_recorder_continues_in_a_new_segment_read_as_one_recording() {
+    let sc = Scenario::new("recseg", &[("periods = [1, 4, 7]", "periods = [1]")]);
+    let rec = sc.dir.join("run.mcap");
+    let mut recorder = sc.spawn("exo-recorder", &["--output", rec.to_str().unwrap()]);
+    let samples =
+        sc.collect::<exo_messages::SensorSample>(exo_service_kit::channels::Channel::Sensor);
+    let mut plant = sc.spawn("exo-plant-sim", &[]);
+    let mut driver = sc.spawn("exo-sensor-driver", &[]);
+    let mut controller = sc.spawn("exo-controller", &[]);
+    // Kill it once it has written some chunks (the file grows by whole chunks).
+    samples.wait_for(Duration::from_secs(60), "5 s of samples", |s| {
+        s.len() > 5000
+    });
+    let written = || std::fs::metadata(&rec).map_or(0, |m| m.len());
+    let t = std::time::Instant::now();
+    while written() < 100_000 && t.elapsed() < Duration::from_secs(60) {
+        std::thread::yield_now();
+    }
+    kill_9(&mut recorder);
+    let first_len = written();
+    assert!(first_len >= 100_000, "{first_len} bytes written");
+    let mut restarted = sc.spawn("exo-recorder", &["--output", rec.to_str().unwrap()]);
+    let status = wait_exit(&mut controller, Duration::from_secs(300), "controller");
+    assert!(status.success(), "{}", sc.log("exo-controller"));
+    terminate(&mut restarted);
+    terminate(&mut driver);
+    terminate(&mut plant);
+    let samples = samples.finish();
+    // The first segment was not truncated; the second is beside it.
+    assert!(written() >= first_len);
+    let part2 = sc.dir.join("run-part2.mcap");
+    assert!(part2.exists(), "{}", sc.log("exo-recorder"));
+    let one = exo_recording::read_recording(&rec).unwrap();
+    let second = exo_recording::read_recording(&part2).unwrap();
+    assert!(one.sensor.len() > second.sensor.len() && !second.sensor.is_empty());
+    // One recording: in order, no sample twice, every sample as published,
+    // from the first to the last the run published.
+    assert!(one.sensor.windows(2).all(|w| w[1].seq > w[0].seq));
+    let published: std::collections::BTreeMap<u64, _> =
+        samples.iter().map(|s| (s.seq, *s)).collect();
+    for s in &one.sensor {
+        assert_eq!(Some(s), published.get(&s.seq), "sample {}", s.seq);
+    }
+    assert_eq!(
+        one.sensor.first().map(|s| s.seq),
+        samples.first().map(|s| s.seq)
+    );
+    assert_eq!(
+        one.sensor.last().map(|s| s.seq),
+        samples.last().map(|s| s.seq)
+    );
+    // What no segment holds is named, exactly.
+    let missing: Vec<u64> = one
+        .sensor
+        .windows(2)
+        .filter(|w| w[1].seq > w[0].seq + 1)
+        .map(|w| w[0].seq + 1)
+        .collect();
+    for from in &missing {
+        assert!(
+            one.warnings
+                .iter()
+                .any(|w| w.contains(&format!("exo/sensor seq {from} to"))),
+            "{:?}",
+            one.warnings
+        );
+    }
+    assert!(one.source.contains("(+1 segment)"), "{}", one.source);
+}

@@ -562,6 +562,11 @@ impl Controller {
         }
     }
 
+    /// The amplifier in use (constant α, or the fractional order adopted).
+    pub fn amplifier(&self) -> &Amplifier {
+        &self.amplifier
+    }
+
     /// Where the protocol is, as the operator left it.
     pub fn protocol_run(&self) -> ProtocolRun {
         self.run

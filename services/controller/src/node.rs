@@ -212,3 +212,151 @@ impl ControllerNode {
         }
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use exo_messages::ProtocolPhase;
+
+    fn cfg() -> RunConfig {
+        let mut c = RunConfig::from_file(&exo_config::configs_dir().join("default.toml")).unwrap();
+        c.protocol.experiments = vec![1];
+        c.protocol.periods = Some(vec![1]);
+        c
+    }
+
+    fn sample(seq: u64) -> SensorSample {
+        SensorSample {
+            seq,
+            stamp_ns: seq * 1_000_000,
+            theta_e: 0.3,
+            ..Default::default()
+        }
+    }
+
+    #[test]
+    fn the_protocol_goes_out_when_it_changes_and_once_a_second_and_commands_number_the_samples() {
+        let c = cfg();
+        let mut n = ControllerNode::new(&c).unwrap();
+        let end = (n.controller().protocol().duration_s() * c.run.rate_hz) as u64;
+        let mut published = Vec::new();
+        for seq in 0..end + 500 {
+            let a = n.on_sample(&sample(seq));
+            assert_eq!(a.command.seq, seq, "one command per sample, numbered");
+            assert_eq!(a.command.sensor_seq, seq);
+            assert_eq!(a.command.stamp_ns, seq * 1_000_000);
+            assert_eq!(n.last_command(), Some(a.command));
+            assert_eq!(n.answered(), seq + 1);
+            if let Some(p) = a.protocol {
+                assert_eq!(p.stamp_ns, a.command.stamp_ns);
+                published.push((seq, p));
+            }
+            if n.finished() {
+                // Finished 0.1 s (100 ticks) after the protocol is over.
+                let done_at = published
+                    .iter()
+                    .find(|(_, p)| p.experiment == 0 && p.phase == ProtocolPhase::Idle.as_u32())
+                    .map(|(s, _)| *s);
+                assert!(done_at.is_some_and(|d| seq >= d + 99), "{seq} {done_at:?}");
+                break;
+            }
+        }
+        assert!(n.finished(), "the protocol never finished");
+        // Every phase change went out at the sample it happened, and
+        // between changes a repeat at least once a second, never more often.
+        for w in published.windows(2) {
+            let ((s0, p0), (s1, p1)) = (w[0], w[1]);
+            let same = (p0.experiment, p0.period, p0.phase) == (p1.experiment, p1.period, p1.phase);
+            if same {
+                assert_eq!(s1 - s0, 1000, "a repeat is a second after the last");
+            } else {
+                assert!(s1 - s0 <= 1000);
+            }
+        }
+        let phases: Vec<u32> = published.iter().map(|(_, p)| p.phase).collect();
+        for phase in [
+            ProtocolPhase::RampIn,
+            ProtocolPhase::Settling,
+            ProtocolPhase::Analysis,
+            ProtocolPhase::RampOut,
+        ] {
+            assert!(
+                phases.contains(&phase.as_u32()),
+                "{phase:?} never published"
+            );
+        }
+        let analysis = published
+            .iter()
+            .find(|(_, p)| p.phase == ProtocolPhase::Analysis.as_u32())
+            .unwrap()
+            .1;
+        assert_eq!(
+            (analysis.omega, analysis.amplitude, analysis.alpha),
+            (2.0, 2.0, 1.0)
+        );
+    }
+
+    #[test]
+    fn a_fault_is_commanded_in_the_safe_mode_and_a_reset_clears_it() {
+        let mut n = ControllerNode::new(&cfg()).unwrap();
+        n.on_sample(&sample(0));
+        n.raise(Fault::SampleTimeout);
+        let a = n.on_sample(&sample(1));
+        assert_eq!(a.command.mode, ControlMode::SafeGravityOnly.as_u32());
+        let outcome = n.on_operator(&OperatorCommand {
+            seq: 1,
+            kind: exo_messages::OperatorCommandKind::ResetFault.as_u32(),
+            ..Default::default()
+        });
+        assert_eq!(
+            outcome,
+            OperatorOutcome::FaultReset {
+                cleared: Some(Fault::SampleTimeout)
+            }
+        );
+        assert_eq!(
+            n.on_sample(&sample(2)).command.mode,
+            ControlMode::Run.as_u32()
+        );
+    }
+
+    fn fractional(n: &ControllerNode) -> bool {
+        matches!(
+            n.controller().amplifier(),
+            crate::Amplifier::Fractional { .. }
+        )
+    }
+
+    #[test]
+    fn an_estimate_is_adopted_only_when_the_run_asks() {
+        let estimate = ImpedanceEstimate {
+            recommended_f: 0.3,
+            ..Default::default()
+        };
+        let mut c = cfg();
+        c.controller.adopt_recommended_f = false;
+        let mut n = ControllerNode::new(&c).unwrap();
+        n.on_estimate(&estimate);
+        assert!(!fractional(&n));
+        c.controller.adopt_recommended_f = true;
+        let mut n = ControllerNode::new(&c).unwrap();
+        n.on_estimate(&ImpedanceEstimate {
+            recommended_f: 0.0,
+            ..Default::default()
+        });
+        assert!(!fractional(&n), "f = 0 is no recommendation");
+        n.on_estimate(&estimate);
+        assert!(fractional(&n));
+    }
+
+    #[test]
+    fn the_wire_code_of_each_mode() {
+        assert_eq!(mode_code(Mode::Run), ControlMode::Run);
+        assert_eq!(
+            mode_code(Mode::SafeGravityOnly),
+            ControlMode::SafeGravityOnly
+        );
+        assert_eq!(mode_code(Mode::SafeZeroTorque), ControlMode::SafeZeroTorque);
+        assert_eq!(mode_code(Mode::Done), ControlMode::Done);
+    }
+}

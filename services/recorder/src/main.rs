@@ -141,17 +141,36 @@ fn run(args: ServiceArgs) -> Result<()> {
     let unix_s = SystemTime::now()
         .duration_since(UNIX_EPOCH)
         .map_or(0, |d| d.as_secs());
-    let path = args
+    let first = args
         .output
         .clone()
         .unwrap_or_else(|| default_output(&cfg, unix_s));
+    // A restarted recorder never truncates what the one before it wrote:
+    // it continues in the next segment, read with the first as one recording.
+    let (segment, path) = exo_recording::segments::next_free_segment(&first);
     let ipc = Ipc::open(
         "recorder",
         &cfg.run.instance,
         args.iceoryx2_config.as_deref(),
     )?;
     let taps = Taps::open(&ipc)?;
-    let w = start_recording(&path, &cfg, &args.config)?;
+    let mut w = start_recording(&path, &cfg, &args.config)?;
+    if segment > 1 {
+        w.write_metadata(
+            "exo.segment",
+            &[
+                ("part".to_string(), segment.to_string()),
+                ("first".to_string(), first.display().to_string()),
+            ]
+            .into_iter()
+            .collect(),
+        )?;
+        warn!(
+            "recorder: {} exists (a recorder before this one wrote it): continuing the run's recording in segment {segment}, {}",
+            first.display(),
+            path.display()
+        );
+    }
     info!("recorder: writing {}", path.display());
     let (mut out, batches) = batch_channel(BATCH_RECORDS, MAX_PENDING_BATCHES);
     let writer = std::thread::Builder::new()

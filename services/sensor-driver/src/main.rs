@@ -220,7 +220,10 @@ fn serve<B: HardwareBus>(
         // In real time, once the stream runs, a silent bus is the driver's
         // to detect: it does not wait for the next frame.
         let watch_bus = armed && !timing.lockstep;
-        let wait = if watch_bus {
+        // Once the silence is flagged there is nothing to time until the
+        // next frame: a zero wait here would spin (and, in SCHED_FIFO on
+        // the plant's CPU, starve the very plant it waits for).
+        let wait = if watch_bus && !silence_flagged {
             timing
                 .bus_deadline
                 .saturating_sub(last_frame_at.elapsed())

@@ -27,6 +27,7 @@ pub mod files;
 pub mod reader;
 pub mod ros2msg;
 pub mod schema;
+pub mod segments;
 pub mod writer;
 
 use std::path::Path;

@@ -127,10 +127,10 @@ impl Recording {
     }
 }
 
-/// Reads `path` (see [`read_recording_bytes`]).
+/// Reads `path` (see [`read_recording_bytes`]) with its later segments
+/// (`<stem>-part2.mcap`, …, [`crate::segments`]) as one recording.
 pub fn read_recording(path: &Path) -> Result<Recording, RecordingError> {
-    let bytes = std::fs::read(path).map_err(|e| RecordingError::io(path, e))?;
-    read_recording_bytes(&path.display().to_string(), &bytes)
+    read_segments(path, None)
 }
 
 /// [`read_recording`], decoding only the contract topics in `topics` (e.g.
@@ -138,8 +138,84 @@ pub fn read_recording(path: &Path) -> Result<Recording, RecordingError> {
 /// half of a recording's messages). Every channel is still checked against
 /// the contract; the other topics' vectors stay empty.
 pub fn read_recording_topics(path: &Path, topics: &[&str]) -> Result<Recording, RecordingError> {
-    let bytes = std::fs::read(path).map_err(|e| RecordingError::io(path, e))?;
-    read_bytes(&path.display().to_string(), &bytes, Some(topics))
+    read_segments(path, Some(topics))
+}
+
+fn read_segments(path: &Path, only: Option<&[&str]>) -> Result<Recording, RecordingError> {
+    let mut parts = crate::segments::segments(path).into_iter().map(|p| {
+        let bytes = std::fs::read(&p).map_err(|e| RecordingError::io(&p, e))?;
+        read_bytes(&p.display().to_string(), &bytes, only)
+    });
+    let first = parts.next().unwrap_or_else(|| {
+        Err(RecordingError::io(
+            path,
+            std::io::ErrorKind::NotFound.into(),
+        ))
+    })?;
+    let rest = parts.collect::<Result<Vec<_>, _>>()?;
+    Ok(join_segments(first, rest))
+}
+
+/// One recording from its segments: every topic's messages in time order
+/// (a message a restarted recorder received twice, through the channel's
+/// history, kept once), the first segment's metadata and attachments, and
+/// a warning naming the samples no segment holds (the recorder was down).
+fn join_segments(mut rec: Recording, rest: Vec<Recording>) -> Recording {
+    if rest.is_empty() {
+        return rec;
+    }
+    let n = rest.len() + 1;
+    let mut gaps = Vec::new();
+    for r in rest {
+        if let (Some(last), Some(next)) = (rec.sensor.last(), r.sensor.first()) {
+            if next.seq > last.seq + 1 {
+                gaps.push(format!(
+                    "exo/sensor seq {} to {} ({} samples) are in no segment: the recorder was down before {}",
+                    last.seq + 1,
+                    next.seq - 1,
+                    next.seq - last.seq - 1,
+                    r.source
+                ));
+            }
+        }
+        rec.sensor.extend(r.sensor);
+        rec.command.extend(r.command);
+        rec.protocol.extend(r.protocol);
+        rec.frf.extend(r.frf);
+        rec.estimate.extend(r.estimate);
+        rec.operator.extend(r.operator);
+        rec.bus_sensor.extend(r.bus_sensor);
+        rec.bus_motor.extend(r.bus_motor);
+        for t in r.topics {
+            if !rec.topics.contains(&t) {
+                rec.topics.push(t);
+            }
+        }
+        rec.truncated |= r.truncated;
+        rec.warnings.extend(r.warnings);
+    }
+    fn in_time<T: Recordable + PartialEq>(v: &mut Vec<T>) {
+        v.sort_by_key(|m| m.stamp_ns());
+        v.dedup();
+    }
+    in_time(&mut rec.sensor);
+    in_time(&mut rec.command);
+    in_time(&mut rec.protocol);
+    in_time(&mut rec.frf);
+    in_time(&mut rec.estimate);
+    in_time(&mut rec.operator);
+    in_time(&mut rec.bus_sensor);
+    in_time(&mut rec.bus_motor);
+    for g in gaps {
+        rec.warnings.push(format!("{}: {g}", rec.source));
+    }
+    rec.source = format!(
+        "{} (+{} segment{})",
+        rec.source,
+        n - 1,
+        if n == 2 { "" } else { "s" }
+    );
+    rec
 }
 
 /// Where a contract message goes.

@@ -212,10 +212,23 @@ pub fn is_csv(path: &Path) -> bool {
 /// memory (numbered as experiments 1, 2, … in the order given), and the
 /// trials of `--study`.
 pub fn load_inputs(a: &FitArgs) -> Result<Vec<Loaded>> {
-    let csvs: Vec<PathBuf> = a.recordings.iter().filter(|p| is_csv(p)).cloned().collect();
-    let mut trials = crate::study::default_trials(&csvs).into_iter();
-    let mut inputs: Vec<(PathBuf, Option<crate::study::TrialSpec>)> = a
+    // A later segment of a recording also given is read with it.
+    let given: Vec<PathBuf> = a
         .recordings
+        .iter()
+        .filter(|p| {
+            let first = exo_recording::segments::first_segment_of(p);
+            let with_its_first = first.is_some_and(|f| a.recordings.contains(&f));
+            if with_its_first {
+                eprintln!("exo fit: {} is read as a segment of its run", p.display());
+            }
+            !with_its_first
+        })
+        .cloned()
+        .collect();
+    let csvs: Vec<PathBuf> = given.iter().filter(|p| is_csv(p)).cloned().collect();
+    let mut trials = crate::study::default_trials(&csvs).into_iter();
+    let mut inputs: Vec<(PathBuf, Option<crate::study::TrialSpec>)> = given
         .iter()
         .map(|p| (p.clone(), if is_csv(p) { trials.next() } else { None }))
         .collect();

@@ -204,15 +204,33 @@ pub fn run_config(config: &std::path::Path, logs: Logs) -> Result<Finished> {
     let outcome = supervise(services, logs, || progress.poll())
         .with_context(|| format!("run of {}", config.display()));
     progress.poll();
-    outcome?;
+    let mut faults = outcome?;
     if let Some(r) = &recording {
-        eprintln!("exo: recording {}", r.display());
+        let segments = exo_recording::segments::segments(r);
+        for s in &segments {
+            eprintln!("exo: recording {}", s.display());
+        }
+        if segments.len() > 1 {
+            faults.extend(recording_gaps(r)?);
+        }
     }
-    let faults = watch.faults()?;
+    faults.extend(watch.faults()?);
     for f in &faults {
         eprintln!("exo: fault: {f}");
     }
     Ok(Finished { recording, faults })
+}
+
+/// The samples a recording in several segments misses (its recorder was
+/// restarted), one line each.
+fn recording_gaps(first: &Path) -> Result<Vec<String>> {
+    use exo_recording::Recordable;
+    let r = exo_recording::read_recording_topics(first, &[exo_messages::SensorSample::TOPIC])
+        .with_context(|| format!("reading {} and its segments", first.display()))?;
+    Ok(r.warnings
+        .into_iter()
+        .filter(|w| w.contains("are in no segment"))
+        .collect())
 }
 
 /// A run the processes finished.

@@ -266,13 +266,27 @@ fn describe(status: ExitStatus) -> String {
 }
 
 /// Runs the services until the one with [`Role::EndsRun`] exits cleanly,
-/// a critical one fails, or a stop signal arrives.
-pub fn supervise(services: Vec<ServiceSpec>, logs: Logs, mut on_tick: impl FnMut()) -> Result<()> {
+/// a critical one fails, or a stop signal arrives; returns the restarts of
+/// the services off the real-time path, one line each.
+pub fn supervise(
+    services: Vec<ServiceSpec>,
+    logs: Logs,
+    mut on_tick: impl FnMut(),
+) -> Result<Vec<String>> {
     supervise_checked(services, logs, || {
         on_tick();
         Ok(())
     })
-    .map(|_| ())
+    .map(|s| s.restarts)
+}
+
+/// What a supervised run came to.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Supervised {
+    /// How it ended.
+    pub ended: Ended,
+    /// Each restart of a service off the real-time path: which, why, when.
+    pub restarts: Vec<String>,
 }
 
 /// How a supervised run ended without error.
@@ -286,12 +300,12 @@ pub enum Ended {
 
 /// [`supervise`], with a check every tick (about 20 ms): an error from
 /// `on_tick` stops every service and is the run's error. Returns which
-/// service ended the run, or that a signal did.
+/// service ended the run, or that a signal did, and the restarts.
 pub fn supervise_checked(
     services: Vec<ServiceSpec>,
     logs: Logs,
     mut on_tick: impl FnMut() -> Result<()>,
-) -> Result<Ended> {
+) -> Result<Supervised> {
     let stop = Arc::new(AtomicBool::new(false));
     for sig in [signal_hook::consts::SIGINT, signal_hook::consts::SIGTERM] {
         signal_hook::flag::register(sig, Arc::clone(&stop))
@@ -329,6 +343,8 @@ pub fn supervise_checked(
             }
         }
     }
+    let started = std::time::Instant::now();
+    let mut restarts = Vec::new();
     let outcome: Result<Ended> = 'supervise: loop {
         if stop.load(Ordering::Relaxed) {
             eprintln!("exo: stop requested; stopping every service");
@@ -347,11 +363,20 @@ pub fn supervise_checked(
                 Role::EndsRun if status.success() => break 'supervise Ok(Ended::By(name)),
                 Role::Restartable if r.restarts < MAX_RESTARTS => {
                     r.restarts += 1;
+                    // Control goes on, but not for free: the restarted
+                    // process's new ports make the real-time path build
+                    // connections (ARCHITECTURE.md, "Start-up order").
                     eprintln!(
-                        "exo: {name} stopped ({}); restarting it ({}/{MAX_RESTARTS}); control is unaffected",
+                        "exo: {name} stopped ({}); restarting it ({}/{MAX_RESTARTS}); control goes on (a restart can cost the real-time path deadlines while its ports connect)",
                         describe(status),
                         r.restarts
                     );
+                    restarts.push(format!(
+                        "the {name} stopped ({}) {:.1} s into the run and was restarted ({}/{MAX_RESTARTS})",
+                        describe(status),
+                        started.elapsed().as_secs_f64(),
+                        r.restarts
+                    ));
                     std::thread::sleep(Duration::from_millis(200 * u64::from(r.restarts)));
                     match spawn(&r.spec, logs, &r.tail) {
                         Ok(child) => r.child = child,
@@ -391,7 +416,7 @@ pub fn supervise_checked(
         std::thread::sleep(Duration::from_millis(20));
     };
     stop_all(&mut running);
-    outcome
+    outcome.map(|ended| Supervised { ended, restarts })
 }
 
 /// The standard argument list of a service: `--config FILE`.
