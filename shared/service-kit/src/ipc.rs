@@ -123,11 +123,20 @@ pub struct Ipc {
 
 impl Ipc {
     /// Creates the node `name` with the configuration at `config` (see
-    /// [`config_path`]) for the services of `instance`. Dead nodes of earlier,
-    /// killed processes are cleaned up on the way.
+    /// [`config_path`]), made this user's ([`crate::access`]), for the
+    /// services of `instance`; the same file becomes iceoryx2's global
+    /// configuration, so nothing falls back to iceoryx2's defaults. Dead
+    /// nodes of earlier, killed processes are cleaned up on the way.
     pub fn open(name: &str, instance: &str, config: Option<&Path>) -> Result<Self, IpcError> {
-        let path = config_path(config);
+        let path = crate::access::per_user_config(&config_path(config), Path::new("/tmp"))?;
         let cfg = load_config(&path)?;
+        if let Some(text) = path.to_str() {
+            if let Ok(file) = FilePath::new(text.as_bytes()) {
+                // Only the first call of a process takes effect; every call
+                // derives the same file.
+                let _ = Config::setup_global_config_from_file(&file);
+            }
+        }
         let node_err = |message: String| IpcError::Node {
             name: name.to_string(),
             message,
@@ -139,6 +148,7 @@ impl Ipc {
             .signal_handling_mode(SignalHandlingMode::Disabled)
             .create::<Svc>()
             .map_err(|e| node_err(format!("{e:?}")))?;
+        crate::access::restrict_shm(&cfg.global.prefix.to_string());
         let ipc = Ipc {
             node,
             instance: instance.to_string(),

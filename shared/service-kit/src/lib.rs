@@ -3,6 +3,7 @@
 //! The little that every exo process's `main.rs` shares, so each main stays
 //! a thin wiring of IPC around its service's library.
 
+pub mod access;
 pub mod channels;
 pub mod collect;
 pub mod ipc;
