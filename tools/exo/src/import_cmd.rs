@@ -44,10 +44,9 @@
 use std::cell::RefCell;
 use std::collections::BTreeMap;
 use std::io::{Cursor, Seek, SeekFrom, Write};
-use std::os::unix::fs::{MetadataExt, OpenOptionsExt};
+use std::os::unix::fs::MetadataExt;
 use std::path::{Path, PathBuf};
 use std::rc::Rc;
-use std::sync::atomic::{AtomicU64, Ordering};
 
 use anyhow::{bail, Context, Result};
 use clap::Args;
@@ -541,50 +540,20 @@ fn same_file(a: &Path, b: &Path) -> bool {
     }
 }
 
-/// Writes `bytes` to `out` atomically: a temporary file (mode 0640) in
-/// `out`'s directory, synced, then renamed over `out`. On an error the
-/// temporary file is removed and any earlier `out` is left as it was.
+/// Writes `bytes` to `out` atomically (`exo_recording::files::write_output_file`:
+/// a temporary file renamed into place), creating its directory.
 fn write_atomically(out: &Path, bytes: &[u8]) -> Result<()> {
-    static SERIAL: AtomicU64 = AtomicU64::new(0);
     let shown = out.display();
-    let file_name = out
-        .file_name()
-        .with_context(|| format!("-o {shown}: names no file"))?;
+    if out.file_name().is_none() {
+        anyhow::bail!("-o {shown}: names no file");
+    }
     let dir = out
         .parent()
         .filter(|d| !d.as_os_str().is_empty())
         .unwrap_or(Path::new("."));
-    std::fs::create_dir_all(dir)
+    exo_recording::files::create_output_dir(dir)
         .with_context(|| format!("writing {shown}: creating its directory {}", dir.display()))?;
-    let tmp = dir.join(format!(
-        ".{}.{}-{}.tmp",
-        file_name.to_string_lossy(),
-        std::process::id(),
-        SERIAL.fetch_add(1, Ordering::Relaxed)
-    ));
-    let result = (|| -> std::io::Result<()> {
-        let mut f = std::fs::OpenOptions::new()
-            .write(true)
-            .create_new(true)
-            .mode(0o640)
-            .open(&tmp)?;
-        f.write_all(bytes)?;
-        f.sync_all()?;
-        drop(f);
-        std::fs::rename(&tmp, out)?;
-        // The rename is durable once the directory is synced (best effort).
-        if let Ok(d) = std::fs::File::open(dir) {
-            let _ = d.sync_all();
-        }
-        Ok(())
-    })();
-    result.map_err(|e| {
-        let _ = std::fs::remove_file(&tmp);
-        anyhow::anyhow!(
-            "writing {shown} (via the temporary file {}): {e}; any earlier {shown} is left as it was",
-            tmp.display()
-        )
-    })
+    exo_recording::files::write_output_file(out, bytes).map_err(anyhow::Error::from)
 }
 
 /// What [`build`] returns: the file's bytes, the parsed columns, the rate
