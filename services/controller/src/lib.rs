@@ -27,6 +27,7 @@
 pub mod amplification;
 pub mod controller;
 pub mod node;
+pub mod process;
 pub mod protocol;
 pub mod safety;
 

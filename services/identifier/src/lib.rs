@@ -53,6 +53,8 @@ use exo_messages::{
     ProtocolState, SensorSample,
 };
 
+pub mod process;
+
 pub use exo_analysis::refit::{effective_alpha, fit_models, FitSource, ModelFitError};
 
 /// False-rejection probability of the F-tests (the paper's 5 %; the level

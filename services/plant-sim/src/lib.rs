@@ -25,6 +25,7 @@ pub mod human;
 pub mod model;
 pub mod node;
 pub mod plant;
+pub mod process;
 pub mod prony;
 pub mod rng;
 

@@ -17,6 +17,8 @@
 //! between them are bounded ([`BatchSender`]); what does not fit is not
 //! written, and so is counted as a gap like any other miss.
 
+pub mod process;
+
 use std::collections::BTreeMap;
 use std::io::{Seek, Write};
 use std::path::{Path, PathBuf};

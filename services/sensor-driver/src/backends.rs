@@ -6,9 +6,9 @@
 
 use std::time::Duration;
 
+use crate::node::raw_frame;
+use crate::{HardwareBus, RawFrame};
 use exo_messages::{BusMotorCommand, BusSensorFrame};
-use exo_sensor_driver::node::raw_frame;
-use exo_sensor_driver::{HardwareBus, RawFrame};
 use exo_service_kit::channels::Channel;
 use exo_service_kit::ipc::{Connect, Inbox, Ipc, IpcError, Outbox};
 

@@ -12,9 +12,12 @@
 //! and is chosen by configuration: nothing in the controller, identifier or
 //! recorder changes.
 
+pub mod backends;
 pub mod calibration;
 pub mod driver;
 pub mod node;
+pub mod process;
+pub mod replay;
 pub mod round_trip;
 
 pub use calibration::{Calibration, VelocityFilter};

@@ -12,10 +12,11 @@
 use std::path::Path;
 use std::time::Duration;
 
+use crate::node::raw_frame;
+use crate::{Calibration, HardwareBus, RawFrame};
 use anyhow::{bail, Context, Result};
 use exo_messages::{ActuatorCommand, ProtocolState};
 use exo_recording::read_recording;
-use exo_sensor_driver::{Calibration, HardwareBus, RawFrame};
 
 /// A recording as a hardware bus.
 pub struct ReplayBus {
@@ -41,17 +42,7 @@ impl ReplayBus {
             tracing::warn!("replay: {w}");
         }
         let frames: Vec<RawFrame> = if !r.bus_sensor.is_empty() {
-            r.bus_sensor
-                .iter()
-                .map(|f| RawFrame {
-                    seq: f.seq,
-                    stamp_ns: f.stamp_ns,
-                    encoder_counts: f.encoder_counts,
-                    cuff_wrench: f.cuff_wrench,
-                    sea_deflection_counts: f.sea_deflection_counts,
-                    status: f.status,
-                })
-                .collect()
+            r.bus_sensor.iter().map(raw_frame).collect()
         } else {
             r.sensor
                 .iter()
@@ -87,6 +78,12 @@ impl ReplayBus {
     /// Number of frames.
     pub fn len(&self) -> usize {
         self.frames.len()
+    }
+
+    /// Whether there are no frames (never, once opened: an empty recording
+    /// is refused).
+    pub fn is_empty(&self) -> bool {
+        self.frames.is_empty()
     }
 }
 

@@ -62,6 +62,26 @@ impl<'a> Merge<'a> {
         Ok(())
     }
 
+    /// A cursor at `position` (from [`Merge::position`]), to go on where
+    /// an earlier cursor over the same streams stopped.
+    pub fn at(
+        protocol: &'a [ProtocolState],
+        commands: &'a [ActuatorCommand],
+        position: (usize, usize),
+    ) -> Self {
+        Merge {
+            protocol,
+            commands,
+            next_protocol: position.0.min(protocol.len()),
+            next_command: position.1.min(commands.len()),
+        }
+    }
+
+    /// How far the cursor is: (protocol states, commands) handed.
+    pub fn position(&self) -> (usize, usize) {
+        (self.next_protocol, self.next_command)
+    }
+
     /// The protocol states not handed yet (after the last sample).
     pub fn remaining_protocol(&self) -> &'a [ProtocolState] {
         &self.protocol[self.next_protocol..]
@@ -113,5 +133,9 @@ mod tests {
             ]
         );
         assert_eq!(m.remaining_protocol(), &[p(35)]);
+        assert_eq!(m.position(), (2, 4));
+        let resumed = Merge::at(&protocol, &commands, m.position());
+        assert_eq!(resumed.remaining_protocol(), &[p(35)]);
+        assert_eq!(Merge::at(&protocol, &commands, (9, 9)).position(), (3, 4));
     }
 }

@@ -8,6 +8,7 @@ pub mod channels;
 pub mod collect;
 pub mod ipc;
 pub mod latency;
+pub mod runner;
 
 use std::path::PathBuf;
 use std::sync::atomic::{AtomicBool, Ordering};

@@ -1,0 +1,261 @@
+//! `exo-recorder` as a process: subscribes to every channel of the run and
+//! writes one contract MCAP (`--output FILE`, default
+//! `<run.output_dir>/<instance>-<subject>-<unix seconds>.mcap`) with the
+//! run's metadata and its configuration files attached, stepped by the one
+//! runner (`exo_service_kit::runner`). A recorder started on an output that
+//! exists (a restart) continues in the next segment (`…-part2.mcap`). On
+//! SIGTERM/SIGINT it drains what is still buffered, writes the drop counts
+//! and the summary, and exits. Killed with SIGKILL, it leaves a file whose
+//! complete chunks are readable.
+//!
+//! Receiving and writing are two threads: each step copies what waits into
+//! the hand-off (or sleeps on the sensor channel's wake-up) and hands a
+//! batch over when it is full or [`BATCH_MAX_AGE`] old; the writing thread
+//! encodes, compresses and writes.
+
+use std::path::PathBuf;
+use std::thread::JoinHandle;
+use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
+
+use anyhow::{Context, Result};
+use exo_messages::{
+    ActuatorCommand, BusMotorCommand, BusSensorFrame, FrfPoint, ImpedanceEstimate, OperatorCommand,
+    ProtocolState, SensorSample,
+};
+use exo_service_kit::channels::Channel;
+use exo_service_kit::ipc::{Connect, Inbox, Ipc, MAX_BUFFER, OFF_PATH_COALESCE};
+use exo_service_kit::runner::{Context as RunContext, Flow, Process};
+use exo_service_kit::{RealtimeProcess, ServiceArgs, StopFlag};
+use tracing::{info, warn};
+
+use crate::{
+    batch_channel, default_output, start_recording, BatchReceiver, BatchSender, Drops, FileWriter,
+    Record, WriterGone,
+};
+
+type Writer = FileWriter;
+
+/// Records per hand-off batch, and how many batches may wait for the writer:
+/// 256 × 4 096 records (≤ 190 MB, allocated only as a stall needs them) ride
+/// out 25 s of a stalled disk at 10 kHz with every topic recorded.
+const BATCH_RECORDS: usize = 4096;
+const MAX_PENDING_BATCHES: usize = 256;
+/// A partly filled batch is handed over after this long, so the file never
+/// lags far behind the run.
+pub const BATCH_MAX_AGE: Duration = Duration::from_millis(100);
+/// The writer closes a chunk at least this often, so a SIGKILL loses at
+/// most about this much.
+const FLUSH_EVERY: Duration = Duration::from_secs(1);
+
+/// One subscribed topic.
+struct Tap<T: iceoryx2::prelude::ZeroCopySend + Send + std::fmt::Debug + Copy + 'static> {
+    inbox: Inbox<T>,
+    wrap: fn(T) -> Record,
+}
+
+impl<T: iceoryx2::prelude::ZeroCopySend + Send + std::fmt::Debug + Copy + 'static> Tap<T> {
+    fn open(ipc: &Ipc, ch: Channel, wrap: fn(T) -> Record) -> Result<Self> {
+        Ok(Tap {
+            inbox: ipc.inbox::<T>(ch, MAX_BUFFER)?,
+            wrap,
+        })
+    }
+
+    /// Moves everything waiting into the hand-off; returns how many.
+    fn drain(&self, out: &mut BatchSender) -> Result<usize> {
+        let mut n = 0;
+        while let Some(m) = self.inbox.try_recv()? {
+            out.push((self.wrap)(m)).map_err(|_| writer_gone())?;
+            n += 1;
+        }
+        Ok(n)
+    }
+}
+
+fn writer_gone() -> anyhow::Error {
+    anyhow::anyhow!("the writing thread stopped")
+}
+
+struct Taps {
+    sensor: Tap<SensorSample>,
+    command: Tap<ActuatorCommand>,
+    protocol: Tap<ProtocolState>,
+    frf: Tap<FrfPoint>,
+    estimate: Tap<ImpedanceEstimate>,
+    operator: Tap<OperatorCommand>,
+    bus_sensor: Tap<BusSensorFrame>,
+    bus_motor: Tap<BusMotorCommand>,
+}
+
+impl Taps {
+    fn open(ipc: &Ipc) -> Result<Self> {
+        Ok(Taps {
+            sensor: Tap::open(ipc, Channel::Sensor, Record::Sensor)?,
+            command: Tap::open(ipc, Channel::Command, Record::Command)?,
+            protocol: Tap::open(ipc, Channel::Protocol, Record::Protocol)?,
+            frf: Tap::open(ipc, Channel::IdentifierFrf, Record::Frf)?,
+            estimate: Tap::open(ipc, Channel::IdentifierEstimate, Record::Estimate)?,
+            operator: Tap::open(ipc, Channel::Operator, Record::Operator)?,
+            bus_sensor: Tap::open(ipc, Channel::BusSensor, Record::BusSensor)?,
+            bus_motor: Tap::open(ipc, Channel::BusMotor, Record::BusMotor)?,
+        })
+    }
+
+    fn drain(&self, out: &mut BatchSender) -> Result<usize> {
+        Ok(self.sensor.drain(out)?
+            + self.command.drain(out)?
+            + self.protocol.drain(out)?
+            + self.frf.drain(out)?
+            + self.estimate.drain(out)?
+            + self.operator.drain(out)?
+            + self.bus_sensor.drain(out)?
+            + self.bus_motor.drain(out)?)
+    }
+}
+
+/// The writing thread: writes every batch, counts gaps in what it writes,
+/// closes a chunk at least every [`FLUSH_EVERY`]; returns the writer and the
+/// counts once the receiving side has gone.
+fn write_batches(mut w: Writer, batches: BatchReceiver) -> Result<(Writer, Drops)> {
+    let mut drops = Drops::default();
+    let mut last_flush = Instant::now();
+    loop {
+        match batches.recv(FLUSH_EVERY) {
+            Ok(Some(batch)) => {
+                for r in &batch {
+                    drops.see(r);
+                    r.write_to(&mut w)?;
+                }
+                batches.recycle(batch);
+            }
+            Ok(None) => {}
+            Err(WriterGone) => return Ok((w, drops)),
+        }
+        if last_flush.elapsed() >= FLUSH_EVERY {
+            w.flush()?;
+            last_flush = Instant::now();
+        }
+    }
+}
+
+/// The recorder process.
+pub struct RecorderProcess {
+    taps: Taps,
+    out: BatchSender,
+    writer: JoinHandle<Result<(Writer, Drops)>>,
+    path: PathBuf,
+    received: u64,
+    since_hand_off: Instant,
+    started: Instant,
+}
+
+impl Process for RecorderProcess {
+    type Args = ServiceArgs;
+    const NAME: &'static str = "recorder";
+    const REALTIME: Option<RealtimeProcess> = None;
+
+    fn open(cx: RunContext<'_, ServiceArgs>) -> Result<Self> {
+        let (cfg, args) = (cx.cfg, cx.args);
+        let unix_s = SystemTime::now()
+            .duration_since(UNIX_EPOCH)
+            .map_or(0, |d| d.as_secs());
+        let first = args
+            .output
+            .clone()
+            .unwrap_or_else(|| default_output(cfg, unix_s));
+        // A restarted recorder never truncates what the one before it
+        // wrote: it continues in the next segment, read with the first as
+        // one recording.
+        let (segment, path) = exo_recording::segments::next_free_segment(&first);
+        let taps = Taps::open(cx.ipc)?;
+        let mut w = start_recording(&path, cfg, &args.config)?;
+        if segment > 1 {
+            w.write_metadata(
+                "exo.segment",
+                &[
+                    ("part".to_string(), segment.to_string()),
+                    ("first".to_string(), first.display().to_string()),
+                ]
+                .into_iter()
+                .collect(),
+            )?;
+            warn!(
+                "recorder: {} exists (a recorder before this one wrote it): continuing the run's recording in segment {segment}, {}",
+                first.display(),
+                path.display()
+            );
+        }
+        info!("recorder: writing {}", path.display());
+        let (out, batches) = batch_channel(BATCH_RECORDS, MAX_PENDING_BATCHES);
+        let writer = std::thread::Builder::new()
+            .name("recorder-writer".into())
+            .spawn(move || write_batches(w, batches))
+            .context("starting the writing thread")?;
+        Ok(RecorderProcess {
+            taps,
+            out,
+            writer,
+            path,
+            received: 0,
+            since_hand_off: Instant::now(),
+            started: Instant::now(),
+        })
+    }
+
+    fn ports(&self) -> Vec<&dyn Connect> {
+        vec![]
+    }
+
+    fn step(&mut self, _stop: &StopFlag) -> Result<Flow> {
+        let n = self.taps.drain(&mut self.out)?;
+        self.received += n as u64;
+        if n == 0 {
+            self.taps.sensor.inbox.wait(Duration::from_millis(20))?;
+        } else {
+            std::thread::sleep(OFF_PATH_COALESCE);
+        }
+        if self.since_hand_off.elapsed() >= BATCH_MAX_AGE {
+            self.out.hand_off().map_err(|_| writer_gone())?;
+            self.since_hand_off = Instant::now();
+        }
+        Ok(Flow::Continue)
+    }
+
+    fn finish(mut self) -> Result<()> {
+        let path = self.path.display().to_string();
+        // Whatever ended the receiving, hand over what is left and let the
+        // writer finish the file.
+        let last = self.taps.drain(&mut self.out);
+        let discarded = self.out.finish().unwrap_or_default();
+        let (mut w, drops) = self
+            .writer
+            .join()
+            .map_err(|_| anyhow::anyhow!("the writing thread panicked"))?
+            .with_context(|| format!("writing {path}"))?;
+        let received = self.received + last? as u64;
+        let counted = drops.counted();
+        w.write_metadata("exo.drops", &drops.metadata(discarded))?;
+        let written = w.messages_written();
+        w.finish().with_context(|| format!("finishing {path}"))?;
+        let dropped = drops.total();
+        let gaps: Vec<String> = counted
+            .iter()
+            .map(|(topic, c)| format!("{topic} {}", c.dropped))
+            .collect();
+        if dropped > 0 || discarded > 0 {
+            warn!(
+                "recorder: {dropped} samples missed (sequence gaps); {discarded} received but discarded with the writer behind"
+            );
+        }
+        info!(
+            "recorder: sequence gaps per topic: {}; frames the sensor driver skipped (its own gaps, not missed here): {}",
+            gaps.join(", "),
+            drops.sensor.skipped_upstream
+        );
+        info!(
+            "recorder: {written} messages in {:.1} s ({received} received), {dropped} missed, file {path}",
+            self.started.elapsed().as_secs_f64(),
+        );
+        Ok(())
+    }
+}

@@ -1,0 +1,385 @@
+//! `exo-sensor-driver` as a process: owns the actuator. Stepped by the one
+//! runner (`exo_service_kit::runner`): each step reads one frame from the
+//! bus, publishes the calibrated sample ([`DriverNode`]), waits (bounded)
+//! for the controller's command and writes the torque back, or, when none
+//! comes within the deadline, the latched safe-state torque.
+//!
+//! The bus is chosen by `[bus] backend`: the simulator's
+//! ([`SimulatorBus`], iceoryx2 channels to `exo-plant-sim`), or a recording
+//! played back ([`ReplayBus`]); a hardware backend implements
+//! [`HardwareBus`](crate::HardwareBus) (ARCHITECTURE.md).
+//!
+//! The command watchdog arms at the first command, so a controller that
+//! starts late does not trip it. In real time the deadline is
+//! `safety.command_deadline_ms` from the frame, and a bus silent for
+//! `safety.bus_deadline_ms` is flagged from the driver's own timer; in
+//! lockstep, simulated time stands still while waiting, so a missing
+//! command is declared after `safety.lockstep_timeout_ms` of wall time and
+//! the safe torque is applied at that same simulated tick.
+//!
+//! Operator commands (`<instance>/operator`, e.g. from `exo op`): the node
+//! acts on `ResetFault`, each `seq` once.
+
+use std::path::{Path, PathBuf};
+use std::time::{Duration, Instant};
+
+use anyhow::{bail, Context, Result};
+use exo_analysis::{Merge, Played};
+use exo_config::{BusBackend, TimingMode};
+use exo_messages::{ActuatorCommand, OperatorCommand, ProtocolState, SensorSample};
+use exo_service_kit::channels::Channel;
+use exo_service_kit::ipc::{Connect, Inbox, Outbox};
+use exo_service_kit::latency::fmt_us;
+use exo_service_kit::runner::{Context as RunContext, Flow, Process};
+use exo_service_kit::{monotonic_ns, RealtimeProcess, ServiceArgs, StopFlag};
+use tracing::{error, info};
+
+use crate::backends::SimulatorBus;
+use crate::replay::ReplayBus;
+use crate::{Calibration, DriverNode, HardwareBus, RoundTrip};
+
+const RESEND_AFTER: Duration = Duration::from_millis(200);
+const STARTUP_PATIENCE: Duration = Duration::from_secs(60);
+
+/// Command line of `exo-sensor-driver`: every service's, plus the round-trip report.
+#[derive(Debug, clap::Parser)]
+#[command(name = "exo-sensor-driver")]
+pub struct DriverArgs {
+    #[command(flatten)]
+    service: ServiceArgs,
+    /// On exit, write the control round trip's percentiles (JSON: sample
+    /// published → its command received, ns) to FILE.
+    #[arg(long, value_name = "FILE")]
+    round_trip_report: Option<PathBuf>,
+    /// Seconds after the first round trip left out of the round-trip
+    /// statistics (connection set-up, page faults, cold caches).
+    #[arg(long, value_name = "SECONDS", default_value_t = 2.0)]
+    round_trip_warmup_s: f64,
+}
+
+impl AsRef<ServiceArgs> for DriverArgs {
+    fn as_ref(&self) -> &ServiceArgs {
+        &self.service
+    }
+}
+
+/// The driver's channels to the other processes.
+struct Ports {
+    sample_out: Outbox<SensorSample>,
+    command_in: Inbox<ActuatorCommand>,
+    protocol_in: Inbox<ProtocolState>,
+    operator_in: Inbox<OperatorCommand>,
+}
+
+/// What the bus is.
+enum Bus {
+    /// The plant simulator's, served in closed loop.
+    Simulator(SimulatorBus),
+    /// A recording played back: the recorded protocol states and commands
+    /// are published again at their stamps, since no controller runs.
+    Replay {
+        bus: ReplayBus,
+        protocol: Vec<ProtocolState>,
+        commands: Vec<ActuatorCommand>,
+        played: (usize, usize),
+        protocol_out: Outbox<ProtocolState>,
+        command_out: Outbox<ActuatorCommand>,
+    },
+}
+
+/// The sensor-driver process.
+pub struct DriverProcess {
+    node: DriverNode,
+    ports: Ports,
+    bus: Bus,
+    deadline: Duration,
+    bus_deadline: Duration,
+    lockstep: bool,
+    armed: bool,
+    last_frame_at: Instant,
+    silence_flagged: bool,
+    round_trip: RoundTrip,
+    round_trip_report: Option<PathBuf>,
+}
+
+impl Process for DriverProcess {
+    type Args = DriverArgs;
+    const NAME: &'static str = "sensor-driver";
+    const REALTIME: Option<RealtimeProcess> = Some(RealtimeProcess::SensorDriver);
+
+    fn open(cx: RunContext<'_, DriverArgs>) -> Result<Self> {
+        let (cfg, ipc, args) = (cx.cfg, cx.ipc, cx.args);
+        if !(args.round_trip_warmup_s.is_finite() && args.round_trip_warmup_s >= 0.0) {
+            bail!(
+                "--round-trip-warmup-s must be a finite number of seconds ≥ 0, not {}",
+                args.round_trip_warmup_s
+            );
+        }
+        let lockstep = cfg.run.timing == TimingMode::Lockstep;
+        let deadline = Duration::from_secs_f64(
+            if lockstep {
+                cfg.safety.lockstep_timeout_ms
+            } else {
+                cfg.safety.command_deadline_ms
+            } / 1000.0,
+        );
+        let ports = Ports {
+            sample_out: ipc.outbox::<SensorSample>(Channel::Sensor)?,
+            command_in: ipc
+                .inbox::<ActuatorCommand>(Channel::Command, 64)?
+                .with_spin(cfg.lockstep_spin()),
+            protocol_in: ipc.inbox::<ProtocolState>(Channel::Protocol, 64)?,
+            operator_in: ipc.inbox::<OperatorCommand>(Channel::Operator, 16)?,
+        };
+        let bus = match cfg.bus.backend {
+            BusBackend::Simulator => {
+                let bus = SimulatorBus::open(ipc, cfg.lockstep_spin())?;
+                info!(
+                    "sensor-driver: {} bus, {:?}, command deadline {:?}, safe state {:?}",
+                    bus.name(),
+                    cfg.run.timing,
+                    deadline,
+                    cfg.safety.safe_state
+                );
+                Bus::Simulator(bus)
+            }
+            BusBackend::Replay => {
+                let file = cfg
+                    .bus
+                    .replay_file
+                    .clone()
+                    .context("bus.replay_file is required for the replay backend")?;
+                let mut bus = ReplayBus::open(
+                    &file,
+                    &Calibration::new(&cfg.rig),
+                    cfg.bus.replay_pace_hz.unwrap_or(5000.0),
+                )?;
+                info!(
+                    "sensor-driver: replaying {} frames of {}",
+                    bus.len(),
+                    file.display()
+                );
+                Bus::Replay {
+                    protocol: std::mem::take(&mut bus.protocol),
+                    commands: std::mem::take(&mut bus.commands),
+                    bus,
+                    played: (0, 0),
+                    protocol_out: ipc.outbox::<ProtocolState>(Channel::Protocol)?,
+                    command_out: ipc.outbox::<ActuatorCommand>(Channel::Command)?,
+                }
+            }
+        };
+        Ok(DriverProcess {
+            node: DriverNode::new(cfg),
+            ports,
+            bus,
+            deadline,
+            bus_deadline: Duration::from_secs_f64(cfg.safety.bus_deadline_ms / 1000.0),
+            lockstep,
+            armed: false,
+            last_frame_at: Instant::now(),
+            silence_flagged: false,
+            round_trip: RoundTrip::new(args.round_trip_warmup_s),
+            round_trip_report: args.round_trip_report.clone(),
+        })
+    }
+
+    fn ports(&self) -> Vec<&dyn Connect> {
+        let p = &self.ports;
+        let mut out: Vec<&dyn Connect> =
+            vec![&p.sample_out, &p.command_in, &p.protocol_in, &p.operator_in];
+        if let Bus::Simulator(bus) = &self.bus {
+            out.extend(bus.ports());
+        }
+        out
+    }
+
+    fn step(&mut self, stop: &StopFlag) -> Result<Flow> {
+        match &mut self.bus {
+            Bus::Simulator(_) => self.serve_one(stop),
+            Bus::Replay { .. } => self.replay_one(),
+        }
+    }
+
+    fn finish(self) -> Result<()> {
+        if matches!(self.bus, Bus::Simulator(_)) {
+            report_round_trip(&self.round_trip, self.round_trip_report.as_deref())?;
+        }
+        info!("sensor-driver: stopped");
+        Ok(())
+    }
+}
+
+impl DriverProcess {
+    /// One cycle over the simulator's bus: read a frame, publish the
+    /// sample, wait (bounded) for the controller's command, write the
+    /// torque back.
+    fn serve_one(&mut self, stop: &StopFlag) -> Result<Flow> {
+        let Bus::Simulator(bus) = &mut self.bus else {
+            return Ok(Flow::Done);
+        };
+        let (node, ports) = (&mut self.node, &self.ports);
+        // In real time, once the stream runs, a silent bus is the driver's
+        // to detect: it does not wait for the next frame. Once the silence
+        // is flagged there is nothing to time until the next frame: a zero
+        // wait here would spin (and, in SCHED_FIFO on the plant's CPU,
+        // starve the very plant it waits for).
+        let watch_bus = self.armed && !self.lockstep;
+        let wait = if watch_bus && !self.silence_flagged {
+            self.bus_deadline
+                .saturating_sub(self.last_frame_at.elapsed())
+                .min(Duration::from_millis(100))
+        } else {
+            Duration::from_millis(100)
+        };
+        let Some(frame) = bus.read(wait)? else {
+            if watch_bus
+                && !self.silence_flagged
+                && self.last_frame_at.elapsed() >= self.bus_deadline
+            {
+                let sample = node.on_bus_silent(monotonic_ns());
+                ports.sample_out.send(sample)?;
+                let out = node.safe_output();
+                node.report_latch(&out);
+                bus.write(
+                    sample.seq,
+                    sample.stamp_ns,
+                    out.tau_motor_nm,
+                    node.motor_enable(),
+                )?;
+                self.silence_flagged = true;
+            }
+            return Ok(Flow::Continue);
+        };
+        self.last_frame_at = Instant::now();
+        self.silence_flagged = false;
+        while let Some(p) = ports.protocol_in.try_recv()? {
+            node.on_protocol(&p);
+        }
+        while let Some(op) = ports.operator_in.try_recv()? {
+            node.on_operator(&op);
+        }
+        let sample = node.on_frame(&frame, 0);
+        let was_armed = self.armed;
+        let sent_ns = monotonic_ns();
+        ports.sample_out.send(sample)?;
+        let started = Instant::now();
+        let mut last_send = started;
+        let out = loop {
+            if let Some(o) = node.latched_output() {
+                // Latched: no need to wait for the controller.
+                while ports.command_in.try_recv()?.is_some() {}
+                break o;
+            }
+            let remaining = self
+                .deadline
+                .saturating_sub(started.elapsed())
+                .min(Duration::from_millis(20));
+            if let Some(cmd) = ports.command_in.recv_timeout(remaining)? {
+                if cmd.sensor_seq == frame.seq {
+                    let received_ns = monotonic_ns();
+                    self.armed = true;
+                    if let Some(o) = node.answer(&cmd) {
+                        if was_armed && node.driver().latched().is_none() {
+                            self.round_trip.record(sent_ns, received_ns);
+                        }
+                        break o;
+                    }
+                }
+                continue;
+            }
+            if stop.requested() {
+                break node.safe_output();
+            }
+            if !self.armed {
+                if last_send.elapsed() > RESEND_AFTER {
+                    ports.sample_out.send(sample)?;
+                    last_send = Instant::now();
+                }
+                if started.elapsed() > STARTUP_PATIENCE {
+                    bail!("no command from the controller within {STARTUP_PATIENCE:?} of start");
+                }
+                if !self.lockstep && started.elapsed() >= self.deadline {
+                    // Not armed yet: hold the safe torque without latching.
+                    break node.safe_output();
+                }
+                continue;
+            }
+            if started.elapsed() >= self.deadline {
+                break node.on_deadline();
+            }
+        };
+        node.report_latch(&out);
+        bus.write(
+            frame.seq,
+            frame.stamp_ns,
+            out.tau_motor_nm,
+            node.motor_enable(),
+        )?;
+        Ok(Flow::Continue)
+    }
+
+    /// One frame of a recording played through the driver: first the
+    /// recorded protocol states and commands up to its stamp, then the
+    /// calibrated sample (status `REPLAY`). Done when the recording is.
+    fn replay_one(&mut self) -> Result<Flow> {
+        let Bus::Replay {
+            bus,
+            protocol,
+            commands,
+            played,
+            protocol_out,
+            command_out,
+        } = &mut self.bus
+        else {
+            return Ok(Flow::Done);
+        };
+        let mut merge = Merge::at(protocol, commands, *played);
+        let Some(frame) = bus.read(Duration::ZERO)? else {
+            for p in merge.remaining_protocol() {
+                protocol_out.send(*p)?;
+            }
+            // Let the subscribers take the last samples before the process
+            // (and its publishers) goes.
+            std::thread::sleep(Duration::from_millis(500));
+            info!("sensor-driver: replay finished");
+            return Ok(Flow::Done);
+        };
+        merge.up_to(frame.stamp_ns, |x| match x {
+            Played::Protocol(p) => protocol_out.send(*p),
+            Played::Command(c) => command_out.send(*c),
+        })?;
+        *played = merge.position();
+        self.ports
+            .sample_out
+            .send(self.node.on_frame(&frame, exo_messages::status::REPLAY))?;
+        Ok(Flow::Continue)
+    }
+}
+
+/// Logs the round-trip percentiles and, if asked, writes them to `file` (JSON).
+fn report_round_trip(round_trip: &RoundTrip, file: Option<&Path>) -> Result<()> {
+    let report = round_trip.report();
+    match &report {
+        Some(r) => info!(
+            "sensor-driver: control round trip (sample published → its command received) \
+             over {} ticks in {:.1} s: p50 {} µs, p99 {} µs, p99.9 {} µs, max {} µs",
+            r.latency.count,
+            r.window_s,
+            fmt_us(r.latency.p50_ns),
+            fmt_us(r.latency.p99_ns),
+            fmt_us(r.latency.p999_ns),
+            fmt_us(r.latency.max_ns)
+        ),
+        None => info!("sensor-driver: no control round trip recorded after the warm-up"),
+    }
+    if let Some(path) = file {
+        let text =
+            serde_json::to_string_pretty(&report).context("serialising the round-trip report")?;
+        std::fs::write(path, text + "\n").map_err(|e| {
+            error!("sensor-driver: writing the round-trip report: {e}");
+            anyhow::anyhow!("writing the round-trip report {}: {e}", path.display())
+        })?;
+    }
+    Ok(())
+}
