@@ -206,21 +206,62 @@ fn the_real_ankle_recording_is_imported_fitted_and_reported() {
     );
 }
 
-#[test]
-fn a_recorder_killed_mid_run_leaves_a_readable_file_and_control_goes_on() {
-    let sc = Scenario::new("reckill", &[("periods = [1, 4, 7]", "periods = [1]")]);
-    let rec = sc.dir.join("killed.mcap");
-    let mut recorder = sc.spawn("exo-recorder", &["--output", rec.to_str().unwrap()]);
+/// A one-period lockstep run through the processes, a recorder writing
+/// `<dir>/<name>`, started and run until its file holds some chunks (it
+/// grows by whole chunks) after 5 s of samples.
+struct RecordedRun {
+    sc: Scenario,
+    rec: PathBuf,
+    recorder: std::process::Child,
+    samples: Collector<exo_messages::SensorSample>,
+    plant: std::process::Child,
+    driver: std::process::Child,
+    controller: std::process::Child,
+}
+
+fn recorded_run(tag: &str, name: &str) -> RecordedRun {
+    let sc = Scenario::new(tag, &[("periods = [1, 4, 7]", "periods = [1]")]);
+    let rec = sc.dir.join(name);
+    let recorder = sc.spawn("exo-recorder", &["--output", rec.to_str().unwrap()]);
     let samples =
         sc.collect::<exo_messages::SensorSample>(exo_service_kit::channels::Channel::Sensor);
-    let mut plant = sc.spawn("exo-plant-sim", &[]);
-    let mut driver = sc.spawn("exo-sensor-driver", &[]);
-    let mut controller = sc.spawn("exo-controller", &[]);
-    // Let it record a few seconds of simulated time, then SIGKILL it.
+    let plant = sc.spawn("exo-plant-sim", &[]);
+    let driver = sc.spawn("exo-sensor-driver", &[]);
+    let controller = sc.spawn("exo-controller", &[]);
     samples.wait_for(Duration::from_secs(60), "5 s of samples", |s| {
         s.len() > 5000
     });
-    std::thread::sleep(Duration::from_millis(1500));
+    let t = std::time::Instant::now();
+    while written(&rec) < 100_000 && t.elapsed() < Duration::from_secs(60) {
+        std::thread::yield_now();
+    }
+    RecordedRun {
+        sc,
+        rec,
+        recorder,
+        samples,
+        plant,
+        driver,
+        controller,
+    }
+}
+
+/// Bytes of `path` on disk (0 when it does not exist).
+fn written(path: &Path) -> u64 {
+    std::fs::metadata(path).map_or(0, |m| m.len())
+}
+
+#[test]
+fn a_recorder_killed_mid_run_leaves_a_readable_file_and_control_goes_on() {
+    let RecordedRun {
+        sc,
+        rec,
+        mut recorder,
+        samples,
+        mut plant,
+        mut driver,
+        mut controller,
+    } = recorded_run("reckill", "killed.mcap");
     kill_9(&mut recorder);
     let status = wait_exit(&mut controller, Duration::from_secs(300), "controller");
     assert!(
@@ -347,25 +388,17 @@ fn a_recording_replayed_through_the_driver_is_identified_again() {
 /// neither holds.
 #[test]
 fn a_restarted_recorder_continues_in_a_new_segment_read_as_one_recording() {
-    let sc = Scenario::new("recseg", &[("periods = [1, 4, 7]", "periods = [1]")]);
-    let rec = sc.dir.join("run.mcap");
-    let mut recorder = sc.spawn("exo-recorder", &["--output", rec.to_str().unwrap()]);
-    let samples =
-        sc.collect::<exo_messages::SensorSample>(exo_service_kit::channels::Channel::Sensor);
-    let mut plant = sc.spawn("exo-plant-sim", &[]);
-    let mut driver = sc.spawn("exo-sensor-driver", &[]);
-    let mut controller = sc.spawn("exo-controller", &[]);
-    // Kill it once it has written some chunks (the file grows by whole chunks).
-    samples.wait_for(Duration::from_secs(60), "5 s of samples", |s| {
-        s.len() > 5000
-    });
-    let written = || std::fs::metadata(&rec).map_or(0, |m| m.len());
-    let t = std::time::Instant::now();
-    while written() < 100_000 && t.elapsed() < Duration::from_secs(60) {
-        std::thread::yield_now();
-    }
+    let RecordedRun {
+        sc,
+        rec,
+        mut recorder,
+        samples,
+        mut plant,
+        mut driver,
+        mut controller,
+    } = recorded_run("recseg", "run.mcap");
     kill_9(&mut recorder);
-    let first_len = written();
+    let first_len = written(&rec);
     assert!(first_len >= 100_000, "{first_len} bytes written");
     let mut restarted = sc.spawn("exo-recorder", &["--output", rec.to_str().unwrap()]);
     let status = wait_exit(&mut controller, Duration::from_secs(300), "controller");
@@ -375,7 +408,7 @@ fn a_restarted_recorder_continues_in_a_new_segment_read_as_one_recording() {
     terminate(&mut plant);
     let samples = samples.finish();
     // The first segment was not truncated; the second is beside it.
-    assert!(written() >= first_len);
+    assert!(written(&rec) >= first_len);
     let part2 = sc.dir.join("run-part2.mcap");
     assert!(part2.exists(), "{}", sc.log("exo-recorder"));
     let one = exo_recording::read_recording(&rec).unwrap();
