@@ -317,15 +317,16 @@ fn bad_recordings_are_named_never_a_panic() {
 }
 
 #[test]
-fn a_recording_replayed_through_the_driver_is_identified_again() {
-    // A recording another tool wrote (no raw bus topic: the replay backend
-    // converts its calibrated samples back to raw readings) replayed through
-    // the sensor driver into the online identifier and a new recording.
+fn a_recording_played_back_is_identified_again() {
+    // A recording another tool wrote, played onto the run's channels by
+    // exo-player (no plant, driver or controller) into the online
+    // identifier and a new recording.
     let sc = Scenario::new(
         "replay",
         &[
             ("plant_sim = true", "plant_sim = false"),
-            ("controller = true", "controller = false"),
+            ("sensor_driver = true", "sensor_driver = false"),
+            ("controller = true", "controller = false\nplayer = true"),
         ],
     );
     let original = sc.dir.join("original.mcap");
@@ -350,7 +351,7 @@ fn a_recording_replayed_through_the_driver_is_identified_again() {
         String::from_utf8_lossy(&out.stderr)
     );
     sc.append(&format!(
-        "\n[bus]\nbackend = \"replay\"\nreplay_file = \"{}\"\nreplay_pace_hz = 20000.0\n",
+        "\n[player]\nfile = \"{}\"\npace_hz = 20000.0\n",
         original.display()
     ));
     let out = exo(&["run", "--no-report", sc.config.to_str().unwrap()]);
@@ -363,7 +364,7 @@ fn a_recording_replayed_through_the_driver_is_identified_again() {
             .trim(),
     );
     let r = exo_recording::read_recording(&rec).unwrap();
-    assert_eq!(r.sensor.len(), 24_000, "every frame replayed");
+    assert_eq!(r.sensor.len(), 24_000, "every sample played");
     assert!(r
         .sensor
         .iter()
@@ -374,7 +375,6 @@ fn a_recording_replayed_through_the_driver_is_identified_again() {
         let truth =
             exo_impedance::DynamicStiffness::from_array([0.11, 0.0, 40.0, 16.0]).response(p.omega);
         let got = num_complex::Complex64::new(p.s_h_re, p.s_h_im);
-        // The raw round trip quantises θ to the 19-bit encoder (1.2e-5 rad of 0.02 rad).
         assert!(
             (got - truth).norm() < 0.005 * truth.norm(),
             "{got} vs {truth}"

@@ -17,7 +17,6 @@ pub mod calibration;
 pub mod driver;
 pub mod node;
 pub mod process;
-pub mod replay;
 pub mod round_trip;
 
 pub use calibration::{Calibration, VelocityFilter};

@@ -5,9 +5,9 @@
 //! comes within the deadline, the latched safe-state torque.
 //!
 //! The bus is chosen by `[bus] backend`: the simulator's
-//! ([`SimulatorBus`], iceoryx2 channels to `exo-plant-sim`), or a recording
-//! played back ([`ReplayBus`]); a hardware backend implements
-//! [`HardwareBus`](crate::HardwareBus) (ARCHITECTURE.md).
+//! ([`SimulatorBus`], iceoryx2 channels to `exo-plant-sim`); a hardware
+//! backend implements [`HardwareBus`](crate::HardwareBus) (ARCHITECTURE.md).
+//! (A recording is played back by `exo-player`, not by the driver.)
 //!
 //! The command watchdog arms at the first command, so a controller that
 //! starts late does not trip it. In real time the deadline is
@@ -24,7 +24,6 @@ use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
 use anyhow::{bail, Context, Result};
-use exo_analysis::{Merge, Played};
 use exo_config::{BusBackend, TimingMode};
 use exo_messages::{ActuatorCommand, OperatorCommand, ProtocolState, SensorSample};
 use exo_service_kit::channels::Channel;
@@ -35,8 +34,7 @@ use exo_service_kit::{monotonic_ns, RealtimeProcess, ServiceArgs, StopFlag};
 use tracing::{error, info};
 
 use crate::backends::SimulatorBus;
-use crate::replay::ReplayBus;
-use crate::{Calibration, DriverNode, HardwareBus, RoundTrip};
+use crate::{DriverNode, HardwareBus, RoundTrip};
 
 const RESEND_AFTER: Duration = Duration::from_millis(200);
 const STARTUP_PATIENCE: Duration = Duration::from_secs(60);
@@ -75,16 +73,6 @@ struct Ports {
 enum Bus {
     /// The plant simulator's, served in closed loop.
     Simulator(SimulatorBus),
-    /// A recording played back: the recorded protocol states and commands
-    /// are published again at their stamps, since no controller runs.
-    Replay {
-        bus: ReplayBus,
-        protocol: Vec<ProtocolState>,
-        commands: Vec<ActuatorCommand>,
-        played: (usize, usize),
-        protocol_out: Outbox<ProtocolState>,
-        command_out: Outbox<ActuatorCommand>,
-    },
 }
 
 /// The sensor-driver process.
@@ -143,31 +131,6 @@ impl Process for DriverProcess {
                 );
                 Bus::Simulator(bus)
             }
-            BusBackend::Replay => {
-                let file = cfg
-                    .bus
-                    .replay_file
-                    .clone()
-                    .context("bus.replay_file is required for the replay backend")?;
-                let mut bus = ReplayBus::open(
-                    &file,
-                    &Calibration::new(&cfg.rig),
-                    cfg.bus.replay_pace_hz.unwrap_or(5000.0),
-                )?;
-                info!(
-                    "sensor-driver: replaying {} frames of {}",
-                    bus.len(),
-                    file.display()
-                );
-                Bus::Replay {
-                    protocol: std::mem::take(&mut bus.protocol),
-                    commands: std::mem::take(&mut bus.commands),
-                    bus,
-                    played: (0, 0),
-                    protocol_out: ipc.outbox::<ProtocolState>(Channel::Protocol)?,
-                    command_out: ipc.outbox::<ActuatorCommand>(Channel::Command)?,
-                }
-            }
         };
         Ok(DriverProcess {
             node: DriverNode::new(cfg),
@@ -188,23 +151,17 @@ impl Process for DriverProcess {
         let p = &self.ports;
         let mut out: Vec<&dyn Connect> =
             vec![&p.sample_out, &p.command_in, &p.protocol_in, &p.operator_in];
-        if let Bus::Simulator(bus) = &self.bus {
-            out.extend(bus.ports());
-        }
+        let Bus::Simulator(bus) = &self.bus;
+        out.extend(bus.ports());
         out
     }
 
     fn step(&mut self, stop: &StopFlag) -> Result<Flow> {
-        match &mut self.bus {
-            Bus::Simulator(_) => self.serve_one(stop),
-            Bus::Replay { .. } => self.replay_one(),
-        }
+        self.serve_one(stop)
     }
 
     fn finish(self) -> Result<()> {
-        if matches!(self.bus, Bus::Simulator(_)) {
-            report_round_trip(&self.round_trip, self.round_trip_report.as_deref())?;
-        }
+        report_round_trip(&self.round_trip, self.round_trip_report.as_deref())?;
         info!("sensor-driver: stopped");
         Ok(())
     }
@@ -215,9 +172,7 @@ impl DriverProcess {
     /// sample, wait (bounded) for the controller's command, write the
     /// torque back.
     fn serve_one(&mut self, stop: &StopFlag) -> Result<Flow> {
-        let Bus::Simulator(bus) = &mut self.bus else {
-            return Ok(Flow::Done);
-        };
+        let Bus::Simulator(bus) = &mut self.bus;
         let (node, ports) = (&mut self.node, &self.ports);
         // In real time, once the stream runs, a silent bus is the driver's
         // to detect: it does not wait for the next frame. Once the silence
@@ -316,43 +271,6 @@ impl DriverProcess {
             out.tau_motor_nm,
             node.motor_enable(),
         )?;
-        Ok(Flow::Continue)
-    }
-
-    /// One frame of a recording played through the driver: first the
-    /// recorded protocol states and commands up to its stamp, then the
-    /// calibrated sample (status `REPLAY`). Done when the recording is.
-    fn replay_one(&mut self) -> Result<Flow> {
-        let Bus::Replay {
-            bus,
-            protocol,
-            commands,
-            played,
-            protocol_out,
-            command_out,
-        } = &mut self.bus
-        else {
-            return Ok(Flow::Done);
-        };
-        let mut merge = Merge::at(protocol, commands, *played);
-        let Some(frame) = bus.read(Duration::ZERO)? else {
-            for p in merge.remaining_protocol() {
-                protocol_out.send(*p)?;
-            }
-            // Let the subscribers take the last samples before the process
-            // (and its publishers) goes.
-            std::thread::sleep(Duration::from_millis(500));
-            info!("sensor-driver: replay finished");
-            return Ok(Flow::Done);
-        };
-        merge.up_to(frame.stamp_ns, |x| match x {
-            Played::Protocol(p) => protocol_out.send(*p),
-            Played::Command(c) => command_out.send(*c),
-        })?;
-        *played = merge.position();
-        self.ports
-            .sample_out
-            .send(self.node.on_frame(&frame, exo_messages::status::REPLAY))?;
         Ok(Flow::Continue)
     }
 }

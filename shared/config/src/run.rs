@@ -21,7 +21,7 @@ pub const RUN_RANGES: Ranges = &[
     ("run.seed", Range::closed(0.0, u64::MAX as f64)),
     ("run.max_sim_time_s", Range::above(0.0, MAX_DURATION_S)),
     ("run.lockstep_spin_us", Range::closed(0.0, 100_000.0)),
-    ("bus.replay_pace_hz", Range::closed(1.0, 1e6)),
+    ("player.pace_hz", Range::closed(1.0, 1e6)),
     ("realtime.sched_fifo_priority", Range::closed(1.0, 99.0)),
     ("realtime.controller_cpu", Range::closed(0.0, 1023.0)),
     ("realtime.sensor_driver_cpu", Range::closed(0.0, 1023.0)),
@@ -179,9 +179,6 @@ pub enum BusBackend {
     /// The plant simulator's bus: iceoryx2 channels to `exo-plant-sim`.
     #[default]
     Simulator,
-    /// A recording played back (`bus.replay_file`): re-run the identifier
-    /// and the recorder on old data; no controller, nothing actuated.
-    Replay,
 }
 
 /// `[bus]`: the sensor driver's hardware bus. Swapping the simulator for
@@ -192,13 +189,21 @@ pub enum BusBackend {
 pub struct BusSettings {
     /// The backend.
     pub backend: BusBackend,
-    /// The recording to play back (`backend = "replay"`; relative to the run file).
+}
+
+/// `[player]`: a recording played back onto the run's channels by
+/// `exo-player` (`services.player = true`), like `ros2 bag play`: re-run
+/// the identifier and the recorder on old data; no plant, driver or
+/// controller runs, nothing is actuated.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct PlayerSettings {
+    /// The recording (relative to the run file), with its later segments.
+    pub file: PathBuf,
+    /// Samples per second of wall time it delivers (default 5000). Range
+    /// [1, 1 000 000].
     #[serde(default)]
-    pub replay_file: Option<PathBuf>,
-    /// Frames per second of wall time a replay delivers (default 5000).
-    /// Range [1, 1 000 000].
-    #[serde(default)]
-    pub replay_pace_hz: Option<f64>,
+    pub pace_hz: Option<f64>,
 }
 
 /// `[services]`: which processes `exo run` starts.
@@ -217,6 +222,10 @@ pub struct ServiceSet {
     /// The MCAP recorder.
     #[serde(default)]
     pub recorder: bool,
+    /// The player (`[player]`): a recording played onto the channels in
+    /// place of plant, driver and controller.
+    #[serde(default)]
+    pub player: bool,
 }
 
 /// What the protocol does.
@@ -520,6 +529,9 @@ pub struct RunConfig {
     /// `[bus]` (default: the simulator's).
     #[serde(default)]
     pub bus: BusSettings,
+    /// `[player]` (with `services.player`).
+    #[serde(default)]
+    pub player: Option<PlayerSettings>,
     /// `[realtime]` (default: nothing asked for).
     #[serde(default)]
     pub realtime: Option<RealtimeSettings>,
@@ -598,19 +610,33 @@ impl RunConfig {
         cfg.plant_model = dir.join(&cfg.plant_model);
         cfg.subject_file = dir.join(&cfg.subject_file);
         cfg.protocol.experiments_file = dir.join(&cfg.protocol.experiments_file);
-        if let Some(f) = cfg.bus.replay_file.as_mut() {
-            *f = dir.join(&*f);
+        if let Some(p) = cfg.player.as_mut() {
+            p.file = dir.join(&p.file);
         }
-        if cfg.bus.backend == BusBackend::Replay {
-            match &cfg.bus.replay_file {
+        if cfg.services.player {
+            match &cfg.player {
                 None => c.note(
-                    "bus.replay_file",
-                    "bus.backend = \"replay\" needs the recording to play back",
+                    "services.player",
+                    "the player needs a [player] table naming the recording to play (file = …)",
                 ),
-                Some(f) if !f.is_file() => {
-                    c.note("bus.replay_file", format!("{} does not exist", f.display()))
-                }
+                Some(p) if !p.file.is_file() => c.note(
+                    "player.file",
+                    format!("{} does not exist", p.file.display()),
+                ),
                 Some(_) => {}
+            }
+            let s = cfg.services;
+            for (on, key) in [
+                (s.plant_sim, "services.plant_sim"),
+                (s.sensor_driver, "services.sensor_driver"),
+                (s.controller, "services.controller"),
+            ] {
+                if on {
+                    c.note(
+                        key,
+                        "must be false with services.player: the player publishes the samples, commands and protocol states itself",
+                    );
+                }
             }
         }
         let table = c
@@ -815,8 +841,8 @@ impl RunConfig {
         if let Some(why) = output_dir_problem(&self.run.output_dir) {
             c.note("run.output_dir", why);
         }
-        if let Some(p) = self.bus.replay_pace_hz {
-            c.key("bus.replay_pace_hz", p);
+        if let Some(p) = self.player.as_ref().and_then(|p| p.pace_hz) {
+            c.key("player.pace_hz", p);
         }
         if let Some(rt) = &self.realtime {
             if let Some(p) = rt.sched_fifo_priority {

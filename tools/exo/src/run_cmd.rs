@@ -47,7 +47,7 @@ pub fn services_of(
 ) -> Result<Vec<ServiceSpec>> {
     let s = cfg.services;
     let mut out = Vec::new();
-    let table: [(bool, &'static str, &'static str, Role); 5] = [
+    let table: [(bool, &'static str, &'static str, Role); 6] = [
         (s.recorder, "recorder", "exo-recorder", Role::Restartable),
         (
             s.identifier,
@@ -70,7 +70,7 @@ pub fn services_of(
             s.sensor_driver,
             "sensor-driver",
             "exo-sensor-driver",
-            // Without a controller (a replay) the driver ends the run.
+            // Without a controller the driver ends the run.
             if s.controller {
                 Role::Critical
             } else {
@@ -78,6 +78,8 @@ pub fn services_of(
             },
         ),
         (s.controller, "controller", "exo-controller", Role::EndsRun),
+        // A recording played back: the run ends with it.
+        (s.player, "player", "exo-player", Role::EndsRun),
     ];
     for (enabled, name, bin, role) in table {
         if enabled {

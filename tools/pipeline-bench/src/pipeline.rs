@@ -94,6 +94,7 @@ pub fn bench_config(
         controller: true,
         identifier: false,
         recorder: false,
+        player: false,
     };
     let subject = cfg.subject();
     let experiments: Vec<u32> = cfg

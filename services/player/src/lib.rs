@@ -1,0 +1,134 @@
+//! # exo-player
+//!
+//! A recording played back onto a run's channels, like `ros2 bag play`:
+//! with `services.player = true` and `[player] file = …` (and no plant,
+//! driver or controller), `exo run` re-runs the identifier and the recorder
+//! on old data — any contract recording, exo's own or another tool's.
+//!
+//! [`PlayerNode`] is the recording as one time-ordered stream of the
+//! control path's messages: protocol states, commands and samples (at equal
+//! stamps in that order, as the merge of `exo_analysis::Merge` hands them
+//! to the identifier in `exo fit`). Samples carry the `REPLAY` status bit.
+//! The identifier's outputs and the bus topics are not played: the
+//! identifier and the recorder running on the replay make their own.
+//! [`process::PlayerProcess`] publishes the stream, paced at
+//! `player.pace_hz` samples per second of wall time.
+
+pub mod process;
+
+use std::path::Path;
+
+use anyhow::{bail, Context, Result};
+use exo_messages::status;
+use exo_recorder::Record;
+use exo_recording::{read_recording, Recording};
+
+/// A recording's control-path messages in time order.
+#[derive(Debug, Clone)]
+pub struct PlayerNode {
+    stream: Vec<Record>,
+    next: usize,
+}
+
+impl PlayerNode {
+    /// Reads `file` (with its later segments) for playing.
+    pub fn open(file: &Path) -> Result<Self> {
+        let r = read_recording(file).with_context(|| format!("player file {}", file.display()))?;
+        for w in &r.warnings {
+            tracing::warn!("player: {w}");
+        }
+        if r.sensor.is_empty() {
+            bail!("{}: exo/sensor has no samples to play", file.display());
+        }
+        Ok(Self::of(&r))
+    }
+
+    /// The stream of a recording already read.
+    pub fn of(r: &Recording) -> Self {
+        // (stamp, order at equal stamps, record)
+        let mut keyed: Vec<(u64, u8, Record)> = r
+            .protocol
+            .iter()
+            .map(|p| (p.stamp_ns, 0, Record::Protocol(*p)))
+            .chain(
+                r.command
+                    .iter()
+                    .map(|c| (c.stamp_ns, 1, Record::Command(*c))),
+            )
+            .chain(r.sensor.iter().map(|s| {
+                let mut s = *s;
+                s.status |= status::REPLAY;
+                (s.stamp_ns, 2, Record::Sensor(s))
+            }))
+            .collect();
+        keyed.sort_by_key(|(stamp, order, _)| (*stamp, *order));
+        PlayerNode {
+            stream: keyed.into_iter().map(|(_, _, r)| r).collect(),
+            next: 0,
+        }
+    }
+
+    /// The next message to publish, `None` at the end.
+    pub fn next_record(&mut self) -> Option<Record> {
+        let r = self.stream.get(self.next).copied();
+        self.next += usize::from(r.is_some());
+        r
+    }
+
+    /// Messages in the stream.
+    pub fn len(&self) -> usize {
+        self.stream.len()
+    }
+
+    /// Whether the stream is empty.
+    pub fn is_empty(&self) -> bool {
+        self.stream.is_empty()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use exo_messages::{ActuatorCommand, ProtocolState, SensorSample};
+
+    #[test]
+    fn the_stream_is_in_time_order_states_and_commands_before_the_sample_of_their_stamp() {
+        let r = Recording {
+            sensor: (0..3)
+                .map(|k| SensorSample {
+                    seq: k,
+                    stamp_ns: k * 10,
+                    ..Default::default()
+                })
+                .collect(),
+            command: vec![ActuatorCommand {
+                sensor_seq: 1,
+                stamp_ns: 10,
+                ..Default::default()
+            }],
+            protocol: vec![ProtocolState {
+                stamp_ns: 10,
+                ..Default::default()
+            }],
+            ..Default::default()
+        };
+        let mut n = PlayerNode::of(&r);
+        assert_eq!(n.len(), 5);
+        let kinds: Vec<(char, u64)> = std::iter::from_fn(|| n.next_record())
+            .map(|x| match x {
+                Record::Sensor(s) => {
+                    assert_ne!(s.status & status::REPLAY, 0, "a replayed sample says so");
+                    ('s', s.stamp_ns)
+                }
+                Record::Command(c) => ('c', c.stamp_ns),
+                Record::Protocol(p) => ('p', p.stamp_ns),
+                other => panic!("not played: {other:?}"),
+            })
+            .collect();
+        assert_eq!(
+            kinds,
+            [('s', 0), ('p', 10), ('c', 10), ('s', 10), ('s', 20)]
+        );
+        assert_eq!(n.next_record(), None);
+    }
+}
