@@ -1113,6 +1113,41 @@ mod tests {
     }
 
     #[test]
+    fn the_amplifier_restarts_from_rest_when_the_drivers_safe_state_ends() {
+        let fractional = || {
+            let mut k = Controller::from_config(&cfg()).unwrap();
+            assert!(k.adopt_fractional_order(0.5));
+            k
+        };
+        // A safe state of one sample or of ten.
+        for safe_ticks in [1, 10] {
+            let mut k = fractional();
+            for seq in 0..100 {
+                k.tick(&sample(seq, 0.3, 1.0));
+            }
+            for seq in 100..100 + safe_ticks {
+                let mut s = sample(seq, 0.3, 1.0);
+                s.status = exo_messages::status::SAFE_STATE;
+                k.tick(&s);
+            }
+            // After the safe state the amplifier answers as a fresh one
+            // does, and keeps its state from then on.
+            let mut fresh = fractional();
+            for i in 0..3 {
+                let after = k
+                    .tick(&sample(100 + safe_ticks + i, 0.3, 1.0))
+                    .tau_amplification_nm;
+                let expected = fresh.tick(&sample(i, 0.3, 1.0)).tau_amplification_nm;
+                assert_eq!(after, expected, "tick {i} after {safe_ticks} safe");
+            }
+        }
+        let mut once = fractional();
+        let first = once.tick(&sample(0, 0.3, 1.0)).tau_amplification_nm;
+        let second = once.tick(&sample(1, 0.3, 1.0)).tau_amplification_nm;
+        assert_ne!(first, second, "the filter has a state to restart");
+    }
+
+    #[test]
     fn out_of_range_angle_and_interaction_torque_fault() {
         let mut k = Controller::from_config(&cfg()).unwrap();
         assert_eq!(k.tick(&sample(0, 3.0, 0.0)).mode, Mode::SafeGravityOnly);
