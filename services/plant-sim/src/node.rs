@@ -272,6 +272,11 @@ impl PlantNode {
         self.max_ticks.is_some_and(|m| self.tick >= m)
     }
 
+    /// The plant (its present settings).
+    pub fn plant(&self) -> &Plant {
+        &self.plant
+    }
+
     /// The simulated physical state (ground truth, not a measurement).
     pub fn truth(&self) -> PlantTruth {
         self.plant.truth()
@@ -337,6 +342,145 @@ mod tests {
         assert!(!n.drive_fault());
         assert_eq!(n.tau_motor_nm(), 3.0);
         assert_eq!(n.frame(0).status, 0);
+    }
+
+    fn state(
+        experiment: u32,
+        phase: ProtocolPhase,
+        omega: f64,
+        amplitude: f64,
+        load_kg: f64,
+    ) -> ProtocolState {
+        ProtocolState {
+            experiment,
+            period: 1,
+            phase: phase.as_u32(),
+            omega,
+            amplitude,
+            load_kg,
+            ..Default::default()
+        }
+    }
+
+    #[test]
+    fn the_protocol_sets_the_subjects_impedance_the_sine_and_the_load() {
+        let mut n = node(TimingMode::Lockstep);
+        let cfg = RunConfig::from_file(&exo_config::configs_dir().join("default.toml")).unwrap();
+        let subject = cfg.subject();
+        let (e1, e7) = (subject.get(1).unwrap(), subject.get(7).unwrap());
+        let before = n.plant().human_impedance();
+        n.on_protocol(&state(1, ProtocolPhase::Analysis, 2.0, 2.0, 4.5));
+        assert_ne!(before, n.plant().human_impedance());
+        assert_eq!(
+            n.plant().human_impedance(),
+            (e1.stiffness_nm_per_rad, e1.hysteretic_damping_nm_per_rad)
+        );
+        assert_eq!(n.plant().excitation_omega_rad_s(), 2.0);
+        assert_eq!(n.plant().load_kg(), 4.5);
+        // Another experiment without a sine (amplitude 0) and without a
+        // load: the impedance follows, the sine and the load are kept.
+        n.on_protocol(&state(7, ProtocolPhase::RampIn, 8.0, 0.0, 0.0));
+        assert_eq!(
+            n.plant().human_impedance(),
+            (e7.stiffness_nm_per_rad, e7.hysteretic_damping_nm_per_rad)
+        );
+        assert_eq!(n.plant().excitation_omega_rad_s(), 2.0);
+        assert_eq!(n.plant().load_kg(), 4.5);
+        // ω without amplitude or amplitude without ω is no sine either.
+        n.on_protocol(&state(7, ProtocolPhase::Settling, 0.0, 2.0, 4.5));
+        assert_eq!(n.plant().excitation_omega_rad_s(), 2.0);
+        n.on_protocol(&state(7, ProtocolPhase::Analysis, 4.0, 2.0, 4.5));
+        assert_eq!(n.plant().excitation_omega_rad_s(), 4.0);
+        // The same experiment, sine and load again change nothing, even
+        // when the plant was set otherwise meanwhile.
+        n.plant.set_human_impedance(99.0, 1.0);
+        n.on_protocol(&state(7, ProtocolPhase::RampOut, 4.0, 2.0, 4.5));
+        assert_eq!(n.plant().human_impedance(), (99.0, 1.0));
+        // An experiment the subject has no row for leaves the impedance.
+        n.on_protocol(&state(0, ProtocolPhase::Idle, 4.0, 2.0, 4.5));
+        assert_eq!(n.plant().human_impedance(), (99.0, 1.0));
+    }
+
+    #[test]
+    fn frames_carry_the_tick_and_the_stamp_and_an_injected_fault_from_its_tick() {
+        let mut cfg =
+            RunConfig::from_file(&exo_config::configs_dir().join("default.toml")).unwrap();
+        cfg.run.timing = TimingMode::Lockstep;
+        let model = PlantModel::from_file(&cfg.plant_model).unwrap();
+        let mut n = PlantNode::new(&cfg, &model, Some(3)).unwrap();
+        for k in 0..6u64 {
+            let f = n.frame(n.lockstep_stamp_ns());
+            assert_eq!((f.seq, f.stamp_ns), (k, k * 1_000_000));
+            assert_eq!(f.cuff_wrench[1].is_nan(), k >= 3, "tick {k}");
+            let m = motor(&n, 0.0, 1);
+            assert!(n.on_motor(&m));
+            n.advance();
+        }
+        assert_eq!(n.frame(42).stamp_ns, 42, "the stamp is the caller's");
+    }
+
+    #[test]
+    fn only_the_answer_to_the_current_frame_drives_the_motor() {
+        let mut n = node(TimingMode::Lockstep);
+        n.advance();
+        n.advance();
+        let stale = BusMotorCommand {
+            frame_seq: 1,
+            tau_motor_nm: 5.0,
+            enable: 1,
+            ..Default::default()
+        };
+        assert!(!n.on_motor(&stale));
+        assert_eq!(n.tau_motor_nm(), 0.0);
+        let answer = BusMotorCommand {
+            frame_seq: 2,
+            ..stale
+        };
+        assert!(n.on_motor(&answer));
+        assert_eq!(n.tau_motor_nm(), 5.0);
+        let disabled = BusMotorCommand {
+            enable: 0,
+            ..answer
+        };
+        assert!(n.on_motor(&disabled));
+        assert_eq!(n.tau_motor_nm(), 0.0);
+    }
+
+    #[test]
+    fn the_springs_pull_until_the_analysis_phase_starts() {
+        let mut cfg =
+            RunConfig::from_file(&exo_config::configs_dir().join("default.toml")).unwrap();
+        cfg.protocol.mode = ProtocolMode::Release;
+        cfg.release = Some(ReleaseSettings {
+            experiment: 7,
+            spring_torque_nm: 3.0,
+            hold_s: 1.0,
+            observe_s: 1.0,
+        });
+        let model = PlantModel::from_file(&cfg.plant_model).unwrap();
+        let mut n = PlantNode::new(&cfg, &model, None).unwrap();
+        let e7 = cfg.subject().get(7).unwrap();
+        assert_eq!(
+            n.plant().human_impedance(),
+            (e7.stiffness_nm_per_rad, e7.hysteretic_damping_nm_per_rad)
+        );
+        for phase in [ProtocolPhase::RampIn, ProtocolPhase::Settling] {
+            n.on_protocol(&state(7, phase, 0.0, 0.0, 0.0));
+            n.frame(0);
+            assert_eq!(n.plant().external_torque_nm(), 3.0, "{phase:?}");
+        }
+        n.on_protocol(&state(7, ProtocolPhase::Analysis, 0.0, 0.0, 0.0));
+        n.frame(0);
+        assert_eq!(n.plant().external_torque_nm(), 0.0);
+        // Released once: a later analysis phase does not put them back.
+        n.on_protocol(&state(7, ProtocolPhase::RampOut, 0.0, 0.0, 0.0));
+        n.frame(0);
+        assert_eq!(n.plant().external_torque_nm(), 0.0);
+        // Without the release protocol, no springs at all.
+        let mut plain = node(TimingMode::Lockstep);
+        plain.on_protocol(&state(7, ProtocolPhase::Analysis, 0.0, 0.0, 0.0));
+        plain.frame(0);
+        assert_eq!(plain.plant().external_torque_nm(), 0.0);
     }
 
     #[test]

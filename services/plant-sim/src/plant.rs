@@ -213,6 +213,26 @@ impl Plant {
         &self.model
     }
 
+    /// The human's stiffness `K` and hysteretic damping `H` (Nm/rad) now.
+    pub fn human_impedance(&self) -> (f64, f64) {
+        (self.k_h, self.h_h)
+    }
+
+    /// The load on the exoskeleton arm (kg) now.
+    pub fn load_kg(&self) -> f64 {
+        self.load_kg
+    }
+
+    /// The running excitation frequency (rad/s) the hysteresis follows.
+    pub fn excitation_omega_rad_s(&self) -> f64 {
+        self.excitation_omega
+    }
+
+    /// The external torque (Nm) on the exoskeleton joint now.
+    pub fn external_torque_nm(&self) -> f64 {
+        self.external_torque_nm
+    }
+
     /// Sets the human's stiffness `K` and hysteretic damping `H` (Nm/rad).
     pub fn set_human_impedance(&mut self, k_nm_per_rad: f64, h_nm_per_rad: f64) {
         if (k_nm_per_rad, h_nm_per_rad) != (self.k_h, self.h_h)
