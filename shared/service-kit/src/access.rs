@@ -103,14 +103,17 @@ pub fn per_user_config(source: &Path, base: &Path) -> Result<PathBuf, IpcError> 
     if std::fs::read_to_string(&out).is_ok_and(|t| t == out_text) {
         return Ok(out);
     }
-    let tmp = dir.join(format!(
-        ".{}.{}.tmp",
-        out.display().to_string().len(),
-        std::process::id()
-    ));
+    // Unique per process and call: threads of one process (the tests'
+    // collectors) may write it at the same moment.
+    static SERIAL: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);
+    let serial = SERIAL.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+    let tmp = dir.join(format!(".iceoryx2.{}-{serial}.tmp", std::process::id()));
     std::fs::write(&tmp, &out_text)
         .and_then(|()| std::fs::rename(&tmp, &out))
-        .map_err(|e| err(format!("writing {}: {e}", out.display())))?;
+        .map_err(|e| {
+            let _ = std::fs::remove_file(&tmp);
+            err(format!("writing {}: {e}", out.display()))
+        })?;
     Ok(out)
 }
 
@@ -211,8 +214,28 @@ mod tests {
         );
         assert_eq!(g["prefix"].as_str().unwrap(), format!("exo{}_", uid()));
         assert_eq!(g["node"]["directory"].as_str(), Some("nodes"));
-        // The same source gives the same file (every process agrees).
+        // The same source gives the same file (every process agrees), also
+        // from threads writing it at once.
         assert_eq!(per_user_config(&source, &base).unwrap(), out);
+        std::fs::remove_file(&out).unwrap();
+        let paths: Vec<PathBuf> = std::thread::scope(|sc| {
+            let h: Vec<_> = (0..8)
+                .map(|_| sc.spawn(|| per_user_config(&source, &base).unwrap()))
+                .collect();
+            h.into_iter().map(|h| h.join().unwrap()).collect()
+        });
+        assert!(paths.iter().all(|p| *p == out));
+        let leftovers = std::fs::read_dir(user_dir_in(&base))
+            .unwrap()
+            .filter(|e| {
+                e.as_ref()
+                    .unwrap()
+                    .file_name()
+                    .to_string_lossy()
+                    .ends_with(".tmp")
+            })
+            .count();
+        assert_eq!(leftovers, 0);
         std::fs::remove_dir_all(&base).unwrap();
     }
 }
