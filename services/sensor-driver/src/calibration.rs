@@ -42,42 +42,6 @@ impl Calibration {
     pub fn tau_s_nm(&self, deflection_counts: i64) -> f64 {
         deflection_counts as f64 * self.sea_nm_per_count
     }
-
-    /// Encoder counts that read as `theta_rad` (nearest count); the inverse
-    /// of [`theta_rad`](Self::theta_rad), for replaying calibrated samples.
-    pub fn counts_of_theta(&self, theta_rad: f64) -> i64 {
-        (theta_rad / self.rad_per_count).round() as i64
-    }
-
-    /// A cuff reading that gives `tau_c_nm` (all of it as the torque about
-    /// the sensor's z axis); the inverse of [`tau_c_nm`](Self::tau_c_nm).
-    pub fn wrench_of_tau_c(&self, tau_c_nm: f64) -> [f64; 6] {
-        [0.0, 0.0, 0.0, 0.0, 0.0, tau_c_nm]
-    }
-
-    /// SEA counts that read as `tau_s_nm` (nearest count).
-    pub fn counts_of_tau_s(&self, tau_s_nm: f64) -> i64 {
-        (tau_s_nm / self.sea_nm_per_count).round() as i64
-    }
-}
-
-#[cfg(test)]
-mod inverse_tests {
-    use super::*;
-
-    #[test]
-    fn the_inverses_round_trip_to_within_a_count() {
-        let cfg = exo_config::RunConfig::from_file(&exo_config::configs_dir().join("default.toml"))
-            .unwrap();
-        let c = Calibration::new(&cfg.rig);
-        for x in [-0.5, 0.0, 0.123456, 1.9] {
-            assert!((c.theta_rad(c.counts_of_theta(x)) - x).abs() <= c.rad_per_count);
-            assert_eq!(c.tau_c_nm(&c.wrench_of_tau_c(3.0 * x)), 3.0 * x);
-            assert!(
-                (c.tau_s_nm(c.counts_of_tau_s(20.0 * x)) - 20.0 * x).abs() <= c.sea_nm_per_count
-            );
-        }
-    }
 }
 
 /// Joint velocity from successive angles: a backward difference low-passed
