@@ -369,14 +369,15 @@ mod tests {
         let subject = cfg.subject();
         let (e1, e7) = (subject.get(1).unwrap(), subject.get(7).unwrap());
         let before = n.plant().human_impedance();
-        n.on_protocol(&state(1, ProtocolPhase::Analysis, 2.0, 2.0, 4.5));
+        assert_ne!(n.plant().load_kg(), 2.5, "the model's own load differs");
+        n.on_protocol(&state(1, ProtocolPhase::Analysis, 2.0, 2.0, 2.5));
         assert_ne!(before, n.plant().human_impedance());
         assert_eq!(
             n.plant().human_impedance(),
             (e1.stiffness_nm_per_rad, e1.hysteretic_damping_nm_per_rad)
         );
         assert_eq!(n.plant().excitation_omega_rad_s(), 2.0);
-        assert_eq!(n.plant().load_kg(), 4.5);
+        assert_eq!(n.plant().load_kg(), 2.5);
         // Another experiment without a sine (amplitude 0) and without a
         // load: the impedance follows, the sine and the load are kept.
         n.on_protocol(&state(7, ProtocolPhase::RampIn, 8.0, 0.0, 0.0));
@@ -385,19 +386,19 @@ mod tests {
             (e7.stiffness_nm_per_rad, e7.hysteretic_damping_nm_per_rad)
         );
         assert_eq!(n.plant().excitation_omega_rad_s(), 2.0);
-        assert_eq!(n.plant().load_kg(), 4.5);
+        assert_eq!(n.plant().load_kg(), 2.5);
         // ω without amplitude or amplitude without ω is no sine either.
-        n.on_protocol(&state(7, ProtocolPhase::Settling, 0.0, 2.0, 4.5));
+        n.on_protocol(&state(7, ProtocolPhase::Settling, 0.0, 2.0, 2.5));
         assert_eq!(n.plant().excitation_omega_rad_s(), 2.0);
-        n.on_protocol(&state(7, ProtocolPhase::Analysis, 4.0, 2.0, 4.5));
+        n.on_protocol(&state(7, ProtocolPhase::Analysis, 4.0, 2.0, 2.5));
         assert_eq!(n.plant().excitation_omega_rad_s(), 4.0);
         // The same experiment, sine and load again change nothing, even
         // when the plant was set otherwise meanwhile.
         n.plant.set_human_impedance(99.0, 1.0);
-        n.on_protocol(&state(7, ProtocolPhase::RampOut, 4.0, 2.0, 4.5));
+        n.on_protocol(&state(7, ProtocolPhase::RampOut, 4.0, 2.0, 2.5));
         assert_eq!(n.plant().human_impedance(), (99.0, 1.0));
         // An experiment the subject has no row for leaves the impedance.
-        n.on_protocol(&state(0, ProtocolPhase::Idle, 4.0, 2.0, 4.5));
+        n.on_protocol(&state(0, ProtocolPhase::Idle, 4.0, 2.0, 2.5));
         assert_eq!(n.plant().human_impedance(), (99.0, 1.0));
     }
 
@@ -481,6 +482,30 @@ mod tests {
         plain.on_protocol(&state(7, ProtocolPhase::Analysis, 0.0, 0.0, 0.0));
         plain.frame(0);
         assert_eq!(plain.plant().external_torque_nm(), 0.0);
+    }
+
+    #[test]
+    fn a_tick_is_one_control_period_and_the_bound_ends_the_run() {
+        let mut cfg =
+            RunConfig::from_file(&exo_config::configs_dir().join("default.toml")).unwrap();
+        cfg.run.max_sim_time_s = Some(0.005);
+        let model = PlantModel::from_file(&cfg.plant_model).unwrap();
+        let mut n = PlantNode::new(&cfg, &model, None).unwrap();
+        assert_eq!(n.period_ns(), 1_000_000, "1 kHz");
+        for k in 0..5 {
+            assert!(!n.finished(), "tick {k}");
+            assert_eq!(n.lockstep_stamp_ns(), k * 1_000_000);
+            let t0 = n.truth().t_s;
+            n.advance();
+            assert!((n.truth().t_s - t0 - 1e-3).abs() < 1e-12);
+        }
+        assert!(n.finished(), "0.005 s = 5 ticks");
+        // Without a bound the run never ends by the plant.
+        let mut unbounded = node(TimingMode::Lockstep);
+        for _ in 0..10 {
+            unbounded.advance();
+        }
+        assert!(!unbounded.finished());
     }
 
     #[test]
