@@ -165,15 +165,18 @@ impl DriverNode {
         self.driver.safe_output()
     }
 
-    /// Logs a newly latched safe state once (at the frame it latched at).
-    pub fn report_latch(&mut self, out: &DriverOutput) {
+    /// Logs a newly latched safe state once (at the frame it latched at);
+    /// returns whether it did now.
+    pub fn report_latch(&mut self, out: &DriverOutput) -> bool {
         if let (Some(event), false) = (self.driver.latched(), self.reported_latch) {
             error!(
                 "sensor-driver: safe state latched at frame {}: {event:?} → {:?}",
                 self.frame_seq, out.source
             );
             self.reported_latch = true;
+            return true;
         }
+        false
     }
 }
 
@@ -287,6 +290,84 @@ mod tests {
         });
         assert!(!n.motor_enable());
         assert!(n.motor_enable());
+    }
+
+    #[test]
+    fn a_latch_is_reported_once_until_a_reset_and_a_bad_reset_is_refused() {
+        let mut n = node();
+        n.on_frame(&frame(0), 0);
+        assert!(!n.report_latch(&n.safe_output()), "nothing latched");
+        n.on_frame(&frame(1), 0);
+        let out = n.on_deadline();
+        assert!(n.report_latch(&out));
+        assert!(!n.report_latch(&out), "once");
+        // A reset with a non-finite value is refused: still latched.
+        n.on_operator(&OperatorCommand {
+            seq: 1,
+            kind: OperatorCommandKind::ResetFault.as_u32(),
+            value: f64::NAN,
+            ..Default::default()
+        });
+        assert!(n.driver().latched().is_some());
+        n.on_operator(&OperatorCommand {
+            seq: 2,
+            kind: OperatorCommandKind::ResetFault.as_u32(),
+            ..Default::default()
+        });
+        assert!(n.driver().latched().is_none());
+        n.on_frame(&frame(2), 0);
+        let out = n.on_deadline();
+        assert!(
+            n.report_latch(&out),
+            "a new latch after the reset is reported"
+        );
+    }
+
+    #[test]
+    fn the_protocols_load_is_what_the_gravity_only_safe_state_holds() {
+        let mut n = node();
+        let mut f = frame(0);
+        f.encoder_counts = 100_000; // an arm raised well off the vertical
+        n.on_frame(&f, 0);
+        n.on_protocol(&ProtocolState {
+            load_kg: 0.0,
+            ..Default::default()
+        });
+        let unloaded = n.safe_output().tau_motor_nm;
+        n.on_protocol(&ProtocolState {
+            load_kg: 4.5,
+            ..Default::default()
+        });
+        let loaded = n.safe_output().tau_motor_nm;
+        assert!(
+            loaded.abs() > unloaded.abs() + 1.0,
+            "{loaded} vs {unloaded}"
+        );
+    }
+
+    #[test]
+    fn a_bus_frame_becomes_the_drivers_raw_frame_field_for_field() {
+        let f = BusSensorFrame {
+            seq: 7,
+            stamp_ns: 8,
+            encoder_counts: 9,
+            cuff_wrench: [1.0, 2.0, 3.0, 4.0, 5.0, 6.0],
+            sea_deflection_counts: -10,
+            status: 4,
+            _pad: 0,
+        };
+        let r = raw_frame(&f);
+        assert_eq!(
+            (
+                r.seq,
+                r.stamp_ns,
+                r.encoder_counts,
+                r.cuff_wrench,
+                r.sea_deflection_counts,
+                r.status
+            ),
+            (7, 8, 9, [1.0, 2.0, 3.0, 4.0, 5.0, 6.0], -10, 4)
+        );
     }
 
     #[test]
