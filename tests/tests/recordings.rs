@@ -246,6 +246,23 @@ fn recorded_run(tag: &str, name: &str) -> RecordedRun {
     }
 }
 
+impl RecordedRun {
+    /// Waits for the controller to finish the protocol (asserting it did),
+    /// stops plant and driver; returns the scenario, the recording's path
+    /// and every sample published.
+    fn finish(mut self) -> (Scenario, PathBuf, Vec<exo_messages::SensorSample>) {
+        let status = wait_exit(&mut self.controller, Duration::from_secs(300), "controller");
+        assert!(
+            status.success(),
+            "control was disturbed: {}",
+            self.sc.log("exo-controller")
+        );
+        terminate(&mut self.driver);
+        terminate(&mut self.plant);
+        (self.sc, self.rec, self.samples.finish())
+    }
+}
+
 /// Bytes of `path` on disk (0 when it does not exist).
 fn written(path: &Path) -> u64 {
     std::fs::metadata(path).map_or(0, |m| m.len())
@@ -253,25 +270,9 @@ fn written(path: &Path) -> u64 {
 
 #[test]
 fn a_recorder_killed_mid_run_leaves_a_readable_file_and_control_goes_on() {
-    let RecordedRun {
-        sc,
-        rec,
-        mut recorder,
-        samples,
-        mut plant,
-        mut driver,
-        mut controller,
-    } = recorded_run("reckill", "killed.mcap");
-    kill_9(&mut recorder);
-    let status = wait_exit(&mut controller, Duration::from_secs(300), "controller");
-    assert!(
-        status.success(),
-        "control was disturbed: {}",
-        sc.log("exo-controller")
-    );
-    terminate(&mut driver);
-    terminate(&mut plant);
-    let samples = samples.finish();
+    let mut run = recorded_run("reckill", "killed.mcap");
+    kill_9(&mut run.recorder);
+    let (_sc, rec, samples) = run.finish();
     // Control ran the whole protocol without a gap.
     assert!(samples.windows(2).all(|w| w[1].seq == w[0].seq + 1));
     // The file has no footer; its complete chunks are read.
@@ -388,25 +389,15 @@ fn a_recording_played_back_is_identified_again() {
 /// neither holds.
 #[test]
 fn a_restarted_recorder_continues_in_a_new_segment_read_as_one_recording() {
-    let RecordedRun {
-        sc,
-        rec,
-        mut recorder,
-        samples,
-        mut plant,
-        mut driver,
-        mut controller,
-    } = recorded_run("recseg", "run.mcap");
-    kill_9(&mut recorder);
-    let first_len = written(&rec);
+    let mut run = recorded_run("recseg", "run.mcap");
+    kill_9(&mut run.recorder);
+    let first_len = written(&run.rec);
     assert!(first_len >= 100_000, "{first_len} bytes written");
-    let mut restarted = sc.spawn("exo-recorder", &["--output", rec.to_str().unwrap()]);
-    let status = wait_exit(&mut controller, Duration::from_secs(300), "controller");
-    assert!(status.success(), "{}", sc.log("exo-controller"));
+    let mut restarted = run
+        .sc
+        .spawn("exo-recorder", &["--output", run.rec.to_str().unwrap()]);
+    let (sc, rec, samples) = run.finish();
     terminate(&mut restarted);
-    terminate(&mut driver);
-    terminate(&mut plant);
-    let samples = samples.finish();
     // The first segment was not truncated; the second is beside it.
     assert!(written(&rec) >= first_len);
     let part2 = sc.dir.join("run-part2.mcap");
