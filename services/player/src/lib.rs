@@ -7,8 +7,8 @@
 //!
 //! [`PlayerNode`] is the recording as one time-ordered stream of the
 //! control path's messages: protocol states, commands and samples (at equal
-//! stamps in that order, as the merge of `exo_analysis::Merge` hands them
-//! to the identifier in `exo fit`). Samples carry the `REPLAY` status bit.
+//! stamps in that order), merged by `exo_analysis::Merge` as `exo fit`
+//! hands them to the identifier. Samples carry the `REPLAY` status bit.
 //! The identifier's outputs and the bus topics are not played: the
 //! identifier and the recorder running on the replay make their own.
 //! [`process::PlayerProcess`] publishes the stream, paced at
@@ -19,6 +19,7 @@ pub mod process;
 use std::path::Path;
 
 use anyhow::{bail, Context, Result};
+use exo_analysis::{Merge, Played};
 use exo_messages::status;
 use exo_recorder::Record;
 use exo_recording::{read_recording, Recording};
@@ -43,29 +44,32 @@ impl PlayerNode {
         Ok(Self::of(&r))
     }
 
-    /// The stream of a recording already read.
+    /// The stream of a recording already read: before each sample, the
+    /// protocol states and commands stamped at or before it
+    /// ([`exo_analysis::Merge`], as `exo fit` hands them to the identifier),
+    /// then the protocol states after the last sample.
     pub fn of(r: &Recording) -> Self {
-        // (stamp, order at equal stamps, record)
-        let mut keyed: Vec<(u64, u8, Record)> = r
-            .protocol
-            .iter()
-            .map(|p| (p.stamp_ns, 0, Record::Protocol(*p)))
-            .chain(
-                r.command
-                    .iter()
-                    .map(|c| (c.stamp_ns, 1, Record::Command(*c))),
-            )
-            .chain(r.sensor.iter().map(|s| {
-                let mut s = *s;
-                s.status |= status::REPLAY;
-                (s.stamp_ns, 2, Record::Sensor(s))
-            }))
-            .collect();
-        keyed.sort_by_key(|(stamp, order, _)| (*stamp, *order));
-        PlayerNode {
-            stream: keyed.into_iter().map(|(_, _, r)| r).collect(),
-            next: 0,
+        let mut stream = Vec::with_capacity(r.sensor.len() + r.command.len() + r.protocol.len());
+        let mut merge = Merge::new(&r.protocol, &r.command);
+        for s in &r.sensor {
+            let _ = merge.up_to(s.stamp_ns, |x| -> Result<(), std::convert::Infallible> {
+                stream.push(match x {
+                    Played::Protocol(p) => Record::Protocol(*p),
+                    Played::Command(c) => Record::Command(*c),
+                });
+                Ok(())
+            });
+            let mut s = *s;
+            s.status |= status::REPLAY;
+            stream.push(Record::Sensor(s));
         }
+        stream.extend(
+            merge
+                .remaining_protocol()
+                .iter()
+                .map(|p| Record::Protocol(*p)),
+        );
+        PlayerNode { stream, next: 0 }
     }
 
     /// The next message to publish, `None` at the end.
@@ -106,14 +110,20 @@ mod tests {
                 stamp_ns: 10,
                 ..Default::default()
             }],
-            protocol: vec![ProtocolState {
-                stamp_ns: 10,
-                ..Default::default()
-            }],
+            protocol: vec![
+                ProtocolState {
+                    stamp_ns: 10,
+                    ..Default::default()
+                },
+                ProtocolState {
+                    stamp_ns: 30,
+                    ..Default::default()
+                },
+            ],
             ..Default::default()
         };
         let mut n = PlayerNode::of(&r);
-        assert_eq!(n.len(), 5);
+        assert_eq!(n.len(), 6);
         let kinds: Vec<(char, u64)> = std::iter::from_fn(|| n.next_record())
             .map(|x| match x {
                 Record::Sensor(s) => {
@@ -127,7 +137,14 @@ mod tests {
             .collect();
         assert_eq!(
             kinds,
-            [('s', 0), ('p', 10), ('c', 10), ('s', 10), ('s', 20)]
+            [
+                ('s', 0),
+                ('p', 10),
+                ('c', 10),
+                ('s', 10),
+                ('s', 20),
+                ('p', 30)
+            ]
         );
         assert_eq!(n.next_record(), None);
     }
