@@ -2,13 +2,12 @@
 //! run the real exo binaries (built by `cargo test --workspace`) and watch
 //! their channels through iceoryx2 like any other subscriber.
 
-use std::fmt::Debug;
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Output, Stdio};
 use std::time::{Duration, Instant};
 
-use exo_service_kit::channels::Channel;
-use iceoryx2::prelude::ZeroCopySend;
+use exo_messages::channels::Topic;
+use exo_messages::Message;
 
 /// Path of a workspace binary in the same target directory as the running test.
 pub fn workspace_bin(name: &str) -> PathBuf {
@@ -175,12 +174,9 @@ impl Scenario {
         std::fs::read_to_string(self.dir.join(format!("{bin}.log"))).unwrap_or_default()
     }
 
-    /// A background subscriber collecting every sample of `ch`.
-    pub fn collect<T: Debug + ZeroCopySend + Copy + Send + 'static>(
-        &self,
-        ch: Channel,
-    ) -> Collector<T> {
-        Collector::start(&self.instance, ch)
+    /// A background subscriber collecting every sample of `topic`.
+    pub fn collect<T: Message>(&self, topic: Topic<T>) -> Collector<T> {
+        Collector::start(&self.instance, topic)
     }
 }
 
@@ -225,12 +221,12 @@ pub fn wait_exit(child: &mut Child, timeout: Duration, what: &str) -> std::proce
 /// ([`exo_service_kit::collect::Collector`] with the tests' panicking API).
 pub struct Collector<T: Copy + Send + 'static>(exo_service_kit::collect::Collector<T>);
 
-impl<T: Debug + ZeroCopySend + Copy + Send + 'static> Collector<T> {
-    fn start(instance: &str, ch: Channel) -> Self {
+impl<T: Message> Collector<T> {
+    fn start(instance: &str, topic: Topic<T>) -> Self {
         let node = format!("collector_{}", std::process::id());
         Collector(
-            exo_service_kit::collect::Collector::start(&node, instance, ch)
-                .unwrap_or_else(|e| panic!("collector on {ch:?}: {e}")),
+            exo_service_kit::collect::Collector::start(&node, instance, topic)
+                .unwrap_or_else(|e| panic!("collector on {topic:?}: {e}")),
         )
     }
 

@@ -14,8 +14,7 @@
 use std::f64::consts::TAU;
 
 use exo_impedance::design::{design, DesignInputs};
-use exo_messages::{ProtocolState, SensorSample};
-use exo_service_kit::channels::Channel;
+use exo_service_kit::channels::{PROTOCOL, SENSOR};
 use exo_tests::*;
 use num_complex::Complex64;
 
@@ -47,8 +46,8 @@ fn measure(subject: &str, f: f64, omega: f64, cycles: f64) -> Complex64 {
     sc.append(&format!(
         "\n[voluntary]\namplitude_rad = 0.05\nomega_rad_s = {omega}\nduration_s = {duration}\ngrip_kg = 14.0\nbias_nm = 4.0\nexperiment = 4\n"
     ));
-    let samples = sc.collect::<SensorSample>(Channel::Sensor);
-    let protocol = sc.collect::<ProtocolState>(Channel::Protocol);
+    let samples = sc.collect(SENSOR);
+    let protocol = sc.collect(PROTOCOL);
     let out = exo(&["run", sc.config.to_str().unwrap()]);
     assert!(
         out.status.success(),

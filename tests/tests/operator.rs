@@ -24,7 +24,7 @@ use exo_messages::{
     status, ActuatorCommand, ControlMode, OperatorCommand, OperatorCommandKind, ProtocolState,
     SensorSample,
 };
-use exo_service_kit::channels::Channel;
+use exo_service_kit::channels::{COMMAND, OPERATOR, PROTOCOL, SENSOR};
 use exo_service_kit::ipc::Ipc;
 use exo_tests::*;
 
@@ -132,8 +132,8 @@ fn key(p: &ProtocolState) -> (u32, u32, u32) {
 #[test]
 fn stop_ramps_out_and_holds_gravity_without_a_fault_and_start_continues() {
     let sc = scenario("opstop", "experiments = [4]", "periods = [1, 4]");
-    let protocol = sc.collect::<ProtocolState>(Channel::Protocol);
-    let commands = sc.collect::<ActuatorCommand>(Channel::Command);
+    let protocol = sc.collect(PROTOCOL);
+    let commands = sc.collect(COMMAND);
     let procs = start(&sc);
     // Experiment 4 (bias 4 Nm, sine 2 Nm), period 1, settling: bias and
     // sine on.
@@ -250,8 +250,8 @@ fn stop_ramps_out_and_holds_gravity_without_a_fault_and_start_continues() {
 #[test]
 fn start_5_ramps_out_and_runs_experiment_5() {
     let sc = scenario("opstart", "experiments = [1, 5]", "periods = [1, 4]");
-    let protocol = sc.collect::<ProtocolState>(Channel::Protocol);
-    let commands = sc.collect::<ActuatorCommand>(Channel::Command);
+    let protocol = sc.collect(PROTOCOL);
+    let commands = sc.collect(COMMAND);
     let procs = start(&sc);
     protocol.wait_for(WAIT, "experiment 1's settling", |p| {
         p.iter().any(|p| key(p) == (1, 1, SETTLING))
@@ -300,8 +300,8 @@ fn reset_clears_the_controllers_latched_fault() {
     // |τ_c| over 3 Nm latches: the subject raising the arm at the start
     // gets there (or else the 4 Nm bias in the ramp-in).
     sc.edit("tau_c_nm = 60.0", "tau_c_nm = 3.0");
-    let protocol = sc.collect::<ProtocolState>(Channel::Protocol);
-    let commands = sc.collect::<ActuatorCommand>(Channel::Command);
+    let protocol = sc.collect(PROTOCOL);
+    let commands = sc.collect(COMMAND);
     let procs = start(&sc);
     commands.wait_for(WAIT, "the latched safe state", |c| {
         c.iter().any(|c| c.mode == SAFE_GRAVITY)
@@ -360,7 +360,7 @@ fn reset_clears_the_drivers_latched_safe_state() {
         "safe_state = \"gravity_only\"",
         "safe_state = \"gravity_only\"\nlockstep_timeout_ms = 300.0",
     );
-    let samples = sc.collect::<SensorSample>(Channel::Sensor);
+    let samples = sc.collect(SENSOR);
     let mut procs = start(&sc);
     samples.wait_for(WAIT, "2000 samples", |s| s.iter().any(|s| s.seq >= 2000));
     // Without its controller the driver latches its safe state …
@@ -419,14 +419,9 @@ fn send_raw(sc: &Scenario, cmds: &[OperatorCommand], done: impl Fn() -> bool) {
         None,
     )
     .unwrap();
-    let out = ipc.outbox::<OperatorCommand>(Channel::Operator).unwrap();
+    let out = ipc.outbox(OPERATOR).unwrap();
     let t = Instant::now();
-    while ipc
-        .port_counts::<OperatorCommand>(Channel::Operator)
-        .unwrap()
-        .subscribers
-        < 2
-    {
+    while ipc.port_counts(OPERATOR).unwrap().subscribers < 2 {
         assert!(t.elapsed() < WAIT, "no controller and driver listening");
         std::thread::sleep(Duration::from_millis(5));
     }
@@ -461,8 +456,8 @@ fn unknown_kinds_bad_values_and_repeated_seqs_are_refused_and_change_nothing() {
     // were all handled), sending `cmds` after sample 1000.
     let run = |tag: &str, cmds: &[OperatorCommand], end: Option<u64>| {
         let sc = scenario(tag, "experiments = [4]", "periods = [1]");
-        let samples = sc.collect::<SensorSample>(Channel::Sensor);
-        let commands = sc.collect::<ActuatorCommand>(Channel::Command);
+        let samples = sc.collect(SENSOR);
+        let commands = sc.collect(COMMAND);
         let procs = start(&sc);
         let end = match end {
             Some(end) => end,

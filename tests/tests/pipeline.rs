@@ -6,8 +6,8 @@
 
 use std::time::Duration;
 
-use exo_messages::{status, ActuatorCommand, ControlMode, ProtocolState, SensorSample};
-use exo_service_kit::channels::Channel;
+use exo_messages::{status, ControlMode};
+use exo_service_kit::channels::{COMMAND, PROTOCOL, SENSOR};
 use exo_tests::*;
 
 const SHORT_RUN: &[(&str, &str)] = &[
@@ -18,8 +18,8 @@ const SHORT_RUN: &[(&str, &str)] = &[
 #[test]
 fn one_experiment_runs_end_to_end_through_the_launcher() {
     let sc = Scenario::new("e2e", SHORT_RUN);
-    let protocol = sc.collect::<ProtocolState>(Channel::Protocol);
-    let commands = sc.collect::<ActuatorCommand>(Channel::Command);
+    let protocol = sc.collect(PROTOCOL);
+    let commands = sc.collect(COMMAND);
     let out = exo(&["run", sc.config.to_str().unwrap()]);
     assert!(out.status.success(), "exo run failed:\n{}", stderr(&out));
     // The launcher saw the identifier and the recorder open their ports
@@ -88,8 +88,8 @@ fn one_experiment_runs_end_to_end_through_the_launcher() {
 #[test]
 fn nan_reading_latches_the_safe_state() {
     let sc = Scenario::new("nan", SHORT_RUN);
-    let commands = sc.collect::<ActuatorCommand>(Channel::Command);
-    let samples = sc.collect::<SensorSample>(Channel::Sensor);
+    let commands = sc.collect(COMMAND);
+    let samples = sc.collect(SENSOR);
     let mut procs = vec![
         sc.spawn("exo-plant-sim", &["--inject-fault-at", "3000"]),
         sc.spawn("exo-sensor-driver", &[]),
@@ -137,8 +137,8 @@ fn nan_reading_latches_the_safe_state() {
 #[test]
 fn killed_controller_brings_the_driver_to_its_safe_state_and_a_restart_works() {
     let sc = Scenario::new("kill", SHORT_RUN);
-    let samples = sc.collect::<SensorSample>(Channel::Sensor);
-    let commands = sc.collect::<ActuatorCommand>(Channel::Command);
+    let samples = sc.collect(SENSOR);
+    let commands = sc.collect(COMMAND);
     let mut plant = sc.spawn("exo-plant-sim", &[]);
     let mut driver = sc.spawn("exo-sensor-driver", &[]);
     let mut controller = sc.spawn("exo-controller", &[]);
@@ -203,8 +203,8 @@ fn killed_controller_brings_the_driver_to_its_safe_state_and_a_restart_works() {
 fn same_seed_gives_bit_identical_runs() {
     let run = |tag: &str| {
         let sc = Scenario::new(tag, SHORT_RUN);
-        let samples = sc.collect::<SensorSample>(Channel::Sensor);
-        let commands = sc.collect::<ActuatorCommand>(Channel::Command);
+        let samples = sc.collect(SENSOR);
+        let commands = sc.collect(COMMAND);
         let out = exo(&["run", sc.config.to_str().unwrap()]);
         assert!(out.status.success(), "{}", stderr(&out));
         let mut s = samples.finish();
@@ -255,7 +255,7 @@ fn the_driver_reports_its_control_round_trip() {
     let sc = Scenario::new("rtt", SHORT_RUN);
     sc.edit("[run]\n", "[run]\nmax_sim_time_s = 2.0\n");
     let report = sc.dir.join("round-trip.json");
-    let samples = sc.collect::<SensorSample>(Channel::Sensor);
+    let samples = sc.collect(SENSOR);
     let mut procs = [
         sc.spawn("exo-plant-sim", &[]),
         sc.spawn(
@@ -319,7 +319,7 @@ fn realtime_mode_runs_and_stops_cleanly() {
     sc.edit("rest_s = 1.0 ", "rest_s = 0.0 ");
     // A one-second protocol: shorten the period by running only part of it.
     sc.edit("[run]\n", "[run]\nmax_sim_time_s = 1.5\n");
-    let samples = sc.collect::<SensorSample>(Channel::Sensor);
+    let samples = sc.collect(SENSOR);
     let mut procs = [
         sc.spawn("exo-plant-sim", &[]),
         sc.spawn("exo-sensor-driver", &[]),
@@ -426,8 +426,7 @@ fn killing_the_launcher_stops_every_service_it_started() {
         .unwrap();
     let pid = launcher.id();
     // Wait (bounded) until the five services run and samples flow.
-    let samples =
-        sc.collect::<exo_messages::SensorSample>(exo_service_kit::channels::Channel::Sensor);
+    let samples = sc.collect(SENSOR);
     samples.wait_for(Duration::from_secs(120), "samples", |s| s.len() > 100);
     let services = children_of(pid);
     assert!(services.len() >= 5, "services of exo run: {services:?}");
@@ -485,7 +484,7 @@ fn a_run_that_latches_names_the_fault_and_exits_3() {
 #[test]
 fn a_second_controller_on_a_running_instance_is_refused() {
     let sc = Scenario::new("second", SHORT_RUN);
-    let commands = sc.collect::<ActuatorCommand>(Channel::Command);
+    let commands = sc.collect(COMMAND);
     let mut procs = vec![
         sc.spawn("exo-plant-sim", &[]),
         sc.spawn("exo-sensor-driver", &[]),

@@ -8,6 +8,7 @@ use std::process::Command;
 use std::time::Duration;
 
 use exo_config::Subject;
+use exo_service_kit::channels::SENSOR;
 use exo_tests::*;
 use serde_json::Value;
 
@@ -223,8 +224,7 @@ fn recorded_run(tag: &str, name: &str) -> RecordedRun {
     let sc = Scenario::new(tag, &[("periods = [1, 4, 7]", "periods = [1]")]);
     let rec = sc.dir.join(name);
     let recorder = sc.spawn("exo-recorder", &["--output", rec.to_str().unwrap()]);
-    let samples =
-        sc.collect::<exo_messages::SensorSample>(exo_service_kit::channels::Channel::Sensor);
+    let samples = sc.collect(SENSOR);
     let plant = sc.spawn("exo-plant-sim", &[]);
     let driver = sc.spawn("exo-sensor-driver", &[]);
     let controller = sc.spawn("exo-controller", &[]);

@@ -16,10 +16,11 @@ use std::time::{Duration, Instant};
 
 use anyhow::{bail, Result};
 use exo_config::TimingMode;
+use exo_messages::channels::ProcessName;
 use exo_messages::{
     ActuatorCommand, ImpedanceEstimate, OperatorCommand, ProtocolState, SensorSample,
 };
-use exo_service_kit::channels::Channel;
+use exo_service_kit::channels::{COMMAND, IDENTIFIER_ESTIMATE, OPERATOR, PROTOCOL, SENSOR};
 use exo_service_kit::ipc::{Connect, Inbox, Outbox};
 use exo_service_kit::runner::{Context, Flow, Process};
 use exo_service_kit::{RealtimeProcess, ServiceArgs, StopFlag};
@@ -46,21 +47,19 @@ pub struct ControllerProcess {
 
 impl Process for ControllerProcess {
     type Args = ServiceArgs;
-    const NAME: &'static str = "controller";
+    const NAME: ProcessName = ProcessName::Controller;
     const REALTIME: Option<RealtimeProcess> = Some(RealtimeProcess::Controller);
 
     fn open(cx: Context<'_, ServiceArgs>) -> Result<Self> {
         let (cfg, ipc) = (cx.cfg, cx.ipc);
-        let sensor_in = ipc
-            .inbox::<SensorSample>(Channel::Sensor, 64)?
-            .with_spin(cfg.lockstep_spin());
+        let sensor_in = ipc.inbox(SENSOR, 64)?.with_spin(cfg.lockstep_spin());
         // The operator inbox is opened before the protocol outbox: `exo op`
         // takes a publisher on the protocol channel as the sign that the
         // controller's operator subscriber exists.
-        let operator_in = ipc.inbox::<OperatorCommand>(Channel::Operator, 16)?;
-        let command_out = ipc.outbox::<ActuatorCommand>(Channel::Command)?;
-        let protocol_out = ipc.outbox::<ProtocolState>(Channel::Protocol)?;
-        let estimate_in = ipc.inbox::<ImpedanceEstimate>(Channel::IdentifierEstimate, 16)?;
+        let operator_in = ipc.inbox(OPERATOR, 16)?;
+        let command_out = ipc.outbox(COMMAND)?;
+        let protocol_out = ipc.outbox(PROTOCOL)?;
+        let estimate_in = ipc.inbox(IDENTIFIER_ESTIMATE, 16)?;
         let node = ControllerNode::new(cfg)?;
         let lockstep = cfg.run.timing == TimingMode::Lockstep;
         info!(

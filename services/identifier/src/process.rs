@@ -9,9 +9,10 @@
 use std::time::Duration;
 
 use anyhow::Result;
+use exo_messages::channels::ProcessName;
 use exo_messages::{ActuatorCommand, FrfPoint, ImpedanceEstimate, ProtocolState, SensorSample};
-use exo_service_kit::channels::Channel;
-use exo_service_kit::ipc::{Connect, Inbox, Outbox, MAX_BUFFER, OFF_PATH_COALESCE};
+use exo_service_kit::channels::{COMMAND, IDENTIFIER_ESTIMATE, IDENTIFIER_FRF, PROTOCOL, SENSOR};
+use exo_service_kit::ipc::{Connect, Inbox, Outbox, DEEPEST, OFF_PATH_COALESCE};
 use exo_service_kit::runner::{Context, Flow, Process};
 use exo_service_kit::{RealtimeProcess, ServiceArgs, StopFlag};
 use tracing::info;
@@ -31,7 +32,7 @@ pub struct IdentifierProcess {
 
 impl Process for IdentifierProcess {
     type Args = ServiceArgs;
-    const NAME: &'static str = "identifier";
+    const NAME: ProcessName = ProcessName::Identifier;
     const REALTIME: Option<RealtimeProcess> = None;
 
     fn open(cx: Context<'_, ServiceArgs>) -> Result<Self> {
@@ -39,11 +40,11 @@ impl Process for IdentifierProcess {
         let p = IdentifierProcess {
             id: Identifier::new(IdentifierSettings::of_run(cx.cfg)),
             events: Vec::with_capacity(64),
-            sensor_in: ipc.inbox::<SensorSample>(Channel::Sensor, MAX_BUFFER)?,
-            command_in: ipc.inbox::<ActuatorCommand>(Channel::Command, MAX_BUFFER)?,
-            protocol_in: ipc.inbox::<ProtocolState>(Channel::Protocol, 256)?,
-            frf_out: ipc.outbox::<FrfPoint>(Channel::IdentifierFrf)?,
-            estimate_out: ipc.outbox::<ImpedanceEstimate>(Channel::IdentifierEstimate)?,
+            sensor_in: ipc.inbox(SENSOR, DEEPEST)?,
+            command_in: ipc.inbox(COMMAND, DEEPEST)?,
+            protocol_in: ipc.inbox(PROTOCOL, 256)?,
+            frf_out: ipc.outbox(IDENTIFIER_FRF)?,
+            estimate_out: ipc.outbox(IDENTIFIER_ESTIMATE)?,
         };
         info!(
             "identifier: {} at {} Hz",

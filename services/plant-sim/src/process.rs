@@ -18,8 +18,9 @@ use std::time::{Duration, Instant};
 
 use anyhow::{bail, Result};
 use exo_config::TimingMode;
+use exo_messages::channels::ProcessName;
 use exo_messages::{BusMotorCommand, BusSensorFrame, ProtocolState};
-use exo_service_kit::channels::Channel;
+use exo_service_kit::channels::{BUS_MOTOR, BUS_SENSOR, PROTOCOL};
 use exo_service_kit::ipc::{Connect, Inbox, Outbox, REALTIME_SETTLE_PLANT};
 use exo_service_kit::runner::{Context, Flow, Process};
 use exo_service_kit::{monotonic_ns, sleep_until_ns, RealtimeProcess, ServiceArgs, StopFlag};
@@ -44,7 +45,7 @@ pub struct PlantProcess {
 
 impl Process for PlantProcess {
     type Args = ServiceArgs;
-    const NAME: &'static str = "plant-sim";
+    const NAME: ProcessName = ProcessName::PlantSim;
     const REALTIME: Option<RealtimeProcess> = Some(RealtimeProcess::PlantSim);
     const SETTLE: Duration = REALTIME_SETTLE_PLANT;
 
@@ -62,11 +63,9 @@ impl Process for PlantProcess {
         );
         Ok(PlantProcess {
             node,
-            bus_out: ipc.outbox::<BusSensorFrame>(Channel::BusSensor)?,
-            motor_in: ipc
-                .inbox::<BusMotorCommand>(Channel::BusMotor, 64)?
-                .with_spin(cfg.lockstep_spin()),
-            protocol_in: ipc.inbox::<ProtocolState>(Channel::Protocol, 64)?,
+            bus_out: ipc.outbox(BUS_SENSOR)?,
+            motor_in: ipc.inbox(BUS_MOTOR, 64)?.with_spin(cfg.lockstep_spin()),
+            protocol_in: ipc.inbox(PROTOCOL, 64)?,
             realtime: cfg.run.timing == TimingMode::Realtime,
             log_every: cfg.run.rate_hz as u64 * 10,
             missed_deadlines: 0,

@@ -8,9 +8,10 @@
 use std::time::Duration;
 
 use anyhow::{Context as _, Result};
+use exo_messages::channels::ProcessName;
 use exo_messages::{ActuatorCommand, ProtocolState, SensorSample};
 use exo_recorder::Record;
-use exo_service_kit::channels::Channel;
+use exo_service_kit::channels::{COMMAND, PROTOCOL, SENSOR};
 use exo_service_kit::ipc::{Connect, Outbox};
 use exo_service_kit::runner::{Context, Flow, Process};
 use exo_service_kit::{RealtimeProcess, ServiceArgs, StopFlag};
@@ -30,7 +31,7 @@ pub struct PlayerProcess {
 
 impl Process for PlayerProcess {
     type Args = ServiceArgs;
-    const NAME: &'static str = "player";
+    const NAME: ProcessName = ProcessName::Player;
     const REALTIME: Option<RealtimeProcess> = None;
 
     fn open(cx: Context<'_, ServiceArgs>) -> Result<Self> {
@@ -47,9 +48,9 @@ impl Process for PlayerProcess {
         );
         Ok(PlayerProcess {
             node,
-            sample_out: cx.ipc.outbox::<SensorSample>(Channel::Sensor)?,
-            command_out: cx.ipc.outbox::<ActuatorCommand>(Channel::Command)?,
-            protocol_out: cx.ipc.outbox::<ProtocolState>(Channel::Protocol)?,
+            sample_out: cx.ipc.outbox(SENSOR)?,
+            command_out: cx.ipc.outbox(COMMAND)?,
+            protocol_out: cx.ipc.outbox(PROTOCOL)?,
             period: Duration::from_secs_f64(1.0 / settings.pace_hz.unwrap_or(5000.0).max(1.0)),
             played: 0,
         })

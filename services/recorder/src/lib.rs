@@ -12,7 +12,7 @@
 //! writing thread encodes, compresses and writes them. A disk that stalls
 //! for seconds (page-cache pressure, another process reading gigabytes)
 //! then stalls only the writer, while the receiver keeps draining the
-//! subscriber buffers, which hold [`MAX_BUFFER`](exo_service_kit::ipc::MAX_BUFFER)
+//! subscriber buffers, which hold [`DEEPEST`](exo_service_kit::ipc::DEEPEST)
 //! samples per topic (8 s at 1 kHz, 0.8 s at 10 kHz). The batches queued
 //! between them are bounded ([`BatchSender`]); what does not fit is not
 //! written, and so is counted as a gap like any other miss.

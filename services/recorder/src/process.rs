@@ -1,4 +1,5 @@
-//! `exo-recorder` as a process: subscribes to every channel of the run and
+//! `exo-recorder` as a process: subscribes to every channel the channel
+//! table (`exo_messages::channels`) marks recorded and
 //! writes one contract MCAP (`--output FILE`, default
 //! `<run.output_dir>/<instance>-<subject>-<unix seconds>.mcap`) with the
 //! run's metadata and its configuration files attached, stepped by the one
@@ -18,12 +19,13 @@ use std::thread::JoinHandle;
 use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
 
 use anyhow::{Context, Result};
-use exo_messages::{
-    ActuatorCommand, BusMotorCommand, BusSensorFrame, FrfPoint, ImpedanceEstimate, OperatorCommand,
-    ProtocolState, SensorSample,
+use exo_messages::channels::ProcessName;
+use exo_messages::channels::{
+    Channel, Topic, BUS_MOTOR, BUS_SENSOR, CHANNELS, COMMAND, IDENTIFIER_ESTIMATE, IDENTIFIER_FRF,
+    OPERATOR, PROTOCOL, SENSOR,
 };
-use exo_service_kit::channels::Channel;
-use exo_service_kit::ipc::{Connect, Inbox, Ipc, MAX_BUFFER, OFF_PATH_COALESCE};
+use exo_messages::Message;
+use exo_service_kit::ipc::{Connect, Inbox, Ipc, DEEPEST, OFF_PATH_COALESCE};
 use exo_service_kit::runner::{Context as RunContext, Flow, Process};
 use exo_service_kit::{RealtimeProcess, ServiceArgs, StopFlag};
 use tracing::{info, warn};
@@ -47,21 +49,30 @@ pub const BATCH_MAX_AGE: Duration = Duration::from_millis(100);
 /// most about this much.
 const FLUSH_EVERY: Duration = Duration::from_secs(1);
 
-/// One subscribed topic.
-struct Tap<T: iceoryx2::prelude::ZeroCopySend + Send + std::fmt::Debug + Copy + 'static> {
+/// One subscribed channel.
+struct Tap<T: Message> {
     inbox: Inbox<T>,
     wrap: fn(T) -> Record,
 }
 
-impl<T: iceoryx2::prelude::ZeroCopySend + Send + std::fmt::Debug + Copy + 'static> Tap<T> {
-    fn open(ipc: &Ipc, ch: Channel, wrap: fn(T) -> Record) -> Result<Self> {
-        Ok(Tap {
-            inbox: ipc.inbox::<T>(ch, MAX_BUFFER)?,
-            wrap,
-        })
-    }
-
+/// A tap of any payload type.
+trait Drain {
     /// Moves everything waiting into the hand-off; returns how many.
+    fn drain(&self, out: &mut BatchSender) -> Result<usize>;
+    /// Waits up to `timeout` for a sample's wake-up event.
+    fn wait(&self, timeout: Duration) -> Result<()>;
+}
+
+impl<T: Message> Tap<T> {
+    fn boxed(ipc: &Ipc, topic: Topic<T>, wrap: fn(T) -> Record) -> Result<Box<dyn Drain>> {
+        Ok(Box::new(Tap {
+            inbox: ipc.inbox(topic, DEEPEST)?,
+            wrap,
+        }))
+    }
+}
+
+impl<T: Message> Drain for Tap<T> {
     fn drain(&self, out: &mut BatchSender) -> Result<usize> {
         let mut n = 0;
         while let Some(m) = self.inbox.try_recv()? {
@@ -70,46 +81,61 @@ impl<T: iceoryx2::prelude::ZeroCopySend + Send + std::fmt::Debug + Copy + 'stati
         }
         Ok(n)
     }
+
+    fn wait(&self, timeout: Duration) -> Result<()> {
+        self.inbox.wait(timeout)?;
+        Ok(())
+    }
+}
+
+/// The tap of `channel`, each channel with the record that carries its
+/// payload (the match is exhaustive: a new channel must be given its record
+/// here before the recorder builds).
+fn open_tap(ipc: &Ipc, channel: Channel) -> Result<Box<dyn Drain>> {
+    match channel {
+        Channel::Sensor => Tap::boxed(ipc, SENSOR, Record::Sensor),
+        Channel::Command => Tap::boxed(ipc, COMMAND, Record::Command),
+        Channel::Protocol => Tap::boxed(ipc, PROTOCOL, Record::Protocol),
+        Channel::IdentifierFrf => Tap::boxed(ipc, IDENTIFIER_FRF, Record::Frf),
+        Channel::IdentifierEstimate => Tap::boxed(ipc, IDENTIFIER_ESTIMATE, Record::Estimate),
+        Channel::Operator => Tap::boxed(ipc, OPERATOR, Record::Operator),
+        Channel::BusSensor => Tap::boxed(ipc, BUS_SENSOR, Record::BusSensor),
+        Channel::BusMotor => Tap::boxed(ipc, BUS_MOTOR, Record::BusMotor),
+    }
 }
 
 fn writer_gone() -> anyhow::Error {
     anyhow::anyhow!("the writing thread stopped")
 }
 
+/// A tap on every channel the table marks `recorded`; the sample channel's
+/// is the one waited on.
 struct Taps {
-    sensor: Tap<SensorSample>,
-    command: Tap<ActuatorCommand>,
-    protocol: Tap<ProtocolState>,
-    frf: Tap<FrfPoint>,
-    estimate: Tap<ImpedanceEstimate>,
-    operator: Tap<OperatorCommand>,
-    bus_sensor: Tap<BusSensorFrame>,
-    bus_motor: Tap<BusMotorCommand>,
+    sensor: Box<dyn Drain>,
+    others: Vec<Box<dyn Drain>>,
 }
 
 impl Taps {
     fn open(ipc: &Ipc) -> Result<Self> {
+        let mut others = Vec::new();
+        for c in CHANNELS
+            .iter()
+            .filter(|c| c.recorded && c.channel != Channel::Sensor)
+        {
+            others.push(open_tap(ipc, c.channel)?);
+        }
         Ok(Taps {
-            sensor: Tap::open(ipc, Channel::Sensor, Record::Sensor)?,
-            command: Tap::open(ipc, Channel::Command, Record::Command)?,
-            protocol: Tap::open(ipc, Channel::Protocol, Record::Protocol)?,
-            frf: Tap::open(ipc, Channel::IdentifierFrf, Record::Frf)?,
-            estimate: Tap::open(ipc, Channel::IdentifierEstimate, Record::Estimate)?,
-            operator: Tap::open(ipc, Channel::Operator, Record::Operator)?,
-            bus_sensor: Tap::open(ipc, Channel::BusSensor, Record::BusSensor)?,
-            bus_motor: Tap::open(ipc, Channel::BusMotor, Record::BusMotor)?,
+            sensor: open_tap(ipc, Channel::Sensor)?,
+            others,
         })
     }
 
     fn drain(&self, out: &mut BatchSender) -> Result<usize> {
-        Ok(self.sensor.drain(out)?
-            + self.command.drain(out)?
-            + self.protocol.drain(out)?
-            + self.frf.drain(out)?
-            + self.estimate.drain(out)?
-            + self.operator.drain(out)?
-            + self.bus_sensor.drain(out)?
-            + self.bus_motor.drain(out)?)
+        let mut n = self.sensor.drain(out)?;
+        for t in &self.others {
+            n += t.drain(out)?;
+        }
+        Ok(n)
     }
 }
 
@@ -151,7 +177,7 @@ pub struct RecorderProcess {
 
 impl Process for RecorderProcess {
     type Args = ServiceArgs;
-    const NAME: &'static str = "recorder";
+    const NAME: ProcessName = ProcessName::Recorder;
     const REALTIME: Option<RealtimeProcess> = None;
 
     fn open(cx: RunContext<'_, ServiceArgs>) -> Result<Self> {
@@ -210,7 +236,7 @@ impl Process for RecorderProcess {
         let n = self.taps.drain(&mut self.out)?;
         self.received += n as u64;
         if n == 0 {
-            self.taps.sensor.inbox.wait(Duration::from_millis(20))?;
+            self.taps.sensor.wait(Duration::from_millis(20))?;
         } else {
             std::thread::sleep(OFF_PATH_COALESCE);
         }

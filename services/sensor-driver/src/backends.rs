@@ -9,7 +9,7 @@ use std::time::Duration;
 use crate::node::raw_frame;
 use crate::{HardwareBus, RawFrame};
 use exo_messages::{BusMotorCommand, BusSensorFrame};
-use exo_service_kit::channels::Channel;
+use exo_service_kit::channels::{BUS_MOTOR, BUS_SENSOR};
 use exo_service_kit::ipc::{Connect, Inbox, Ipc, IpcError, Outbox};
 
 /// The plant simulator's bus: `BusSensorFrame`s in, `BusMotorCommand`s out,
@@ -28,10 +28,8 @@ impl SimulatorBus {
     /// `spin`: see `Inbox::with_spin` (lockstep only).
     pub fn open(ipc: &Ipc, spin: Duration) -> Result<Self, IpcError> {
         Ok(SimulatorBus {
-            frames: ipc
-                .inbox::<BusSensorFrame>(Channel::BusSensor, 64)?
-                .with_spin(spin),
-            motor: ipc.outbox::<BusMotorCommand>(Channel::BusMotor)?,
+            frames: ipc.inbox(BUS_SENSOR, 64)?.with_spin(spin),
+            motor: ipc.outbox(BUS_MOTOR)?,
             last: None,
             motor_seq: 0,
         })

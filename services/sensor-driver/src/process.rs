@@ -25,8 +25,9 @@ use std::time::{Duration, Instant};
 
 use anyhow::{bail, Context, Result};
 use exo_config::{BusBackend, TimingMode};
+use exo_messages::channels::ProcessName;
 use exo_messages::{ActuatorCommand, OperatorCommand, ProtocolState, SensorSample};
-use exo_service_kit::channels::Channel;
+use exo_service_kit::channels::{COMMAND, OPERATOR, PROTOCOL, SENSOR};
 use exo_service_kit::ipc::{Connect, Inbox, Outbox};
 use exo_service_kit::latency::fmt_us;
 use exo_service_kit::runner::{Context as RunContext, Flow, Process};
@@ -92,7 +93,7 @@ pub struct DriverProcess {
 
 impl Process for DriverProcess {
     type Args = DriverArgs;
-    const NAME: &'static str = "sensor-driver";
+    const NAME: ProcessName = ProcessName::SensorDriver;
     const REALTIME: Option<RealtimeProcess> = Some(RealtimeProcess::SensorDriver);
 
     fn open(cx: RunContext<'_, DriverArgs>) -> Result<Self> {
@@ -112,12 +113,10 @@ impl Process for DriverProcess {
             } / 1000.0,
         );
         let ports = Ports {
-            sample_out: ipc.outbox::<SensorSample>(Channel::Sensor)?,
-            command_in: ipc
-                .inbox::<ActuatorCommand>(Channel::Command, 64)?
-                .with_spin(cfg.lockstep_spin()),
-            protocol_in: ipc.inbox::<ProtocolState>(Channel::Protocol, 64)?,
-            operator_in: ipc.inbox::<OperatorCommand>(Channel::Operator, 16)?,
+            sample_out: ipc.outbox(SENSOR)?,
+            command_in: ipc.inbox(COMMAND, 64)?.with_spin(cfg.lockstep_spin()),
+            protocol_in: ipc.inbox(PROTOCOL, 64)?,
+            operator_in: ipc.inbox(OPERATOR, 16)?,
         };
         let bus = match cfg.bus.backend {
             BusBackend::Simulator => {

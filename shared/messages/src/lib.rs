@@ -28,14 +28,17 @@
 //! `validate(...)`, which name the offending field in a [`MessageError`], so
 //! NaN and infinities are stopped at the boundary.
 //!
-//! The channel table (service names, publisher and subscribers of each) and
-//! the IPC helpers live in `exo-service-kit` (`channels`, `ipc`); this crate
-//! holds only the payloads, so tools that read recordings need no iceoryx2
+//! The channel table ([`channels`]: every channel's name, payload type,
+//! publisher and subscribers, buffer bound, whether it is recorded and its
+//! MCAP schema, and the processes' names) is here too, beside the payloads
+//! it names; the IPC helpers that open the channels live in
+//! `exo-service-kit` (`ipc`), so tools that read recordings need no iceoryx2
 //! node.
 
 #![deny(missing_docs)]
 
 pub mod bus;
+pub mod channels;
 pub mod command;
 pub mod error;
 pub mod identifier;
@@ -48,6 +51,7 @@ use core::fmt::Debug;
 use iceoryx2::prelude::ZeroCopySend;
 
 pub use bus::{bus_status, wrench, BusLimits, BusMotorCommand, BusSensorFrame, MotorLimits};
+pub use channels::{Channel, ChannelInfo, ProcessName, Topic, CHANNELS};
 pub use command::{ActuatorCommand, CommandLimits, ControlMode};
 pub use error::MessageError;
 pub use identifier::{FitModel, FrfPoint, ImpedanceEstimate};

@@ -223,10 +223,10 @@ pub trait Recordable: exo_messages::Message {
 /// Implements [`Recordable`] from the topic, schema name, number of
 /// required fields and the field list (in CDR order, `_pad` left out).
 macro_rules! recordable {
-    ($ty:ident, $topic:literal, $schema:literal, required = $req:literal, [$($field:ident),+ $(,)?]) => {
+    ($ty:ident, $topic:expr, required = $req:literal, [$($field:ident),+ $(,)?]) => {
         impl $crate::cdr::Recordable for $ty {
-            const TOPIC: &'static str = $topic;
-            const SCHEMA_NAME: &'static str = $schema;
+            const TOPIC: &'static str = $topic.info().topic;
+            const SCHEMA_NAME: &'static str = $topic.info().schema;
             const REQUIRED_FIELDS: usize = $req;
             fn fields() -> Vec<(&'static str, &'static str)> {
                 fn ty_of<T: $crate::cdr::CdrField>(_: impl Fn(&$ty) -> T) -> &'static str {

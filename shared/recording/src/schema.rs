@@ -9,6 +9,7 @@
 //! (as `ProtocolState.stamp_ns` was), and readers default them to 0 when a
 //! writer leaves them out.
 
+use exo_messages::channels;
 use exo_messages::{
     ActuatorCommand, BusMotorCommand, BusSensorFrame, FrfPoint, ImpedanceEstimate, OperatorCommand,
     ProtocolState, SensorSample,
@@ -26,15 +27,13 @@ pub const MESSAGE_ENCODING: &str = "cdr";
 
 recordable!(
     SensorSample,
-    "exo/sensor",
-    "exo_msgs/msg/SensorSample",
+    channels::SENSOR,
     required = 7,
     [seq, stamp_ns, theta_e, omega_e, tau_c, tau_s, status]
 );
 recordable!(
     ActuatorCommand,
-    "exo/command",
-    "exo_msgs/msg/ActuatorCommand",
+    channels::COMMAND,
     required = 9,
     [
         seq,
@@ -50,15 +49,13 @@ recordable!(
 );
 recordable!(
     ProtocolState,
-    "exo/protocol",
-    "exo_msgs/msg/ProtocolState",
+    channels::PROTOCOL,
     required = 9,
     [experiment, period, phase, omega, amplitude, alpha, load_kg, grip_kg, bias_nm, stamp_ns]
 );
 recordable!(
     FrfPoint,
-    "exo/identifier/frf",
-    "exo_msgs/msg/FrfPoint",
+    channels::IDENTIFIER_FRF,
     required = 13,
     [
         seq,
@@ -81,8 +78,7 @@ recordable!(
 );
 recordable!(
     ImpedanceEstimate,
-    "exo/identifier/estimate",
-    "exo_msgs/msg/ImpedanceEstimate",
+    channels::IDENTIFIER_ESTIMATE,
     required = 24,
     [
         seq,
@@ -113,15 +109,13 @@ recordable!(
 );
 recordable!(
     OperatorCommand,
-    "exo/operator",
-    "exo_msgs/msg/OperatorCommand",
+    channels::OPERATOR,
     required = 4,
     [seq, stamp_ns, kind, value]
 );
 recordable!(
     BusSensorFrame,
-    "exo/bus/sensor",
-    "exo_msgs/msg/BusSensorFrame",
+    channels::BUS_SENSOR,
     required = 6,
     [
         seq,
@@ -134,8 +128,7 @@ recordable!(
 );
 recordable!(
     BusMotorCommand,
-    "exo/bus/motor",
-    "exo_msgs/msg/BusMotorCommand",
+    channels::BUS_MOTOR,
     required = 5,
     [seq, stamp_ns, frame_seq, tau_motor_nm, enable]
 );
@@ -293,5 +286,27 @@ mod tests {
             assert_eq!(find(t.topic).as_ref(), Some(t));
         }
         assert_eq!(find("exo/other"), None);
+    }
+
+    #[test]
+    fn the_contract_is_every_recorded_channel_with_its_payload() {
+        let mut recorded: Vec<_> = channels::CHANNELS
+            .iter()
+            .filter(|c| c.recorded)
+            .map(|c| c.topic)
+            .collect();
+        let mut topics: Vec<_> = contract().iter().map(|t| t.topic).collect();
+        recorded.sort_unstable();
+        topics.sort_unstable();
+        assert_eq!(topics, recorded);
+        for t in contract() {
+            let ch = channels::Channel::of_topic(t.topic).unwrap().info();
+            assert_eq!(ch.schema, t.schema_name);
+            assert!(
+                ch.payload.contains(&format!(".{}.", t.rust_type)),
+                "{}",
+                t.topic
+            );
+        }
     }
 }

@@ -2,19 +2,18 @@
 //! `exo` tool (progress, `exo tune`) and the integration tests use to watch a
 //! run from outside, like any other subscriber. Off the real-time path: it
 //! allocates, and it never blocks a publisher (a subscriber that falls more
-//! than [`MAX_BUFFER`](crate::ipc::MAX_BUFFER) samples behind loses the
+//! than the channel's `max_buffer` samples behind loses the
 //! oldest ones, which [`Collector::finish`] callers can see as `seq` gaps).
 
-use std::fmt::Debug;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{mpsc, Arc, Mutex, PoisonError};
 use std::thread::JoinHandle;
 use std::time::Duration;
 
-use iceoryx2::prelude::ZeroCopySend;
+use exo_messages::channels::Topic;
+use exo_messages::Message;
 
-use crate::channels::Channel;
-use crate::ipc::{Ipc, IpcError, MAX_BUFFER};
+use crate::ipc::{Ipc, IpcError, DEEPEST};
 
 /// Collects every sample of one channel on a background thread.
 pub struct Collector<T: Copy + Send + 'static> {
@@ -23,11 +22,11 @@ pub struct Collector<T: Copy + Send + 'static> {
     handle: Option<JoinHandle<Result<(), IpcError>>>,
 }
 
-impl<T: Debug + ZeroCopySend + Copy + Send + 'static> Collector<T> {
-    /// Subscribes to `ch` of `instance` (node `node_name`) and returns once
+impl<T: Message> Collector<T> {
+    /// Subscribes to `topic` of `instance` (node `node_name`) and returns once
     /// the subscription exists, so nothing published afterwards is missed.
-    pub fn start(node_name: &str, instance: &str, ch: Channel) -> Result<Self, IpcError> {
-        Self::start_filtered(node_name, instance, ch, |_| true)
+    pub fn start(node_name: &str, instance: &str, topic: Topic<T>) -> Result<Self, IpcError> {
+        Self::start_filtered(node_name, instance, topic, |_| true)
     }
 
     /// [`Collector::start`], keeping only the samples `keep` accepts (a
@@ -36,7 +35,7 @@ impl<T: Debug + ZeroCopySend + Copy + Send + 'static> Collector<T> {
     pub fn start_filtered(
         node_name: &str,
         instance: &str,
-        ch: Channel,
+        topic: Topic<T>,
         keep_if: impl Fn(&T) -> bool + Send + 'static,
     ) -> Result<Self, IpcError> {
         let samples = Arc::new(Mutex::new(Vec::new()));
@@ -50,7 +49,7 @@ impl<T: Debug + ZeroCopySend + Copy + Send + 'static> Collector<T> {
         );
         let handle = std::thread::spawn(move || -> Result<(), IpcError> {
             let opened = Ipc::open(&node, &inst, None)
-                .and_then(|ipc| ipc.inbox::<T>(ch, MAX_BUFFER).map(|inbox| (ipc, inbox)));
+                .and_then(|ipc| ipc.inbox(topic, DEEPEST).map(|inbox| (ipc, inbox)));
             let (_ipc, inbox) = match opened {
                 Ok(x) => {
                     let _ = ready_tx.send(Ok(()));

@@ -19,7 +19,8 @@ use iceoryx2::port::update_connections::UpdateConnections;
 use iceoryx2::prelude::*;
 use thiserror::Error;
 
-use crate::channels::Channel;
+use exo_messages::channels::{Channel, Topic};
+use exo_messages::Message;
 
 /// The iceoryx2 service flavour of exo: inter-process, shared memory.
 pub type Svc = iceoryx2::service::ipc::Service;
@@ -27,15 +28,17 @@ pub type Svc = iceoryx2::service::ipc::Service;
 /// Environment variable naming the iceoryx2 configuration file.
 pub const CONFIG_ENV: &str = "EXO_ICEORYX2_CONFIG";
 
-/// Deepest subscriber buffer a channel allows (the recorder's).
-pub const MAX_BUFFER: usize = 8192;
+/// The buffer to ask [`Ipc::inbox`] for to get the deepest the channel
+/// allows (its [`ChannelInfo::max_buffer`](exo_messages::channels::ChannelInfo),
+/// what the recorder and the identifier take).
+pub const DEEPEST: usize = usize::MAX;
 
 /// How long a process off the real-time path (identifier, recorder) sleeps
 /// after a pass that found samples, so that it takes them in batches rather
 /// than waking once per sample: at 1 kHz, or at tens of kHz in lockstep,
 /// one wake-up per sample costs the real-time path CPU time on a two-core
-/// machine. A millisecond's samples are far below the [`MAX_BUFFER`] a
-/// subscriber holds.
+/// machine. A millisecond's samples are far below the [`DEEPEST`] buffer a
+/// subscriber can hold.
 pub const OFF_PATH_COALESCE: Duration = Duration::from_millis(1);
 
 /// An IPC error, naming the service or file.
@@ -169,9 +172,9 @@ impl Ipc {
         state.cleanups as usize
     }
 
-    fn pubsub<T: Debug + ZeroCopySend + Copy + 'static>(
+    fn pubsub<T: Message>(
         &self,
-        ch: Channel,
+        topic: Topic<T>,
     ) -> Result<
         (
             String,
@@ -179,17 +182,18 @@ impl Ipc {
         ),
         IpcError,
     > {
-        let name = ch.service_name(&self.instance);
+        let info = topic.info();
+        let name = topic.channel().service_name(&self.instance);
         let sn = ServiceName::new(&name).map_err(|e| port_err("service name", &name, e))?;
         let factory = self
             .node
             .service_builder(&sn)
             .publish_subscribe::<T>()
-            .max_publishers(ch.info().max_publishers)
+            .max_publishers(info.max_publishers)
             .max_subscribers(8)
             .max_nodes(16)
             .history_size(1)
-            .subscriber_max_buffer_size(MAX_BUFFER)
+            .subscriber_max_buffer_size(info.max_buffer)
             .enable_safe_overflow(true)
             .open_or_create()
             .map_err(|e| port_err("open publish-subscribe service", &name, e))?;
@@ -223,12 +227,9 @@ impl Ipc {
         Ok(Some((name, factory)))
     }
 
-    /// How many publishers and subscribers `ch` has now, whoever they are.
-    pub fn port_counts<T: Debug + ZeroCopySend + Copy + 'static>(
-        &self,
-        ch: Channel,
-    ) -> Result<PortCounts, IpcError> {
-        let (_, f) = self.pubsub::<T>(ch)?;
+    /// How many publishers and subscribers `topic` has now, whoever they are.
+    pub fn port_counts<T: Message>(&self, topic: Topic<T>) -> Result<PortCounts, IpcError> {
+        let (_, f) = self.pubsub(topic)?;
         let d = f.dynamic_config();
         Ok(PortCounts {
             publishers: d.number_of_publishers(),
@@ -236,18 +237,16 @@ impl Ipc {
         })
     }
 
-    /// A publisher on `ch` and, where the channel has one, its wake-up notifier.
-    pub fn outbox<T: Debug + ZeroCopySend + Copy + 'static>(
-        &self,
-        ch: Channel,
-    ) -> Result<Outbox<T>, IpcError> {
-        let (name, f) = self.pubsub::<T>(ch)?;
-        let info = ch.info();
+    /// A publisher on `topic` and, where the channel has one, its wake-up
+    /// notifier.
+    pub fn outbox<T: Message>(&self, topic: Topic<T>) -> Result<Outbox<T>, IpcError> {
+        let (name, f) = self.pubsub(topic)?;
+        let info = topic.info();
         let publisher = f.publisher_builder().create().map_err(|e| {
             if info.max_publishers == 1 && f.dynamic_config().number_of_publishers() >= 1 {
                 IpcError::SecondPublisher {
                     service: name.clone(),
-                    owner: info.publisher,
+                    owner: info.publisher.name(),
                     instance: self.instance.clone(),
                     message: format!("{e:?}"),
                 }
@@ -255,7 +254,7 @@ impl Ipc {
                 port_err("create publisher", &name, e)
             }
         })?;
-        let notifier = match self.event(ch)? {
+        let notifier = match self.event(topic.channel())? {
             Some((en, ef)) => Some(
                 ef.notifier_builder()
                     .create()
@@ -270,20 +269,17 @@ impl Ipc {
         })
     }
 
-    /// A subscriber on `ch` with a buffer of `buffer` samples and, where the
-    /// channel has one, its wake-up listener.
-    pub fn inbox<T: Debug + ZeroCopySend + Copy + 'static>(
-        &self,
-        ch: Channel,
-        buffer: usize,
-    ) -> Result<Inbox<T>, IpcError> {
-        let (name, f) = self.pubsub::<T>(ch)?;
+    /// A subscriber on `topic` with a buffer of `buffer` samples (at most
+    /// the channel's `max_buffer`) and, where the channel has one, its
+    /// wake-up listener.
+    pub fn inbox<T: Message>(&self, topic: Topic<T>, buffer: usize) -> Result<Inbox<T>, IpcError> {
+        let (name, f) = self.pubsub(topic)?;
         let subscriber = f
             .subscriber_builder()
-            .buffer_size(buffer.clamp(1, MAX_BUFFER))
+            .buffer_size(buffer.clamp(1, topic.info().max_buffer))
             .create()
             .map_err(|e| port_err("create subscriber", &name, e))?;
-        let listener = match self.event(ch)? {
+        let listener = match self.event(topic.channel())? {
             Some((en, ef)) => Some(
                 ef.listener_builder()
                     .create()

@@ -19,6 +19,8 @@ use std::time::Duration;
 use anyhow::Result;
 use exo_config::{RunConfig, TimingMode};
 
+use exo_messages::channels::ProcessName;
+
 use crate::ipc::{settle_connections, Connect, Ipc, REALTIME_SETTLE};
 use crate::{init_logging, request_realtime, RealtimeProcess, RealtimeRequest, StopFlag};
 
@@ -45,9 +47,9 @@ pub struct Context<'a, A> {
 pub trait Process: Sized {
     /// The process's command line (every service's `ServiceArgs`, or more).
     type Args: clap::Parser + AsRef<crate::ServiceArgs>;
-    /// Its name in logs, e.g. `sensor-driver`; its iceoryx2 node is named
-    /// the same with `_` for `-`.
-    const NAME: &'static str;
+    /// Which process it is (its name in logs, e.g. `sensor-driver`, and
+    /// its iceoryx2 node name, e.g. `sensor_driver`).
+    const NAME: ProcessName;
     /// Its place on the control path, when it has one (real-time requests
     /// and connection settling apply to it).
     const REALTIME: Option<RealtimeProcess>;
@@ -68,7 +70,7 @@ pub trait Process: Sized {
 
 /// Runs process `P`: never returns; exits 0, or 1 with the error logged.
 pub fn main<P: Process>() -> ! {
-    init_logging(P::NAME);
+    init_logging(P::NAME.name());
     let code = match run::<P>(<P::Args as clap::Parser>::parse()) {
         Ok(()) => 0,
         Err(e) => {
@@ -84,7 +86,7 @@ fn run<P: Process>(args: P::Args) -> Result<()> {
     let cfg = RunConfig::from_file(&service.config)?;
     let stop = StopFlag::install()?;
     let ipc = Ipc::open(
-        &P::NAME.replace('-', "_"),
+        P::NAME.node_name(),
         &cfg.run.instance,
         service.iceoryx2_config.as_deref(),
     )?;
@@ -94,7 +96,10 @@ fn run<P: Process>(args: P::Args) -> Result<()> {
         args: &args,
     })?;
     if let (TimingMode::Realtime, Some(role)) = (cfg.run.timing, P::REALTIME) {
-        request_realtime(P::NAME, RealtimeRequest::of(cfg.realtime.as_ref(), role));
+        request_realtime(
+            P::NAME.name(),
+            RealtimeRequest::of(cfg.realtime.as_ref(), role),
+        );
         settle_connections(&process.ports(), P::SETTLE)?;
     }
     let looped = loop {
@@ -111,7 +116,7 @@ fn run<P: Process>(args: P::Args) -> Result<()> {
     // its file after an error too); the loop's error comes first.
     let finished = process.finish();
     if let (Err(_), Err(e)) = (&looped, &finished) {
-        tracing::error!("{}: winding down: {e:#}", P::NAME);
+        tracing::error!("{}: winding down: {e:#}", P::NAME.name());
     }
     looped.and(finished)
 }

@@ -9,7 +9,7 @@ use std::sync::atomic::{AtomicUsize, Ordering};
 use std::time::Duration;
 
 use exo_messages::SensorSample;
-use exo_service_kit::channels::Channel;
+use exo_service_kit::channels::SENSOR;
 use exo_service_kit::ipc::Ipc;
 
 struct Counting;
@@ -38,8 +38,8 @@ fn count<R>(f: impl FnOnce() -> R) -> (R, usize) {
 fn allocations_per_tick_of_the_ipc_calls() {
     let inst = format!("exotest-alloc-{}", std::process::id());
     let ipc = Ipc::open("alloc_test", &inst, None).unwrap();
-    let outbox = ipc.outbox::<SensorSample>(Channel::Sensor).unwrap();
-    let inbox = ipc.inbox::<SensorSample>(Channel::Sensor, 4).unwrap();
+    let outbox = ipc.outbox(SENSOR).unwrap();
+    let inbox = ipc.inbox(SENSOR, 4).unwrap();
     // Warm-up.
     for i in 0..100 {
         outbox

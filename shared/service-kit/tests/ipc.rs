@@ -3,7 +3,7 @@
 use std::time::Duration;
 
 use exo_messages::SensorSample;
-use exo_service_kit::channels::Channel;
+use exo_service_kit::channels::SENSOR;
 use exo_service_kit::ipc::Ipc;
 
 fn instance(tag: &str) -> String {
@@ -15,8 +15,8 @@ fn sensor_sample_arrives_bit_identical_with_a_wake_up() {
     let inst = instance("pubsub");
     let a = Ipc::open("test_pub", &inst, None).unwrap();
     let b = Ipc::open("test_sub", &inst, None).unwrap();
-    let inbox = b.inbox::<SensorSample>(Channel::Sensor, 4).unwrap();
-    let outbox = a.outbox::<SensorSample>(Channel::Sensor).unwrap();
+    let inbox = b.inbox(SENSOR, 4).unwrap();
+    let outbox = a.outbox(SENSOR).unwrap();
     let sent = SensorSample {
         seq: 42,
         stamp_ns: 7,
@@ -41,7 +41,7 @@ fn sensor_sample_arrives_bit_identical_with_a_wake_up() {
 fn bounded_wait_returns_none_without_a_publisher_sample() {
     let inst = instance("timeout");
     let b = Ipc::open("test_sub3", &inst, None).unwrap();
-    let inbox = b.inbox::<SensorSample>(Channel::Sensor, 4).unwrap();
+    let inbox = b.inbox(SENSOR, 4).unwrap();
     assert!(inbox
         .recv_timeout(Duration::from_millis(20))
         .unwrap()
@@ -65,7 +65,7 @@ fn missing_config_file_is_named() {
 fn probe_timed_wait_granularity() {
     let inst = instance("probe");
     let b = Ipc::open("test_probe", &inst, None).unwrap();
-    let inbox = b.inbox::<SensorSample>(Channel::Sensor, 4).unwrap();
+    let inbox = b.inbox(SENSOR, 4).unwrap();
     for us in [1u64, 100, 1000, 5000] {
         let t = std::time::Instant::now();
         for _ in 0..20 {

@@ -13,7 +13,7 @@ use std::sync::Arc;
 
 use anyhow::{Context, Result};
 use exo_messages::{status, ActuatorCommand, BusSensorFrame, ControlMode, SensorSample};
-use exo_service_kit::channels::Channel;
+use exo_service_kit::channels::{BUS_SENSOR, COMMAND, SENSOR};
 use exo_service_kit::collect::Collector;
 
 /// The exit code of a run that ended normally with a fault on the way
@@ -59,7 +59,7 @@ impl FaultWatch {
             commands: Collector::start_filtered(
                 &node,
                 instance,
-                Channel::Command,
+                COMMAND,
                 move |c: &ActuatorCommand| {
                     if c.mode == ControlMode::Done.as_u32() {
                         done.fetch_min(c.stamp_ns, Ordering::Relaxed);
@@ -68,13 +68,13 @@ impl FaultWatch {
                 },
             )
             .context("watching the commands for a safe state")?,
-            samples: Collector::start_filtered(&node, instance, Channel::Sensor, is_fault_sample)
+            samples: Collector::start_filtered(&node, instance, SENSOR, is_fault_sample)
                 .context("watching the samples for faults")?,
             // Keeps no frame, only the last one's stamp.
             frames: Collector::start_filtered(
                 &node,
                 instance,
-                Channel::BusSensor,
+                BUS_SENSOR,
                 move |f: &BusSensorFrame| {
                     last.store(f.stamp_ns, Ordering::Relaxed);
                     false

@@ -14,8 +14,8 @@ use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
 use anyhow::{bail, Context, Result};
 use clap::{Args, Subcommand};
 use exo_config::RunConfig;
-use exo_messages::{OperatorCommand, OperatorCommandKind, ProtocolState};
-use exo_service_kit::channels::Channel;
+use exo_messages::{OperatorCommand, OperatorCommandKind};
+use exo_service_kit::channels::{OPERATOR, PROTOCOL};
 use exo_service_kit::ipc::Ipc;
 
 /// How long the publisher stays after sending: the receivers take operator
@@ -115,7 +115,7 @@ pub fn run(args: &OpArgs) -> Result<()> {
     let node = format!("exo_op_{}", std::process::id());
     let ipc = Ipc::open(&node, &instance, args.iceoryx2_config.as_deref())
         .context("opening the operator console's iceoryx2 node")?;
-    let outbox = ipc.outbox::<OperatorCommand>(Channel::Operator)?;
+    let outbox = ipc.outbox(OPERATOR)?;
     if !controller_listens(&ipc, Duration::from_secs_f64(args.wait_s))? {
         bail!(
             "no controller is listening on `{}` (waited {} s): is the run with instance `{instance}` going (exo run RUN.toml)?",
@@ -145,14 +145,8 @@ pub fn run(args: &OpArgs) -> Result<()> {
 fn controller_listens(ipc: &Ipc, patience: Duration) -> Result<bool> {
     let start = Instant::now();
     loop {
-        let listening = ipc
-            .port_counts::<OperatorCommand>(Channel::Operator)?
-            .subscribers
-            > 0
-            && ipc
-                .port_counts::<ProtocolState>(Channel::Protocol)?
-                .publishers
-                > 0;
+        let listening =
+            ipc.port_counts(OPERATOR)?.subscribers > 0 && ipc.port_counts(PROTOCOL)?.publishers > 0;
         if listening {
             return Ok(true);
         }

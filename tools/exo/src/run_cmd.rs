@@ -11,7 +11,7 @@ use exo_config::{ProtocolMode, RunConfig, TimingMode};
 use std::time::Instant;
 
 use exo_messages::ProtocolState;
-use exo_service_kit::channels::Channel;
+use exo_service_kit::channels::{ProcessName, PROTOCOL};
 use exo_service_kit::collect::Collector;
 use exo_service_kit::KeptOff;
 
@@ -47,18 +47,12 @@ pub fn services_of(
 ) -> Result<Vec<ServiceSpec>> {
     let s = cfg.services;
     let mut out = Vec::new();
-    let table: [(bool, &'static str, &'static str, Role); 6] = [
-        (s.recorder, "recorder", "exo-recorder", Role::Restartable),
-        (
-            s.identifier,
-            "identifier",
-            "exo-identifier",
-            Role::Restartable,
-        ),
+    let table: [(bool, ProcessName, Role); 6] = [
+        (s.recorder, ProcessName::Recorder, Role::Restartable),
+        (s.identifier, ProcessName::Identifier, Role::Restartable),
         (
             s.plant_sim,
-            "plant-sim",
-            "exo-plant-sim",
+            ProcessName::PlantSim,
             // With run.max_sim_time_s the simulator's normal exit is the end.
             if cfg.run.max_sim_time_s.is_some() {
                 Role::EndsRun
@@ -68,8 +62,7 @@ pub fn services_of(
         ),
         (
             s.sensor_driver,
-            "sensor-driver",
-            "exo-sensor-driver",
+            ProcessName::SensorDriver,
             // Without a controller the driver ends the run.
             if s.controller {
                 Role::Critical
@@ -77,22 +70,23 @@ pub fn services_of(
                 Role::EndsRun
             },
         ),
-        (s.controller, "controller", "exo-controller", Role::EndsRun),
+        (s.controller, ProcessName::Controller, Role::EndsRun),
         // A recording played back: the run ends with it.
-        (s.player, "player", "exo-player", Role::EndsRun),
+        (s.player, ProcessName::Player, Role::EndsRun),
     ];
-    for (enabled, name, bin, role) in table {
+    for (enabled, process, role) in table {
         if enabled {
             let mut args = config_args(config);
-            if let (Some(r), "recorder") = (recording, name) {
+            if let (Some(r), ProcessName::Recorder) = (recording, process) {
                 args.push("--output".into());
                 args.push(r.display().to_string());
             }
-            let probe = match name {
-                "recorder" => Some(ReadyProbe::SubscribesBusMotor),
-                "identifier" => Some(ReadyProbe::PublishesEstimate),
+            let probe = match process {
+                ProcessName::Recorder => Some(ReadyProbe::SubscribesBusMotor),
+                ProcessName::Identifier => Some(ReadyProbe::PublishesEstimate),
                 _ => None,
             };
+            let (name, bin) = (process.name(), process.binary());
             out.push(ServiceSpec {
                 name,
                 program: sibling_program(bin)?,
@@ -123,7 +117,7 @@ impl Progress {
     pub fn start(instance: &str) -> Result<Self> {
         let node = format!("exo_progress_{}", std::process::id());
         Ok(Progress {
-            protocol: Collector::start(&node, instance, Channel::Protocol)
+            protocol: Collector::start(&node, instance, PROTOCOL)
                 .context("watching the protocol channel for progress")?,
             seen: 0,
             last: (0, 0),

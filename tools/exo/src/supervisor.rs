@@ -66,16 +66,10 @@ const READY_PATIENCE: Duration = Duration::from_secs(10);
 
 impl Ready {
     fn count(&self, ipc: &exo_service_kit::ipc::Ipc) -> Result<usize> {
-        use exo_service_kit::channels::Channel;
+        use exo_service_kit::channels::{BUS_MOTOR, IDENTIFIER_ESTIMATE};
         Ok(match self.probe {
-            ReadyProbe::SubscribesBusMotor => {
-                ipc.port_counts::<exo_messages::BusMotorCommand>(Channel::BusMotor)?
-                    .subscribers
-            }
-            ReadyProbe::PublishesEstimate => {
-                ipc.port_counts::<exo_messages::ImpedanceEstimate>(Channel::IdentifierEstimate)?
-                    .publishers
-            }
+            ReadyProbe::SubscribesBusMotor => ipc.port_counts(BUS_MOTOR)?.subscribers,
+            ReadyProbe::PublishesEstimate => ipc.port_counts(IDENTIFIER_ESTIMATE)?.publishers,
         })
     }
 }

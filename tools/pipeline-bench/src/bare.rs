@@ -12,7 +12,7 @@ use std::time::Duration;
 
 use anyhow::{bail, Context, Result};
 use exo_messages::{ActuatorCommand, BusMotorCommand, BusSensorFrame, SensorSample};
-use exo_service_kit::channels::Channel;
+use exo_service_kit::channels::{BUS_MOTOR, BUS_SENSOR, COMMAND, SENSOR};
 use exo_service_kit::ipc::Ipc;
 use exo_service_kit::{monotonic_ns, sleep_until_ns};
 
@@ -238,14 +238,14 @@ fn iceoryx2(spec: &LoopSpec, cast: &Cast) -> Result<LoopStats> {
     };
     let stats = match spec.shape {
         Shape::PingPong => {
-            let mut tx = ipc.outbox::<SensorSample>(Channel::Sensor)?;
-            let mut rx = ipc.inbox::<ActuatorCommand>(Channel::Command, 64)?;
+            let mut tx = ipc.outbox(SENSOR)?;
+            let mut rx = ipc.inbox(COMMAND, 64)?;
             controller(&mut fleet)?;
             probe_loop(&mut tx, &mut rx, spec, cast.bench, &mut fleet)?
         }
         Shape::ThreeProcess => {
-            let mut tx = ipc.outbox::<BusSensorFrame>(Channel::BusSensor)?;
-            let mut rx = ipc.inbox::<BusMotorCommand>(Channel::BusMotor, 64)?;
+            let mut tx = ipc.outbox(BUS_SENSOR)?;
+            let mut rx = ipc.inbox(BUS_MOTOR, 64)?;
             controller(&mut fleet)?;
             spawn_stand_in(&mut fleet, spec, "driver", "iox", &rest, &cast.driver)?;
             probe_loop(&mut tx, &mut rx, spec, cast.bench, &mut fleet)?

@@ -18,8 +18,7 @@ use std::time::{Duration, Instant};
 
 use anyhow::{bail, Context, Result};
 use exo_config::{ProtocolMode, RunConfig, ServiceSet, TimingMode};
-use exo_messages::{ActuatorCommand, BusMotorCommand, ProtocolState};
-use exo_service_kit::channels::Channel;
+use exo_service_kit::channels::{BUS_MOTOR, COMMAND, PROTOCOL};
 use exo_service_kit::ipc::Ipc;
 use exo_service_kit::monotonic_ns;
 use serde::Deserialize;
@@ -229,14 +228,8 @@ pub fn realtime(
         Observe::DriverRoundTrip => {
             return driver_round_trip(bins, &ipc, &config, warmup, measure, dir)
         }
-        Observe::MotorCommand => (
-            Some(ipc.inbox::<BusMotorCommand>(Channel::BusMotor, 64)?),
-            None,
-        ),
-        Observe::ActuatorCommand => (
-            None,
-            Some(ipc.inbox::<ActuatorCommand>(Channel::Command, 64)?),
-        ),
+        Observe::MotorCommand => (Some(ipc.inbox(BUS_MOTOR, 64)?), None),
+        Observe::ActuatorCommand => (None, Some(ipc.inbox(COMMAND, 64)?)),
     };
     // (frame seq, frame stamp ns, in normal operation) of the next answer.
     let next = || -> Result<Option<(u64, u64, bool)>> {
@@ -346,7 +339,7 @@ fn driver_round_trip(
     measure: Duration,
     dir: &Path,
 ) -> Result<RealtimeResult> {
-    let protocol_in = ipc.inbox::<ProtocolState>(Channel::Protocol, 64)?;
+    let protocol_in = ipc.inbox(PROTOCOL, 64)?;
     let report_path = dir.join("pipeline-realtime-round-trip.json");
     let _ = std::fs::remove_file(&report_path);
     let warmup_s = warmup.as_secs_f64().to_string();
@@ -438,7 +431,7 @@ pub fn lockstep(
     cfg.run.lockstep_spin_us = spin_us;
     write_config(&cfg, &config)?;
     let ipc = Ipc::open("bench_observer", &instance, None)?;
-    let protocol_in = ipc.inbox::<ProtocolState>(Channel::Protocol, 64)?;
+    let protocol_in = ipc.inbox(PROTOCOL, 64)?;
     let mut fleet = Fleet::new(dir);
     spawn_services(&mut fleet, bins, &config, &[])?;
 

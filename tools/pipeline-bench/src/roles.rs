@@ -12,7 +12,7 @@ use std::time::{Duration, Instant};
 
 use anyhow::{bail, Context, Result};
 use exo_messages::{ActuatorCommand, BusMotorCommand, BusSensorFrame, SensorSample};
-use exo_service_kit::channels::Channel;
+use exo_service_kit::channels::{BUS_MOTOR, BUS_SENSOR, COMMAND, SENSOR};
 use exo_service_kit::ipc::Ipc;
 use exo_service_kit::{request_realtime, RealtimeRequest, StopFlag};
 
@@ -236,16 +236,16 @@ pub fn run_role(a: &RoleArgs) -> Result<()> {
             match a.role {
                 Role::Controller => {
                     let ipc = Ipc::open("bench_controller", instance, None)?;
-                    let mut rx = ipc.inbox::<SensorSample>(Channel::Sensor, 64)?;
-                    let mut tx = ipc.outbox::<ActuatorCommand>(Channel::Command)?;
+                    let mut rx = ipc.inbox(SENSOR, 64)?;
+                    let mut tx = ipc.outbox(COMMAND)?;
                     serve_controller(&mut rx, &mut tx, &stop)
                 }
                 Role::Driver => {
                     let ipc = Ipc::open("bench_driver", instance, None)?;
-                    let mut plant_rx = ipc.inbox::<BusSensorFrame>(Channel::BusSensor, 64)?;
-                    let mut plant_tx = ipc.outbox::<BusMotorCommand>(Channel::BusMotor)?;
-                    let mut ctrl_tx = ipc.outbox::<SensorSample>(Channel::Sensor)?;
-                    let mut ctrl_rx = ipc.inbox::<ActuatorCommand>(Channel::Command, 64)?;
+                    let mut plant_rx = ipc.inbox(BUS_SENSOR, 64)?;
+                    let mut plant_tx = ipc.outbox(BUS_MOTOR)?;
+                    let mut ctrl_tx = ipc.outbox(SENSOR)?;
+                    let mut ctrl_rx = ipc.inbox(COMMAND, 64)?;
                     serve_driver(
                         &mut plant_rx,
                         &mut plant_tx,
