@@ -110,6 +110,89 @@ impl Delay {
     }
 }
 
+/// `next = [Φ Γ] [x; u]` with `[Φ Γ]` row by row (`rows`), for `N` states.
+#[inline(always)]
+fn apply_rows<const N: usize>(rows: &[f64], x: &[f64], u: &[f64], next: &mut [f64]) {
+    if x.len() != N || u.len() != N_INPUTS || next.len() != N {
+        return apply_rows_any(rows, x, u, next);
+    }
+    let (Ok(x), Ok(u), Ok(next)) = (
+        <&[f64; N]>::try_from(x),
+        <&[f64; N_INPUTS]>::try_from(u),
+        <&mut [f64; N]>::try_from(next),
+    ) else {
+        return;
+    };
+    for (next, row) in next.iter_mut().zip(rows.chunks_exact(N + N_INPUTS)) {
+        let (phi, gamma) = row.split_at(N);
+        let mut acc = 0.0;
+        for j in 0..N {
+            acc += phi[j] * x[j];
+        }
+        for j in 0..N_INPUTS {
+            acc += gamma[j] * u[j];
+        }
+        *next = acc;
+    }
+}
+
+/// [`apply_rows`] for any number of states.
+fn apply_rows_any(rows: &[f64], x: &[f64], u: &[f64], next: &mut [f64]) {
+    let width = x.len() + u.len();
+    for (next, row) in next.iter_mut().zip(rows.chunks_exact(width)) {
+        let (phi, gamma) = row.split_at(x.len());
+        let mut acc = 0.0;
+        for (p, xj) in phi.iter().zip(x) {
+            acc += p * xj;
+        }
+        for (g, uj) in gamma.iter().zip(u) {
+            acc += g * uj;
+        }
+        *next = acc;
+    }
+}
+
+/// `sin θ` for a θ that moves little from one call to the next: the sine
+/// and cosine of an anchor θ₀ are kept, and `sin θ = sin θ₀ cos δ +
+/// cos θ₀ sin δ` with `δ = θ − θ₀` and the series of `cos δ`, `sin δ` to
+/// the 5th order; the anchor moves to θ when |δ| exceeds [`SineNear::REACH`].
+/// Within the reach the series' truncation error is below δ⁶/720 ≈ 1e-21,
+/// so the result is `sin θ` to rounding (tested against `f64::sin`), at a
+/// fraction of a `sin` call: the integration's gravity term needs one every
+/// 0.1 ms, where θ moves by 1e-3 rad at the most.
+#[derive(Debug, Clone, Copy)]
+struct SineNear {
+    theta0: f64,
+    sin0: f64,
+    cos0: f64,
+}
+
+impl SineNear {
+    /// The widest step from the anchor (rad) the series covers.
+    const REACH: f64 = 2e-3;
+
+    fn new(theta: f64) -> Self {
+        let (sin0, cos0) = theta.sin_cos();
+        SineNear {
+            theta0: theta,
+            sin0,
+            cos0,
+        }
+    }
+
+    fn sin(&mut self, theta: f64) -> f64 {
+        let d = theta - self.theta0;
+        if d.abs() > Self::REACH || !d.is_finite() {
+            *self = SineNear::new(theta);
+            return self.sin0;
+        }
+        let d2 = d * d;
+        let cos_d = 1.0 - d2 * (0.5 - d2 / 24.0);
+        let sin_d = d * (1.0 - d2 * (1.0 / 6.0 - d2 / 120.0));
+        self.sin0 * cos_d + self.cos0 * sin_d
+    }
+}
+
 /// The plant.
 #[derive(Debug, Clone)]
 pub struct Plant {
@@ -126,6 +209,14 @@ pub struct Plant {
     phi_gamma_rows: Vec<f64>,
     a: DMatrix<f64>,
     b: DMatrix<f64>,
+    /// The rigid cuff's torque as a row over `[x u]` (`n + N_INPUTS`):
+    /// `τ_c = row · [x u] − K_tot θ_eq − B_h ω_eq`, the forearm's
+    /// `M_h ω̇_e` less its impedance torque and the reflex
+    /// (see [`Plant::tau_c_nm`]); empty with a compliant cuff.
+    tau_c_row: Vec<f64>,
+    /// `K_∞ + Σ k_i` of the bank (Nm/rad), the impedance's static stiffness.
+    k_total: f64,
+    gravity_sine: SineNear,
     x: DVector<f64>,
     x_next: DVector<f64>,
     u: DVector<f64>,
@@ -139,6 +230,9 @@ pub struct Plant {
     reflex_alpha: f64,
     theta_delay: Delay,
     tau_c_delay: Delay,
+    /// With no cuff-sensor delay, the last step's τ_c is computed only when
+    /// it is read ([`Plant::settle_tau_c`]): one sample in ten is.
+    tau_c_pending: bool,
     tau_s_delay: Delay,
     tau_d_held: f64,
     external_torque_nm: f64,
@@ -178,6 +272,9 @@ impl Plant {
             phi_gamma_rows: Vec::new(),
             a: DMatrix::zeros(0, 0),
             b: DMatrix::zeros(0, 0),
+            tau_c_row: Vec::new(),
+            k_total: 0.0,
+            gravity_sine: SineNear::new(model.human.rest_angle_rad),
             x: DVector::zeros(0),
             x_next: DVector::zeros(0),
             u: DVector::zeros(N_INPUTS),
@@ -196,6 +293,7 @@ impl Plant {
                 model.human.rest_angle_rad,
             ),
             tau_c_delay: Delay::new(steps_of(model.sensors.cuff_ft.terms.delay_s, h), 0.0),
+            tau_c_pending: false,
             tau_s_delay: Delay::new(steps_of(model.sensors.sea_deflection.terms.delay_s, h), 0.0),
             tau_d_held: 0.0,
             external_torque_nm: 0.0,
@@ -284,12 +382,25 @@ impl Plant {
     /// Sets what the human does.
     pub fn set_drive(&mut self, drive: HumanDrive) {
         if drive.theta_eq_rad.is_finite() && drive.omega_eq_rad_s.is_finite() {
+            self.settle_tau_c();
             self.drive = drive;
+        }
+    }
+
+    /// Pushes the last step's τ_c into its (zero-length) delay line if it
+    /// has not been yet: before it is read, and before anything it depends
+    /// on (the state space, the drive) changes.
+    fn settle_tau_c(&mut self) {
+        if self.tau_c_pending {
+            self.tau_c_pending = false;
+            let tau_c = self.tau_c_nm();
+            self.tau_c_delay.push(tau_c);
         }
     }
 
     /// Rebuilds the state space and its discretisation (on parameter changes only).
     fn rebuild(&mut self) {
+        self.settle_tau_c();
         let m = &self.model;
         let hd = m.human.hysteretic_damping;
         let spring = PronyBank {
@@ -462,6 +573,20 @@ impl Plant {
             b[(1, U_TAU_NL)] += 1.0 / m_tot;
             b[(1, U_TAU_REFLEX)] += 1.0 / m_tot;
         }
+        // The rigid cuff's torque: what accelerates the forearm
+        // (M_h ω̇_e, from the rows of A and B) less the forearm's impedance
+        // torque (imp_x·x + K_tot θ_eq + B_h ω_eq) and the reflex.
+        self.tau_c_row = if compliant {
+            Vec::new()
+        } else {
+            (0..n)
+                .map(|j| m_h * a[(1, j)] - imp_x[j])
+                .chain(
+                    (0..N_INPUTS).map(|j| m_h * b[(1, j)] - f64::from(u8::from(j == U_TAU_REFLEX))),
+                )
+                .collect()
+        };
+        self.k_total = k_total;
         let (phi, gamma) = zoh(&a, &b, m.integration.step_s);
         // Carry the state over a rebuild (new Prony states start at θ_h).
         let mut x = DVector::<f64>::zeros(n);
@@ -504,25 +629,42 @@ impl Plant {
         self.x_next = DVector::zeros(n);
     }
 
-    fn nonlinear_torque(&self) -> f64 {
-        let m = &self.model;
+    fn nonlinear_torque(&mut self) -> f64 {
         let (th, w) = (self.x[self.layout.th_e], self.x[self.layout.w_e]);
-        let mut tau = self.external_torque_nm - self.gravity_torque(th);
-        let c = m.joint_friction.coulomb;
+        let mut tau = self.external_torque_nm - self.gravity_torque_tracked(th);
+        let c = self.model.joint_friction.coulomb;
         if c.enabled {
             tau -= c.torque_nm * (w / c.smoothing_rad_s).tanh();
         }
         tau
     }
 
-    fn gravity_torque(&self, theta: f64) -> f64 {
+    /// `g (m_a l_a + m_L l_L)` (Nm), 0 when gravity is off.
+    fn gravity_moment_nm(&self) -> f64 {
         let g = &self.model.gravity;
         if !g.enabled {
             return 0.0;
         }
-        g.g_m_s2
-            * (g.arm_mass_kg * g.arm_com_m + self.load_kg * self.model.exo.load_lever_arm_m)
-            * theta.sin()
+        g.g_m_s2 * (g.arm_mass_kg * g.arm_com_m + self.load_kg * self.model.exo.load_lever_arm_m)
+    }
+
+    /// The gravity torque at `theta` (Nm): `g (m_a l_a + m_L l_L) sin θ`.
+    fn gravity_torque(&self, theta: f64) -> f64 {
+        let moment = self.gravity_moment_nm();
+        if moment == 0.0 {
+            return 0.0;
+        }
+        moment * theta.sin()
+    }
+
+    /// [`Plant::gravity_torque`] on the integration path, its sine carried
+    /// from step to step ([`SineNear`]) instead of a `sin` per step.
+    fn gravity_torque_tracked(&mut self, theta: f64) -> f64 {
+        let moment = self.gravity_moment_nm();
+        if moment == 0.0 {
+            return 0.0;
+        }
+        moment * self.gravity_sine.sin(theta)
     }
 
     /// Advances one integration step with motor command `tau_d_nm`. Allocation-free.
@@ -540,28 +682,25 @@ impl Plant {
         self.u[U_TAU_NL] = self.nonlinear_torque();
         self.u[U_TAU_REFLEX] = self.reflex_torque();
         let (x, u) = (self.x.as_slice(), self.u.as_slice());
-        let width = x.len() + u.len();
-        for (next, row) in self
-            .x_next
-            .iter_mut()
-            .zip(self.phi_gamma_rows.chunks_exact(width))
-        {
-            let (phi, gamma) = row.split_at(x.len());
-            let mut acc = 0.0;
-            for (p, xj) in phi.iter().zip(x) {
-                acc += p * xj;
-            }
-            for (g, uj) in gamma.iter().zip(u) {
-                acc += g * uj;
-            }
-            *next = acc;
+        let (rows, next) = (&self.phi_gamma_rows, self.x_next.as_mut_slice());
+        // The common shapes with their size known to the compiler (rigid
+        // cuff with the SEA: 4 states; compliant cuff with the SEA: 6), so
+        // the product is unrolled; any other shape (a Prony bank) in a loop.
+        match x.len() {
+            4 => apply_rows::<4>(rows, x, u, next),
+            6 => apply_rows::<6>(rows, x, u, next),
+            _ => apply_rows_any(rows, x, u, next),
         }
         std::mem::swap(&mut self.x, &mut self.x_next);
         self.t_s += self.model.integration.step_s;
         self.drive.theta_eq_rad += self.drive.omega_eq_rad_s * self.model.integration.step_s;
         self.advance_reflex();
         self.theta_delay.push(self.x[self.layout.th_e]);
-        self.tau_c_delay.push(self.tau_c_nm());
+        if self.tau_c_delay.buf.len() == 1 {
+            self.tau_c_pending = true;
+        } else {
+            self.tau_c_delay.push(self.tau_c_nm());
+        }
         self.tau_s_delay.push(self.tau_s_nm());
     }
 
@@ -598,6 +737,8 @@ impl Plant {
         self.reflex_lp[1] += a * (self.reflex_lp[0] - self.reflex_lp[1]);
     }
 
+    /// The forearm's impedance torque (Nm) at the current state and drive.
+    #[cfg(test)]
     fn impedance_torque(&self) -> f64 {
         let l = self.layout;
         let x = &self.x;
@@ -643,20 +784,23 @@ impl Plant {
             c.stiffness_nm_per_rad * (x[l.th_e] - x[l.th_h])
                 + c.damping_nm_s_per_rad * (x[l.w_e] - x[l.w_h])
         } else {
-            // Rigid: the cuff supplies what accelerates the forearm against its impedance.
+            // Rigid: the cuff supplies what accelerates the forearm against
+            // its impedance and the reflex (`tau_c_row`).
+            let (row_x, row_u) = self.tau_c_row.split_at(l.n);
             let mut acc = 0.0;
-            for j in 0..l.n {
-                acc += self.a[(l.w_e, j)] * x[j];
+            for (r, xj) in row_x.iter().zip(x.iter()) {
+                acc += r * xj;
             }
-            for j in 0..N_INPUTS {
-                acc += self.b[(l.w_e, j)] * self.u[j];
+            for (r, uj) in row_u.iter().zip(self.u.iter()) {
+                acc += r * uj;
             }
-            self.model.human.inertia_kg_m2 * acc - self.impedance_torque() - self.u[U_TAU_REFLEX]
+            acc - self.k_total * self.drive.theta_eq_rad - self.b_human * self.drive.omega_eq_rad_s
         }
     }
 
     /// The raw sensor readings now (delayed, with gain, offset, noise and quantisation).
     pub fn raw_sensors(&mut self) -> RawSensors {
+        self.settle_tau_c();
         let s = self.model.sensors;
         let tau = std::f64::consts::TAU;
         let e = s.encoder.terms;
@@ -679,6 +823,140 @@ impl Plant {
             cuff_wrench: [0.0, f_y, 0.0, 0.0, 0.0, 0.0],
             sea_deflection_counts: (deflection / tau * s.sea_deflection.counts_per_rev).round()
                 as i64,
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn default_model() -> PlantModel {
+        let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("../../configs/plants/default.toml");
+        PlantModel::from_file(&path).unwrap()
+    }
+
+    #[test]
+    fn the_carried_sine_is_the_sine_to_rounding() {
+        // A walk of small steps (as the integration takes), then jumps.
+        let mut s = SineNear::new(0.3);
+        let mut theta: f64 = 0.3;
+        let mut worst: f64 = 0.0;
+        for i in 0..200_000 {
+            theta += 1.1e-3 * ((i as f64) * 0.0137).sin();
+            worst = worst.max((s.sin(theta) - theta.sin()).abs());
+        }
+        for theta in [-3.0, 2.5, 1e-9, -0.7, 100.0, 0.0] {
+            worst = worst.max((s.sin(theta) - theta.sin()).abs());
+        }
+        assert!(worst <= 4.0 * f64::EPSILON, "worst error {worst:e}");
+        // Just inside and just outside the reach from the anchor.
+        let mut s = SineNear::new(1.0);
+        for d in [SineNear::REACH, -SineNear::REACH, 1.5 * SineNear::REACH] {
+            assert!((s.sin(1.0 + d) - (1.0 + d).sin()).abs() <= 4.0 * f64::EPSILON);
+        }
+    }
+
+    #[test]
+    fn the_rigid_cuff_torque_row_is_the_forearms_balance() {
+        // τ_c = M_h ω̇_e − τ_imp − τ_reflex, written out from A, B and the
+        // impedance, against the precomputed row, with every term of the
+        // row on: viscous damping, the reflex, gravity, a moving drive.
+        let mut m = default_model();
+        m.human.viscous_damping.enabled = true;
+        m.human.viscous_damping.b_nm_s_per_rad = 0.8;
+        m.human.stretch_reflex.enabled = true;
+        m.human.stretch_reflex.gain_nm_s_per_rad = 2.0;
+        m.human.stretch_reflex.delay_s = 0.001;
+        assert!(!m.cuff.compliance.enabled);
+        let mut p = Plant::new(&m);
+        p.set_human_impedance(40.0, 12.0);
+        p.set_excitation_omega(6.0);
+        p.set_drive(HumanDrive {
+            theta_eq_rad: 0.5,
+            omega_eq_rad_s: 0.3,
+        });
+        let mut checked = 0;
+        for i in 0..3000 {
+            p.step(4.0 * (i as f64 * 0.004).sin());
+            let l = p.layout;
+            let mut acc = 0.0;
+            for j in 0..l.n {
+                acc += p.a[(l.w_e, j)] * p.x[j];
+            }
+            for j in 0..N_INPUTS {
+                acc += p.b[(l.w_e, j)] * p.u[j];
+            }
+            let reference = m.human.inertia_kg_m2 * acc - p.impedance_torque() - p.u[U_TAU_REFLEX];
+            let got = p.tau_c_nm();
+            assert!(
+                (got - reference).abs() <= 1e-9 * (1.0 + reference.abs()),
+                "step {i}: {got} vs {reference}"
+            );
+            checked += usize::from(reference.abs() > 0.1);
+        }
+        assert!(checked > 1000, "the torque was too small to check");
+    }
+
+    #[test]
+    fn an_undelayed_cuff_reading_is_the_torque_at_the_end_of_the_last_step() {
+        // τ_c of a step is computed when read; a change of drive or of the
+        // human's impedance between the step and the reading must not
+        // change what is read.
+        let mut m = default_model();
+        m.sensors.cuff_ft.terms.delay_s = 0.0;
+        m.sensors.cuff_ft.terms.noise_std = 0.0;
+        m.sensors.cuff_ft.terms.gain = 1.0;
+        m.sensors.cuff_ft.terms.offset = 0.0;
+        m.sensors.cuff_ft.force_resolution_n = 0.0;
+        let lever = m.sensors.cuff_ft.lever_arm_m;
+        let mut p = Plant::new(&m);
+        for i in 0..500 {
+            p.step(3.0 * (i as f64 * 0.01).sin());
+            let expected = p.truth().tau_c_nm;
+            if i % 3 == 0 {
+                p.set_drive(HumanDrive {
+                    theta_eq_rad: 0.2 + 1e-3 * i as f64,
+                    omega_eq_rad_s: 0.5,
+                });
+            }
+            if i % 7 == 0 {
+                p.set_human_impedance(30.0 + i as f64, 10.0);
+            }
+            if i % 2 == 0 {
+                let read = p.raw_sensors().cuff_wrench[1] * lever;
+                assert!(
+                    (read - expected).abs() <= 1e-12 * (1.0 + expected.abs()),
+                    "step {i}: read {read}, torque at the step's end {expected}"
+                );
+            }
+        }
+    }
+
+    #[test]
+    fn the_unrolled_product_is_the_general_one() {
+        for n in [4usize, 6, 5] {
+            let width = n + N_INPUTS;
+            let rows: Vec<f64> = (0..n * width)
+                .map(|i| ((i * 37 % 11) as f64) - 5.0)
+                .collect();
+            let x: Vec<f64> = (0..n).map(|i| 0.5 + i as f64).collect();
+            let u: Vec<f64> = (0..N_INPUTS).map(|i| 1.5 - i as f64).collect();
+            let mut general = vec![0.0; n];
+            apply_rows_any(&rows, &x, &u, &mut general);
+            // By hand, row by row.
+            for (i, g) in general.iter().enumerate() {
+                let row = &rows[i * width..(i + 1) * width];
+                let by_hand: f64 = row[..n].iter().zip(&x).map(|(a, b)| a * b).sum::<f64>()
+                    + row[n..].iter().zip(&u).map(|(a, b)| a * b).sum::<f64>();
+                assert_eq!(*g, by_hand);
+            }
+            let (mut four, mut six) = (vec![0.0; n], vec![0.0; n]);
+            apply_rows::<4>(&rows, &x, &u, &mut four);
+            apply_rows::<6>(&rows, &x, &u, &mut six);
+            assert_eq!(four, general, "n = {n}");
+            assert_eq!(six, general, "n = {n}");
         }
     }
 }
