@@ -110,45 +110,31 @@ impl Delay {
     }
 }
 
-/// `next = [Φ Γ] [x; u]` with `[Φ Γ]` row by row (`rows`), for `N` states.
+/// `next = [Φ Γ] [x; u]` with `[Φ Γ]` column by column (`cols`), for `N`
+/// states: the sum over the columns in order, as a dot product per row
+/// would take it, but a vector operation per column.
 #[inline(always)]
-fn apply_rows<const N: usize>(rows: &[f64], x: &[f64], u: &[f64], next: &mut [f64]) {
-    if x.len() != N || u.len() != N_INPUTS || next.len() != N {
-        return apply_rows_any(rows, x, u, next);
+fn apply_cols<const N: usize>(cols: &[f64], x: &[f64], u: &[f64], next: &mut [f64]) {
+    if x.len() != N || u.len() != N_INPUTS || next.len() != N || cols.len() != N * (N + N_INPUTS) {
+        return apply_cols_any(cols, x, u, next);
     }
-    let (Ok(x), Ok(u), Ok(next)) = (
-        <&[f64; N]>::try_from(x),
-        <&[f64; N_INPUTS]>::try_from(u),
-        <&mut [f64; N]>::try_from(next),
-    ) else {
-        return;
-    };
-    for (next, row) in next.iter_mut().zip(rows.chunks_exact(N + N_INPUTS)) {
-        let (phi, gamma) = row.split_at(N);
-        let mut acc = 0.0;
-        for j in 0..N {
-            acc += phi[j] * x[j];
+    let mut acc = [0.0; N];
+    for (col, v) in cols.chunks_exact(N).zip(x.iter().chain(u)) {
+        for (a, c) in acc.iter_mut().zip(col) {
+            *a += c * v;
         }
-        for j in 0..N_INPUTS {
-            acc += gamma[j] * u[j];
-        }
-        *next = acc;
     }
+    next.copy_from_slice(&acc);
 }
 
-/// [`apply_rows`] for any number of states.
-fn apply_rows_any(rows: &[f64], x: &[f64], u: &[f64], next: &mut [f64]) {
-    let width = x.len() + u.len();
-    for (next, row) in next.iter_mut().zip(rows.chunks_exact(width)) {
-        let (phi, gamma) = row.split_at(x.len());
-        let mut acc = 0.0;
-        for (p, xj) in phi.iter().zip(x) {
-            acc += p * xj;
+/// [`apply_cols`] for any number of states.
+fn apply_cols_any(cols: &[f64], x: &[f64], u: &[f64], next: &mut [f64]) {
+    let n = next.len();
+    next.fill(0.0);
+    for (col, v) in cols.chunks_exact(n).zip(x.iter().chain(u)) {
+        for (a, c) in next.iter_mut().zip(col) {
+            *a += c * v;
         }
-        for (g, uj) in gamma.iter().zip(u) {
-            acc += g * uj;
-        }
-        *next = acc;
     }
 }
 
@@ -186,9 +172,12 @@ impl SineNear {
             *self = SineNear::new(theta);
             return self.sin0;
         }
+        const INV_24: f64 = 1.0 / 24.0;
+        const INV_6: f64 = 1.0 / 6.0;
+        const INV_120: f64 = 1.0 / 120.0;
         let d2 = d * d;
-        let cos_d = 1.0 - d2 * (0.5 - d2 / 24.0);
-        let sin_d = d * (1.0 - d2 * (1.0 / 6.0 - d2 / 120.0));
+        let cos_d = 1.0 - d2 * (0.5 - d2 * INV_24);
+        let sin_d = d * (1.0 - d2 * (INV_6 - d2 * INV_120));
         self.sin0 * cos_d + self.cos0 * sin_d
     }
 }
@@ -204,9 +193,10 @@ pub struct Plant {
     layout: Layout,
     bank: PronyBank,
     b_human: f64,
-    /// `[Φ Γ]` of one step, row by row (`n × (n + N_INPUTS)`, row-major):
-    /// `x⁺ = Φ x + Γ u` as one dot product per state, in registers.
-    phi_gamma_rows: Vec<f64>,
+    /// `[Φ Γ]` of one step, column by column (`n × (n + N_INPUTS)`,
+    /// column-major): `x⁺ = Σ_j [Φ Γ]_j [x; u]_j`, each column a vector
+    /// operation over the states.
+    phi_gamma_cols: Vec<f64>,
     a: DMatrix<f64>,
     b: DMatrix<f64>,
     /// The rigid cuff's torque as a row over `[x u]` (`n + N_INPUTS`):
@@ -269,7 +259,7 @@ impl Plant {
                 tau_s: vec![],
             },
             b_human: 0.0,
-            phi_gamma_rows: Vec::new(),
+            phi_gamma_cols: Vec::new(),
             a: DMatrix::zeros(0, 0),
             b: DMatrix::zeros(0, 0),
             tau_c_row: Vec::new(),
@@ -617,14 +607,7 @@ impl Plant {
         self.layout = l;
         self.a = a;
         self.b = b;
-        self.phi_gamma_rows = (0..n)
-            .flat_map(|i| {
-                let (phi, gamma) = (&phi, &gamma);
-                (0..n)
-                    .map(move |j| phi[(i, j)])
-                    .chain((0..N_INPUTS).map(move |j| gamma[(i, j)]))
-            })
-            .collect();
+        self.phi_gamma_cols = phi.iter().chain(gamma.iter()).copied().collect();
         self.x = x;
         self.x_next = DVector::zeros(n);
     }
@@ -682,14 +665,27 @@ impl Plant {
         self.u[U_TAU_NL] = self.nonlinear_torque();
         self.u[U_TAU_REFLEX] = self.reflex_torque();
         let (x, u) = (self.x.as_slice(), self.u.as_slice());
-        let (rows, next) = (&self.phi_gamma_rows, self.x_next.as_mut_slice());
-        // The common shapes with their size known to the compiler (rigid
-        // cuff with the SEA: 4 states; compliant cuff with the SEA: 6), so
-        // the product is unrolled; any other shape (a Prony bank) in a loop.
+        let (cols, next) = (&self.phi_gamma_cols, self.x_next.as_mut_slice());
+        // Up to 16 states (rigid cuff with the SEA: 4; compliant: 6; a
+        // Prony bank adds one per element) with the size known to the
+        // compiler, so the product is unrolled; larger ones in a loop.
         match x.len() {
-            4 => apply_rows::<4>(rows, x, u, next),
-            6 => apply_rows::<6>(rows, x, u, next),
-            _ => apply_rows_any(rows, x, u, next),
+            2 => apply_cols::<2>(cols, x, u, next),
+            3 => apply_cols::<3>(cols, x, u, next),
+            4 => apply_cols::<4>(cols, x, u, next),
+            5 => apply_cols::<5>(cols, x, u, next),
+            6 => apply_cols::<6>(cols, x, u, next),
+            7 => apply_cols::<7>(cols, x, u, next),
+            8 => apply_cols::<8>(cols, x, u, next),
+            9 => apply_cols::<9>(cols, x, u, next),
+            10 => apply_cols::<10>(cols, x, u, next),
+            11 => apply_cols::<11>(cols, x, u, next),
+            12 => apply_cols::<12>(cols, x, u, next),
+            13 => apply_cols::<13>(cols, x, u, next),
+            14 => apply_cols::<14>(cols, x, u, next),
+            15 => apply_cols::<15>(cols, x, u, next),
+            16 => apply_cols::<16>(cols, x, u, next),
+            _ => apply_cols_any(cols, x, u, next),
         }
         std::mem::swap(&mut self.x, &mut self.x_next);
         self.t_s += self.model.integration.step_s;
@@ -936,27 +932,31 @@ mod tests {
 
     #[test]
     fn the_unrolled_product_is_the_general_one() {
-        for n in [4usize, 6, 5] {
+        for n in [4usize, 6, 5, 11] {
             let width = n + N_INPUTS;
-            let rows: Vec<f64> = (0..n * width)
+            let cols: Vec<f64> = (0..n * width)
                 .map(|i| ((i * 37 % 11) as f64) - 5.0)
                 .collect();
             let x: Vec<f64> = (0..n).map(|i| 0.5 + i as f64).collect();
             let u: Vec<f64> = (0..N_INPUTS).map(|i| 1.5 - i as f64).collect();
             let mut general = vec![0.0; n];
-            apply_rows_any(&rows, &x, &u, &mut general);
-            // By hand, row by row.
+            apply_cols_any(&cols, &x, &u, &mut general);
+            // By hand: entry (i, j) of the column-major matrix is cols[j n + i].
             for (i, g) in general.iter().enumerate() {
-                let row = &rows[i * width..(i + 1) * width];
-                let by_hand: f64 = row[..n].iter().zip(&x).map(|(a, b)| a * b).sum::<f64>()
-                    + row[n..].iter().zip(&u).map(|(a, b)| a * b).sum::<f64>();
+                let by_hand: f64 = (0..n).map(|j| cols[j * n + i] * x[j]).sum::<f64>()
+                    + (0..N_INPUTS)
+                        .map(|j| cols[(n + j) * n + i] * u[j])
+                        .sum::<f64>();
                 assert_eq!(*g, by_hand);
             }
-            let (mut four, mut six) = (vec![0.0; n], vec![0.0; n]);
-            apply_rows::<4>(&rows, &x, &u, &mut four);
-            apply_rows::<6>(&rows, &x, &u, &mut six);
+            // Right size unrolled, or the wrong one (falls back to the loop).
+            let (mut four, mut six, mut eleven) = (vec![0.0; n], vec![0.0; n], vec![0.0; n]);
+            apply_cols::<4>(&cols, &x, &u, &mut four);
+            apply_cols::<6>(&cols, &x, &u, &mut six);
+            apply_cols::<11>(&cols, &x, &u, &mut eleven);
             assert_eq!(four, general, "n = {n}");
             assert_eq!(six, general, "n = {n}");
+            assert_eq!(eleven, general, "n = {n}");
         }
     }
 }
