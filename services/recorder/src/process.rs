@@ -66,7 +66,9 @@ trait Drain {
 impl<T: Message> Tap<T> {
     fn boxed(ipc: &Ipc, topic: Topic<T>, wrap: fn(T) -> Record) -> Result<Box<dyn Drain>> {
         Ok(Box::new(Tap {
-            inbox: ipc.inbox(topic, DEEPEST)?,
+            // A restarted recorder takes what was published while it was
+            // down, as far as the channel's history reaches.
+            inbox: ipc.inbox_with_history(topic, DEEPEST, topic.info().history)?,
             wrap,
         }))
     }

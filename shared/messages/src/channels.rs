@@ -152,6 +152,11 @@ pub struct ChannelInfo {
     pub max_buffer: usize,
     /// Whether the recorder writes it to the MCAP file.
     pub recorded: bool,
+    /// How many of its last samples the publisher keeps for a subscriber
+    /// that joins late and asks for them (a restarted recorder, which so
+    /// picks up what was published while it was down); other subscribers
+    /// take the last one only.
+    pub history: usize,
     /// Its ros2msg schema name in a recording.
     pub schema: &'static str,
 }
@@ -172,6 +177,7 @@ pub const CHANNELS: [ChannelInfo; 8] = [
         max_publishers: 1,
         max_buffer: DEEP,
         recorded: true,
+        history: DEEP,
         schema: "exo_msgs/msg/SensorSample",
     },
     ChannelInfo {
@@ -188,6 +194,7 @@ pub const CHANNELS: [ChannelInfo; 8] = [
         max_publishers: 1,
         max_buffer: DEEP,
         recorded: true,
+        history: DEEP,
         schema: "exo_msgs/msg/ActuatorCommand",
     },
     ChannelInfo {
@@ -205,6 +212,7 @@ pub const CHANNELS: [ChannelInfo; 8] = [
         max_publishers: 4,
         max_buffer: DEEP,
         recorded: true,
+        history: DEEP,
         schema: "exo_msgs/msg/ProtocolState",
     },
     ChannelInfo {
@@ -217,6 +225,7 @@ pub const CHANNELS: [ChannelInfo; 8] = [
         max_publishers: 1,
         max_buffer: DEEP,
         recorded: true,
+        history: DEEP,
         schema: "exo_msgs/msg/BusSensorFrame",
     },
     ChannelInfo {
@@ -229,6 +238,7 @@ pub const CHANNELS: [ChannelInfo; 8] = [
         max_publishers: 1,
         max_buffer: DEEP,
         recorded: true,
+        history: DEEP,
         schema: "exo_msgs/msg/BusMotorCommand",
     },
     ChannelInfo {
@@ -241,6 +251,7 @@ pub const CHANNELS: [ChannelInfo; 8] = [
         max_publishers: 4,
         max_buffer: DEEP,
         recorded: true,
+        history: DEEP,
         schema: "exo_msgs/msg/FrfPoint",
     },
     ChannelInfo {
@@ -253,6 +264,7 @@ pub const CHANNELS: [ChannelInfo; 8] = [
         max_publishers: 4,
         max_buffer: DEEP,
         recorded: true,
+        history: DEEP,
         schema: "exo_msgs/msg/ImpedanceEstimate",
     },
     ChannelInfo {
@@ -269,6 +281,7 @@ pub const CHANNELS: [ChannelInfo; 8] = [
         max_publishers: 4,
         max_buffer: DEEP,
         recorded: true,
+        history: DEEP,
         schema: "exo_msgs/msg/OperatorCommand",
     },
 ];
@@ -416,6 +429,8 @@ mod tests {
             assert_eq!(c.channel.info().topic, c.topic);
             assert!(c.topic.starts_with("exo/"), "{}", c.topic);
             assert!(c.max_buffer >= 1 && c.max_publishers >= 1);
+            // A subscriber's buffer must hold the history it asks for.
+            assert!(c.history <= c.max_buffer, "{}", c.topic);
         }
         let mut names: Vec<String> = CHANNELS
             .iter()

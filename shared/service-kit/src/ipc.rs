@@ -192,7 +192,7 @@ impl Ipc {
             .max_publishers(info.max_publishers)
             .max_subscribers(8)
             .max_nodes(16)
-            .history_size(1)
+            .history_size(info.history.max(1))
             .subscriber_max_buffer_size(info.max_buffer)
             .enable_safe_overflow(true)
             .open_or_create()
@@ -271,12 +271,27 @@ impl Ipc {
 
     /// A subscriber on `topic` with a buffer of `buffer` samples (at most
     /// the channel's `max_buffer`) and, where the channel has one, its
-    /// wake-up listener.
+    /// wake-up listener. On connecting it receives the last sample
+    /// published before it, if any.
     pub fn inbox<T: Message>(&self, topic: Topic<T>, buffer: usize) -> Result<Inbox<T>, IpcError> {
+        self.inbox_with_history(topic, buffer, 1)
+    }
+
+    /// [`Ipc::inbox`] that receives, on connecting, up to `history` of the
+    /// samples published before it (at most the channel's `history` and
+    /// the buffer): what a restarted recorder asks for.
+    pub fn inbox_with_history<T: Message>(
+        &self,
+        topic: Topic<T>,
+        buffer: usize,
+        history: usize,
+    ) -> Result<Inbox<T>, IpcError> {
         let (name, f) = self.pubsub(topic)?;
+        let buffer = buffer.clamp(1, topic.info().max_buffer);
         let subscriber = f
             .subscriber_builder()
-            .buffer_size(buffer.clamp(1, topic.info().max_buffer))
+            .buffer_size(buffer)
+            .history_request(history.min(topic.info().history.max(1)).min(buffer))
             .create()
             .map_err(|e| port_err("create subscriber", &name, e))?;
         let listener = match self.event(topic.channel())? {

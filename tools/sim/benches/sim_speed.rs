@@ -9,9 +9,10 @@
 //!
 //! Jobs: a tuning trial of `exo tune` (spring release, no identifier, no
 //! recording), the default run with the identifier and a sink that only
-//! counts, the default run recorded to MCAP (what `exo sim` does), and one
-//! subject of `exo reproduce` (prony_matched plant, nine experiments)
-//! recorded. Each is repeated (default 5); the ratio simulated/wall time
+//! counts, the default run recorded to MCAP (what `exo sim` does), one
+//! subject of `exo reproduce` (nine experiments) with its prony_matched
+//! plant and with the default plant, one case of `exo diagnose-bench`, and
+//! the reproduction recorded. Each is repeated (default 5); the ratio simulated/wall time
 //! is reported as percentiles of a histogram. One thread: the ratio is
 //! per core.
 
@@ -163,6 +164,34 @@ fn main() {
         "exo reproduce, one subject, no file",
         &repro,
         &repro_file,
+        Sink::Count,
+        repeats,
+        &dir,
+    );
+    // The same subject and protocol with the default plant (equivalent
+    // viscous hysteresis instead of reproduce's prony_matched bank): the
+    // issue's "default plant".
+    let mut repro_default = repro.clone();
+    repro_default.plant_model = configs.join("plants/default.toml");
+    let (repro_default, repro_default_file) =
+        materialise(&repro_default, &dir, "reproduce-A-default-plant");
+    report(
+        "exo reproduce, one subject, default plant, no file",
+        &repro_default,
+        &repro_default_file,
+        Sink::Count,
+        repeats,
+        &dir,
+    );
+    // exo diagnose-bench's re-simulation of one case (its configuration,
+    // the default plant as the case's truth).
+    let mut bench = RunConfig::from_file(&configs.join("diagnose-bench.toml")).unwrap();
+    absolute(&mut bench, &dir);
+    let (bench, bench_file) = materialise(&bench, &dir, "diagnose-bench");
+    report(
+        "exo diagnose-bench, one case, no file",
+        &bench,
+        &bench_file,
         Sink::Count,
         repeats,
         &dir,
