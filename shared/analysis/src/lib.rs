@@ -9,15 +9,21 @@
 //!   beside its samples;
 //! - [`study`]: the paper's "Modeling Results" per subject — fits, F-tests,
 //!   phase and M2 tables, power laws, the recommended f;
-//! - [`stability`]: the spring-release test's verdict (`exo tune`).
+//! - [`stability`]: the spring-release test's verdict (`exo tune`);
+//! - [`trials`]: what one imported trial of another rig is (subject,
+//!   experiment, condition, α, load, CSV columns) and a study file of them;
+//! - [`import`]: another rig's CSV as a contract recording (gaps and time
+//!   units refused, a single sine detected), `exo import` and `exo fit`.
 //!
 //! `M_e` is `exo_impedance::exo_inertia_kg_m2`, the one formula the rig
 //! configuration, the plant model and the identifier all call.
 
+pub mod import;
 pub mod merge;
 pub mod refit;
 pub mod stability;
 pub mod study;
+pub mod trials;
 pub mod windows;
 
 pub use merge::{Merge, Played};

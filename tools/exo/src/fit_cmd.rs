@@ -227,14 +227,14 @@ pub fn load_inputs(a: &FitArgs) -> Result<Vec<Loaded>> {
         .cloned()
         .collect();
     let csvs: Vec<PathBuf> = given.iter().filter(|p| is_csv(p)).cloned().collect();
-    let mut trials = crate::study::default_trials(&csvs).into_iter();
-    let mut inputs: Vec<(PathBuf, Option<crate::study::TrialSpec>)> = given
+    let mut trials = exo_analysis::trials::default_trials(&csvs).into_iter();
+    let mut inputs: Vec<(PathBuf, Option<exo_analysis::trials::TrialSpec>)> = given
         .iter()
         .map(|p| (p.clone(), if is_csv(p) { trials.next() } else { None }))
         .collect();
     if let Some(study) = &a.study {
         inputs.extend(
-            crate::study::load_study(study)?
+            exo_analysis::trials::load_study(study)?
                 .into_iter()
                 .map(|(p, t)| (p, Some(t))),
         );
@@ -246,7 +246,7 @@ pub fn load_inputs(a: &FitArgs) -> Result<Vec<Loaded>> {
             eprintln!("exo fit: [{}/{}] {}", i + 1, total, p.display());
         }
         loaded.push(match trial {
-            Some(t) => identify_recording(crate::import_cmd::recording_from_csv(p, t)?, p, a)?,
+            Some(t) => identify_recording(exo_analysis::import::recording_from_csv(p, t)?, p, a)?,
             None => load(p, a)?,
         });
     }

@@ -27,7 +27,6 @@ mod report_cmd;
 mod reproduce_cmd;
 mod run_cmd;
 mod sim_cmd;
-mod study;
 mod supervisor;
 mod tune_cmd;
 
