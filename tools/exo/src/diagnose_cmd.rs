@@ -14,7 +14,7 @@ use exo_diagnose::{diagnose, Diagnosis, Settings, Term};
 use exo_plant_sim::PlantModel;
 use exo_recording::read_recording;
 
-use crate::diagnose_report;
+use exo_report::diagnosis as diagnose_report;
 
 /// Arguments of `exo diagnose`.
 #[derive(Debug, Args)]

@@ -6,8 +6,10 @@ use std::path::{Path, PathBuf};
 use anyhow::{Context, Result};
 use clap::Args;
 
-use crate::fit_cmd::{fit, FitArgs, Loaded};
-use crate::report::{html, TimeTrace};
+use exo_identifier::offline::{fit, FitOptions, Loaded};
+
+use crate::fit_cmd::{note, FitArgs};
+use exo_report::figures::{html, TimeTrace};
 
 /// Arguments of `exo report`.
 #[derive(Debug, Args)]
@@ -78,8 +80,8 @@ fn traces(loaded: &[Loaded]) -> Vec<TimeTrace> {
 }
 
 /// Fits `fit` and writes `<out>/report.html`; returns its path.
-pub fn write_report(fit_args: &FitArgs, out: &Path) -> Result<PathBuf> {
-    let (loaded, report) = fit(fit_args)?;
+pub fn write_report(fit_args: &FitOptions, out: &Path) -> Result<PathBuf> {
+    let (loaded, report) = fit(fit_args, &mut note)?;
     eprintln!("exo report: drawing the figures");
     let sources: Vec<String> = fit_args
         .recordings
@@ -102,7 +104,7 @@ pub fn write_report(fit_args: &FitArgs, out: &Path) -> Result<PathBuf> {
 
 /// Runs `exo report`.
 pub fn run(a: &ReportArgs) -> Result<()> {
-    let path = write_report(&a.fit, &a.out)?;
+    let path = write_report(&a.fit.options(), &a.out)?;
     println!("{}", path.display());
     Ok(())
 }

@@ -26,7 +26,9 @@ use exo_impedance::{fit_power_law, Complex64};
 use exo_messages::{status, ControlMode};
 use serde::Serialize;
 
-use crate::fit_cmd::{fit, FitArgs};
+use exo_identifier::offline::{fit, FitOptions};
+
+use crate::fit_cmd::note;
 use crate::tune_cmd::subject_path;
 use exo_analysis::study::{group_of, FRow, FitReport};
 
@@ -611,7 +613,7 @@ pub fn run(a: &ReproduceArgs) -> Result<()> {
         recordings.push(recording);
         subjects.push(subject);
     }
-    let (_, report) = fit(&FitArgs::for_recordings(recordings.clone()))?;
+    let (_, report) = fit(&FitOptions::for_recordings(recordings.clone()), &mut note)?;
     let mut r = compare(
         &subjects,
         &base.protocol.experiments,

@@ -10,6 +10,7 @@ use exo_config::{ProtocolMode, RunConfig, TimingMode};
 
 use std::time::Instant;
 
+use exo_identifier::offline::{fit, FitOptions};
 use exo_messages::ProtocolState;
 use exo_service_kit::channels::Channel;
 use exo_service_kit::collect::Collector;
@@ -326,9 +327,9 @@ pub fn fit_and_report(cfg: &RunConfig, recording: &Path, no_report: bool) -> Res
     if no_report || cfg.protocol.mode != ProtocolMode::Identification {
         return Ok(());
     }
-    let fit_args = crate::fit_cmd::FitArgs::for_recordings(vec![recording.to_path_buf()]);
-    let (_, report) = crate::fit_cmd::fit(&fit_args)?;
-    print!("{}", crate::fit_cmd::tables(&report));
+    let fit_args = FitOptions::for_recordings(vec![recording.to_path_buf()]);
+    let (_, report) = fit(&fit_args, &mut crate::fit_cmd::note)?;
+    print!("{}", exo_report::fit::tables(&report));
     let stem = recording
         .file_stem()
         .map_or("run".into(), |s| s.to_string_lossy().into_owned());

@@ -11,7 +11,7 @@ use exo_diagnose::{Diagnosis, Physics};
 use num_complex::Complex64;
 use plotters::prelude::*;
 
-use crate::report::{bounds, esc, plot_err, PALETTE};
+use crate::figures::{bounds, esc, plot_err, PALETTE};
 
 struct Series {
     experiment: u32,
