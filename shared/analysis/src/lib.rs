@@ -10,6 +10,9 @@
 //! - [`study`]: the paper's "Modeling Results" per subject — fits, F-tests,
 //!   phase and M2 tables, power laws, the recommended f;
 //! - [`stability`]: the spring-release test's verdict (`exo tune`);
+//! - [`reproduce`]: the recovered impedance against the simulated subjects
+//!   and the paper's printed rows, with the acceptance criteria
+//!   (`exo reproduce`);
 //! - [`trials`]: what one imported trial of another rig is (subject,
 //!   experiment, condition, α, load, CSV columns) and a study file of them;
 //! - [`import`]: another rig's CSV as a contract recording (gaps and time
@@ -21,6 +24,7 @@
 pub mod import;
 pub mod merge;
 pub mod refit;
+pub mod reproduce;
 pub mod stability;
 pub mod study;
 pub mod trials;

@@ -1,13 +1,15 @@
 //! `exo diagnose -o DIR`'s HTML: Bode overlays of data, nominal and updated
 //! model per transfer function with their residuals, a time-domain overlay
-//! of the window the nominal model missed most, and the tables.
+//! of the window the nominal model missed most, and the tables; and
+//! `exo diagnose-bench`'s table of its cases ([`bench_table`]).
 
 use std::fmt::Write as _;
 
 use anyhow::Result;
+use exo_diagnose::bench::Outcome;
 use exo_diagnose::data::{Dataset, Tf};
 use exo_diagnose::engine::Score;
-use exo_diagnose::{Diagnosis, Physics};
+use exo_diagnose::{Diagnosis, Physics, Term};
 use num_complex::Complex64;
 use plotters::prelude::*;
 
@@ -376,4 +378,134 @@ pub fn html(d: &Dataset, r: &Diagnosis) -> Result<String> {
     }
     let _ = write!(w, "</body></html>");
     Ok(h)
+}
+
+fn names(t: &[Term]) -> String {
+    if t.is_empty() {
+        "—".into()
+    } else {
+        t.iter()
+            .map(|t| format!("{t:?}"))
+            .collect::<Vec<_>>()
+            .join(" + ")
+    }
+}
+
+/// `exo diagnose-bench`'s table: each case's true and named effects, the
+/// fit before and after, and the confusion ([`confusion`]).
+pub fn bench_table(o: &[Outcome]) -> String {
+    let mut s = String::new();
+    let _ = writeln!(
+        s,
+        "\n{:<13} {:<34} {:<34} {:>9} {:>12} {:>10} {:>9}  ok",
+        "case", "true effect", "named", "R² refit", "RSS refit", "RSS final", "held-out"
+    );
+    for x in o {
+        let _ = writeln!(
+            s,
+            "{:<13} {:<34} {:<34} {:>9.4} {:>12.1} {:>10.1} {:>8.0}%  {}",
+            x.case,
+            names(&x.expected),
+            names(&x.named),
+            x.r2_refit,
+            x.rss[0],
+            x.rss[1],
+            100.0 * x.heldout_change,
+            if x.correct { "yes" } else { "NO" }
+        );
+    }
+    let concealed = o.iter().filter(|x| !x.expected.is_empty()).count();
+    let named_ok = o
+        .iter()
+        .filter(|x| !x.expected.is_empty() && x.correct)
+        .count();
+    let nulls = o.iter().filter(|x| x.expected.is_empty()).count();
+    let clean = o
+        .iter()
+        .filter(|x| x.expected.is_empty() && x.named.is_empty())
+        .count();
+    let _ = writeln!(
+        s,
+        "\nconcealed effects named exactly: {named_ok} of {concealed}; null cases with nothing named: {clean} of {nulls}"
+    );
+    s.push_str(&confusion(o));
+    for x in o {
+        let _ = writeln!(s, "\n{} — {}", x.case, x.what);
+        for v in &x.verdict {
+            let _ = writeln!(s, "  {v}");
+        }
+    }
+    s
+}
+
+/// The confusion matrix: rows are the true effects (and `none` for the null
+/// cases), columns the terms named (and `none`). A true effect counts on
+/// the diagonal when it was named, under `none` when it was missed; a term
+/// named that the case does not have counts in the row of the case's
+/// effect (or `none`), so every off-diagonal number is an error.
+pub fn confusion(o: &[Outcome]) -> String {
+    let label = |t: Option<Term>| t.map_or("none".to_string(), |t| format!("{t:?}"));
+    let mut rows: Vec<Option<Term>> = Vec::new();
+    let mut cols: Vec<Option<Term>> = Vec::new();
+    let mut cells: std::collections::BTreeMap<(String, String), usize> = Default::default();
+    let mut add = |r: Option<Term>,
+                   c: Option<Term>,
+                   rows: &mut Vec<Option<Term>>,
+                   cols: &mut Vec<Option<Term>>| {
+        if !rows.contains(&r) {
+            rows.push(r);
+        }
+        if !cols.contains(&c) {
+            cols.push(c);
+        }
+        *cells.entry((label(r), label(c))).or_default() += 1;
+    };
+    for x in o {
+        if x.expected.is_empty() {
+            if x.named.is_empty() {
+                add(None, None, &mut rows, &mut cols);
+            }
+            for n in &x.named {
+                add(None, Some(*n), &mut rows, &mut cols);
+            }
+            continue;
+        }
+        for t in &x.expected {
+            let hit = x.named.contains(t);
+            add(
+                Some(*t),
+                if hit { Some(*t) } else { None },
+                &mut rows,
+                &mut cols,
+            );
+        }
+        for n in x.named.iter().filter(|n| !x.expected.contains(n)) {
+            add(Some(x.expected[0]), Some(*n), &mut rows, &mut cols);
+        }
+    }
+    let mut s = String::from(
+        "\nconfusion (rows: true effect, columns: named; a case with two effects counts in both rows)\n",
+    );
+    let _ = write!(s, "{:<20}", "true \\ named");
+    for c in &cols {
+        let _ = write!(s, " {:>18}", label(*c));
+    }
+    s.push('\n');
+    for r in &rows {
+        let _ = write!(s, "{:<20}", label(*r));
+        for c in &cols {
+            let n = cells.get(&(label(*r), label(*c))).copied().unwrap_or(0);
+            let _ = write!(
+                s,
+                " {:>18}",
+                if n == 0 {
+                    ".".to_string()
+                } else {
+                    n.to_string()
+                }
+            );
+        }
+        s.push('\n');
+    }
+    s
 }

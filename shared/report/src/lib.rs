@@ -9,7 +9,9 @@
 //!   SVG figures (Bode plots with fits, F-test bars, power law, time
 //!   responses);
 //! - [`design`]: `exo design`'s Bode plot, `--json` document and summary;
-//! - [`diagnosis`]: the HTML page of `exo diagnose`.
+//! - [`reproduction`]: `exo reproduce`'s comparison as Markdown tables;
+//! - [`diagnosis`]: the HTML page of `exo diagnose` and the table of
+//!   `exo diagnose-bench`.
 //!
 //! A crate of its own rather than a module of `exo-analysis`: the analysis
 //! is shared with the identifier process, which has no use for plotters,
@@ -20,3 +22,4 @@ pub mod design;
 pub mod diagnosis;
 pub mod figures;
 pub mod fit;
+pub mod reproduction;
