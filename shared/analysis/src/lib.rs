@@ -10,6 +10,8 @@
 //! - [`study`]: the paper's "Modeling Results" per subject — fits, F-tests,
 //!   phase and M2 tables, power laws, the recommended f;
 //! - [`stability`]: the spring-release test's verdict (`exo tune`);
+//! - [`preflight`]: the amplification controller's loop margins at a
+//!   run's operating points, checked before it starts (`exo run`);
 //! - [`reproduce`]: the recovered impedance against the simulated subjects
 //!   and the paper's printed rows, with the acceptance criteria
 //!   (`exo reproduce`);
@@ -23,6 +25,7 @@
 
 pub mod import;
 pub mod merge;
+pub mod preflight;
 pub mod refit;
 pub mod reproduce;
 pub mod stability;

@@ -24,7 +24,6 @@ mod report_cmd;
 mod reproduce_cmd;
 mod run_cmd;
 mod sim_cmd;
-mod supervisor;
 mod tune_cmd;
 
 use clap::{Parser, Subcommand};
