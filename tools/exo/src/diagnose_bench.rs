@@ -123,7 +123,7 @@ pub fn run(a: &BenchArgs) -> Result<()> {
         let d = reduce(&[rec], &Reduction::default());
         let r = diagnose(&d, &nominal, &Settings::default())
             .with_context(|| format!("diagnosing case {}", c.name))?;
-        crate::diagnose_cmd::write_outputs(
+        exo_report::diagnosis::write_outputs(
             &dir.join(format!("{}-diagnosis", c.name)),
             &nominal,
             &d,
