@@ -492,10 +492,6 @@ pub fn recording_from_csv(path: &Path, spec: &TrialSpec) -> Result<Recording> {
     )?)
 }
 
-/// Imports every trial of a study file into `dir`; returns the recordings
-/// written. On an error, the recordings this call already wrote are removed;
-/// the failed trial's path keeps any earlier file (see [`write_atomically`]).
-
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -8,7 +8,7 @@
 //!   [`exo_analysis::preflight`]); every error names its file and key;
 //! - [`services`]: the processes a configuration asks for, in start order,
 //!   each with its role and readiness probe;
-//! - [`supervise`]: starting them, forwarding their logs, reaping them,
+//! - [`supervise`](mod@supervise): starting them, forwarding their logs, reaping them,
 //!   restarting those off the real-time path, stopping all on a signal or
 //!   the first failure, and saying which one failed.
 

@@ -19,7 +19,7 @@
 //!    Holm's correction, Akaike's criterion and two-fold held-out
 //!    validation, and writes the updated plant model.
 //!
-//! [`bench`] holds the cases `exo diagnose-bench` proves it on: concealed
+//! [`bench`](mod@bench) holds the cases `exo diagnose-bench` proves it on: concealed
 //! effects (and null cases) in a true plant behind a nominal model.
 
 pub mod bench;
