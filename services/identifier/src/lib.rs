@@ -40,6 +40,9 @@
 //!   fractional order, clamped to [`IdentifierSettings::f_bounds`].
 //!
 //! Heavy work (fits, spectra) happens only at window ends, never per sample.
+//!
+//! [`offline`] runs the same identifier over recordings and CSVs and
+//! analyses them as the paper does (`exo fit`).
 
 use std::collections::BTreeMap;
 
@@ -53,6 +56,7 @@ use exo_messages::{
     ProtocolState, SensorSample,
 };
 
+pub mod offline;
 pub mod process;
 
 pub use exo_analysis::refit::{effective_alpha, fit_models, FitSource, ModelFitError};

@@ -18,7 +18,11 @@
 //!    [`terms::Term`] catalogue one term at a time with nested F-tests,
 //!    Holm's correction, Akaike's criterion and two-fold held-out
 //!    validation, and writes the updated plant model.
+//!
+//! [`bench`](mod@bench) holds the cases `exo diagnose-bench` proves it on: concealed
+//! effects (and null cases) in a true plant behind a nominal model.
 
+pub mod bench;
 pub mod data;
 pub mod engine;
 pub mod fit;

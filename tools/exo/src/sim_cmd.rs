@@ -14,7 +14,9 @@ use exo_plant_sim::PlantModel;
 use exo_sim::{Ended, FileSink, Record, Sim};
 
 use crate::faults::{describe, is_fault_command, is_fault_sample};
-use crate::run_cmd::{check_or_fail, fit_and_report, recording_path, Finished};
+use exo_supervisor::check_or_fail;
+
+use crate::run_cmd::{fit_and_report, recording_path, Finished};
 
 /// `exo sim` arguments.
 #[derive(Debug, Args)]

@@ -3,40 +3,14 @@
 //! run's nodes in one process (`exo-sim`), which records what the five
 //! processes would (tests/tests/determinism.rs).
 //!
-//! For the subject's low stiffness (Table I experiment 1: 10 kg grip, 0 Nm
-//! bias) and high stiffness (experiment 7: 27 kg, 8 Nm), the fractional
-//! order f is raised in steps of `--step` from 0 until a spring-release test
-//! ([`exo_analysis::stability`]) oscillates, then the boundary is bisected to
-//! `--resolution`. The marginal f is the lower of the two boundaries; the
-//! tuned f subtracts 0.12 from it (the paper's margin of about 10.8°). Beside
-//! it the tool prints the model's prediction: the same boundary computed from
-//! the subject's K and H with the science core's loop analysis
-//! ([`exo_impedance::loop_shaping::marginal_fractional_order`]).
-//!
-//! Assumptions: the simulated hysteresis runs in its causal Prony mode (the
-//! equivalent-viscous mode is only exact for a running sine, not for a
-//! transient); a release test lasts 1 s bias ramp-in + `--hold-s` +
-//! `--observe-s` + 1 s ramp-out of simulated time, in lockstep.
+//! [`exo_experiments::tune`] runs it (its documentation says how); this command checks the arguments
+//! and prints the outcome.
 
 use std::path::{Path, PathBuf};
 
-use anyhow::{bail, Context, Result};
+use anyhow::{bail, Result};
 use clap::Args;
-use exo_config::{ProtocolMode, ReleaseSettings, RunConfig, TimingMode};
-use exo_impedance::loop_shaping::{marginal_fractional_order, FractionalLayout};
-use exo_impedance::{
-    nominal_crossover, proportional_gain, AmplificationPlant, SeaModel, StiffnessRange,
-};
-use exo_messages::{ControlMode, ProtocolPhase};
-use exo_plant_sim::model::HysteresisMode;
-use exo_plant_sim::PlantModel;
-use exo_sim::Record;
-use serde::Serialize;
-
-use exo_analysis::stability::{Detector, StabilityReport, Verdict};
-
-/// The paper's margin below the marginal order (section "Tuning Results").
-const PAPER_MARGIN_F: f64 = 0.12;
+use exo_experiments::tune::{tune, Outcome, TuneOptions, Tuning, PAPER_MARGIN_F};
 
 /// Arguments of `exo tune`.
 #[derive(Debug, Args)]
@@ -80,72 +54,6 @@ pub struct TuneArgs {
     pub work_dir: Option<PathBuf>,
 }
 
-/// One release trial.
-#[derive(Debug, Clone, Serialize)]
-pub struct Trial {
-    /// Fractional order tried.
-    pub f: f64,
-    /// Whether it oscillated.
-    pub oscillates: bool,
-    /// The detector's evidence, in words.
-    pub evidence: String,
-}
-
-/// The outcome at one stiffness.
-#[derive(Debug, Clone, Serialize)]
-pub struct StiffnessTuning {
-    /// Experiment of Table I held.
-    pub experiment: u32,
-    /// The subject's K (Nm/rad) in it.
-    pub k_nm_per_rad: f64,
-    /// The subject's H (Nm/rad) in it.
-    pub h_nm_per_rad: f64,
-    /// Largest f found stable.
-    pub f_stable: f64,
-    /// Smallest f found oscillating.
-    pub f_oscillating: f64,
-    /// The measured boundary: the bracket's middle.
-    pub f_marginal: f64,
-    /// The model's boundary at this stiffness.
-    pub f_marginal_model: f64,
-    /// Every trial, in order.
-    pub trials: Vec<Trial>,
-}
-
-/// Verdicts of `--check` at one stiffness.
-#[derive(Debug, Clone, Serialize)]
-pub struct StiffnessCheck {
-    /// Experiment of Table I held.
-    pub experiment: u32,
-    /// The subject's K (Nm/rad) in it.
-    pub k_nm_per_rad: f64,
-    /// The subject's H (Nm/rad) in it.
-    pub h_nm_per_rad: f64,
-    /// The model's boundary at this stiffness.
-    pub f_marginal_model: f64,
-    /// One trial per checked f.
-    pub trials: Vec<Trial>,
-}
-
-/// The whole tuning.
-#[derive(Debug, Clone, Serialize)]
-pub struct Tuning {
-    /// Subject name.
-    pub subject: String,
-    /// k_p used.
-    pub kp: f64,
-    /// Low and high stiffness results.
-    pub cases: Vec<StiffnessTuning>,
-    /// Lower of the measured boundaries.
-    pub f_marginal: f64,
-    /// `f_marginal − 0.12`.
-    pub f_tuned: f64,
-    /// Lower of the model's boundaries.
-    pub f_marginal_model: f64,
-    /// `f_marginal_model − 0.12`.
-    pub f_tuned_model: f64,
-}
-
 /// A subject argument: a file, or a name of `configs/subjects/*.toml` (A–J).
 pub fn subject_path(subject: &str) -> PathBuf {
     let p = Path::new(subject);
@@ -179,308 +87,60 @@ fn check_args(a: &TuneArgs) -> Result<()> {
     Ok(())
 }
 
-/// The trial harness: one base configuration, one plant model in Prony mode.
-struct Bench {
-    base: RunConfig,
-    plant_file: PathBuf,
-    plant: PlantModel,
-    dir: PathBuf,
-    remove_dir: bool,
-    args_release: (f64, f64, f64),
-    detector: Detector,
-    count: u32,
-}
-
-impl Drop for Bench {
-    fn drop(&mut self) {
-        if self.remove_dir {
-            let _ = std::fs::remove_dir_all(&self.dir);
-        }
-    }
-}
-
-impl Bench {
-    fn trial(&mut self, experiment: u32, f: f64) -> Result<StabilityReport> {
-        self.count += 1;
-        let mut cfg = self.base.clone();
-        let instance = format!("tune{}x{}", std::process::id(), self.count);
-        cfg.run.instance = instance.clone();
-        cfg.run.timing = TimingMode::Lockstep;
-        cfg.run.max_sim_time_s = None;
-        cfg.services.identifier = false;
-        cfg.services.recorder = false;
-        cfg.plant_model = self.plant_file.clone();
-        cfg.protocol.mode = ProtocolMode::Release;
-        cfg.protocol.experiments = vec![experiment];
-        cfg.protocol.periods = None;
-        let (spring, hold, observe) = self.args_release;
-        cfg.release = Some(ReleaseSettings {
-            experiment,
-            spring_torque_nm: spring,
-            hold_s: hold,
-            observe_s: observe,
-        });
-        cfg.controller.f = Some(f);
-        cfg.controller.adopt_recommended_f = false;
-        let path = self.dir.join(format!("trial{:03}.toml", self.count));
-        let text = toml::to_string(&cfg).context("writing a trial run file")?;
-        std::fs::write(&path, text).with_context(|| format!("writing {}", path.display()))?;
-        // Validate as `exo run` would.
-        let cfg = RunConfig::from_file(&path)?;
-        let (mut samples, mut commands, mut states) = (Vec::new(), Vec::new(), Vec::new());
-        exo_sim::Sim::new(&cfg, &self.plant)
-            .and_then(|mut sim| {
-                sim.run(|r| -> Result<(), exo_sim::SimError> {
-                    match r {
-                        Record::Sensor(s) => samples.push(s),
-                        Record::Command(c) => commands.push(c),
-                        Record::Protocol(p) => states.push(p),
-                        _ => {}
-                    }
-                    Ok(())
-                })
-            })
-            .with_context(|| format!("trial f = {f:.3} at experiment {experiment}"))?;
-        let release_ns = states
-            .iter()
-            .find(|p| p.phase == ProtocolPhase::Analysis.as_u32())
-            .map(|p| p.stamp_ns)
-            .context("the trial never reached the release (no analysis phase)")?;
-        let end_ns = states
-            .iter()
-            .find(|p| p.phase == ProtocolPhase::RampOut.as_u32())
-            .map_or(u64::MAX, |p| p.stamp_ns);
-        let safe = commands.iter().any(|c| {
-            matches!(
-                ControlMode::from_u32(c.mode),
-                Some(m) if m.is_safe_state()
-            )
-        }) || samples
-            .iter()
-            .any(|s| s.status & exo_messages::sensor::status::SAFE_STATE != 0);
-        let (t, th): (Vec<f64>, Vec<f64>) = samples
-            .iter()
-            .filter(|s| s.stamp_ns < end_ns)
-            .map(|s| (s.stamp_ns as f64 * 1e-9, s.theta_e))
-            .unzip();
-        self.detector
-            .classify(&t, &th, release_ns as f64 * 1e-9, safe)
-    }
-
-    /// One trial, as reported.
-    fn report(&mut self, experiment: u32, f: f64, verbose: bool) -> Result<Trial> {
-        let r = self.trial(experiment, f)?;
-        if verbose {
-            eprintln!("exo tune: experiment {experiment}, f = {f:.4}: {r}");
-        }
-        Ok(Trial {
-            f,
-            oscillates: r.verdict == Verdict::Oscillates,
-            evidence: r.to_string(),
-        })
-    }
-
-    /// Raises f until the release oscillates, then bisects the boundary.
-    fn boundary(
-        &mut self,
-        experiment: u32,
-        step: f64,
-        resolution: f64,
-        verbose: bool,
-    ) -> Result<(f64, f64, Vec<Trial>)> {
-        let mut trials = Vec::new();
-        let mut run = |b: &mut Bench, f: f64| -> Result<bool> {
-            let t = b.report(experiment, f, verbose)?;
-            let osc = t.oscillates;
-            trials.push(t);
-            Ok(osc)
-        };
-        if run(self, 0.0)? {
-            bail!("experiment {experiment}: the release oscillates already at f = 0 (constant amplification); lower kp");
-        }
-        let mut stable = 0.0;
-        let mut unstable = None;
-        let mut f = step;
-        while f < 0.99 {
-            if run(self, f)? {
-                unstable = Some(f);
-                break;
-            }
-            stable = f;
-            f += step;
-        }
-        let Some(mut unstable) = unstable else {
-            bail!("experiment {experiment}: no oscillation up to f = {stable:.2}");
-        };
-        while unstable - stable > resolution {
-            let mid = 0.5 * (stable + unstable);
-            if run(self, mid)? {
-                unstable = mid;
-            } else {
-                stable = mid;
-            }
-        }
-        Ok((stable, unstable, trials))
-    }
-}
-
 /// Runs `exo tune`.
 pub fn run(args: &TuneArgs) -> Result<()> {
     check_args(args)?;
-    let subject_file = subject_path(&args.subject);
-    let mut base = RunConfig::from_file(&args.config)?;
-    base.subject_file = subject_file.clone();
-    let mut plant = PlantModel::from_file(&base.plant_model)?;
-    plant.human.hysteretic_damping.mode = HysteresisMode::Prony;
-    let (dir, remove_dir) = match &args.work_dir {
-        Some(d) => (d.clone(), false),
-        None => (
-            std::env::temp_dir().join(format!("exo-tune-{}", std::process::id())),
-            true,
-        ),
+    let options = TuneOptions {
+        subject_file: subject_path(&args.subject),
+        subject: args.subject.clone(),
+        config: args.config.clone(),
+        low_experiment: args.low_experiment,
+        high_experiment: args.high_experiment,
+        step: args.step,
+        resolution: args.resolution,
+        spring_torque_nm: args.spring_torque_nm,
+        hold_s: args.hold_s,
+        observe_s: args.observe_s,
+        check: args.check.clone(),
+        work_dir: args.work_dir.clone(),
     };
-    std::fs::create_dir_all(&dir).with_context(|| format!("creating {}", dir.display()))?;
-    let plant_file = dir.join("plant.toml");
-    std::fs::write(&plant_file, plant.to_toml_string())
-        .with_context(|| format!("writing {}", plant_file.display()))?;
-    // Validate the subject and both experiments before any process starts.
-    let probe = {
-        let mut c = base.clone();
-        c.protocol.experiments = vec![args.low_experiment, args.high_experiment];
-        let p = dir.join("check.toml");
-        std::fs::write(
-            &p,
-            toml::to_string(&c).context("writing the check run file")?,
-        )
-        .with_context(|| format!("writing {}", p.display()))?;
-        RunConfig::from_file(&p).with_context(|| format!("subject {}", args.subject))?
-    };
-    let subject = probe.subject().clone();
-    let sea_model = SeaModel::new(
-        plant.sea.dynamics.natural_frequency_hz,
-        plant.sea.dynamics.damping_ratio,
-    )?;
-    let mut bench = Bench {
-        base,
-        plant_file,
-        plant,
-        dir,
-        remove_dir,
-        args_release: (args.spring_torque_nm, args.hold_s, args.observe_s),
-        detector: Detector::default(),
-        count: 0,
-    };
-    let mut cases = Vec::new();
-    let mut checks = Vec::new();
-    let mut kp_used = 0.0;
-    for experiment in [args.low_experiment, args.high_experiment] {
-        let spec = *probe
-            .experiment_table()
-            .get(experiment)
-            .with_context(|| format!("experiment {experiment} is not in the table"))?;
-        let e = *subject
-            .get(experiment)
-            .with_context(|| format!("subject {} has no experiment {experiment}", subject.name))?;
-        let m_e = probe.exo_inertia_kg_m2(spec.load_kg);
-        let kp = match probe.controller.kp {
-            Some(kp) => kp,
-            None => proportional_gain(m_e, subject.inertia_kg_m2)?,
-        };
-        kp_used = kp;
-        let [k_lo, k_hi] = probe.controller.k_range_nm_per_rad;
-        let layout = FractionalLayout {
+    let json = args.json;
+    let outcome = tune(&options, &mut |line| {
+        if !json {
+            eprintln!("{line}");
+        }
+    })?;
+    match outcome {
+        Outcome::Checks {
+            subject,
             kp,
-            omega_gc_hat_rad_s: nominal_crossover(
-                StiffnessRange::new(k_lo, k_hi)?,
-                m_e,
-                subject.inertia_kg_m2,
-            )?,
-            filters: probe.controller.filters,
-            p1_rad_s: probe.controller.p1_rad_s,
-            r_pp: probe.controller.r_pp,
-        };
-        let plant_model = AmplificationPlant::new(
-            m_e,
-            subject.inertia_kg_m2,
-            e.stiffness_nm_per_rad,
-            e.hysteretic_damping_nm_per_rad / e.stiffness_nm_per_rad,
-            sea_model,
-        )?;
-        let f_model = marginal_fractional_order(&layout, &[plant_model])?;
-        if !args.check.is_empty() {
-            let mut trials = Vec::new();
-            for &f in &args.check {
-                trials.push(bench.report(experiment, f, !args.json)?);
-            }
-            checks.push(StiffnessCheck {
-                experiment,
-                k_nm_per_rad: e.stiffness_nm_per_rad,
-                h_nm_per_rad: e.hysteretic_damping_nm_per_rad,
-                f_marginal_model: f_model,
-                trials,
+            checks,
+        } => {
+            let out = serde_json::json!({
+                "subject": subject,
+                "kp": kp,
+                "checks": checks,
             });
-            continue;
-        }
-        if !args.json {
-            eprintln!(
-                "exo tune: subject {}, experiment {experiment} (K = {} Nm/rad, H = {} Nm/rad): raising f by {} from 0 (model boundary {f_model:.3})",
-                subject.name, e.stiffness_nm_per_rad, e.hysteretic_damping_nm_per_rad, args.step
-            );
-        }
-        let (stable, unstable, trials) =
-            bench.boundary(experiment, args.step, args.resolution, !args.json)?;
-        cases.push(StiffnessTuning {
-            experiment,
-            k_nm_per_rad: e.stiffness_nm_per_rad,
-            h_nm_per_rad: e.hysteretic_damping_nm_per_rad,
-            f_stable: stable,
-            f_oscillating: unstable,
-            f_marginal: 0.5 * (stable + unstable),
-            f_marginal_model: f_model,
-            trials,
-        });
-    }
-    if !args.check.is_empty() {
-        let out = serde_json::json!({
-            "subject": subject.name,
-            "kp": kp_used,
-            "checks": checks,
-        });
-        if args.json {
-            println!("{}", serde_json::to_string_pretty(&out)?);
-        } else {
-            for c in &checks {
-                for t in &c.trials {
-                    println!(
-                        "experiment {} (model boundary {:.3}), f = {:.3}: {}",
-                        c.experiment, c.f_marginal_model, t.f, t.evidence
-                    );
+            if args.json {
+                println!("{}", serde_json::to_string_pretty(&out)?);
+            } else {
+                for c in &checks {
+                    for t in &c.trials {
+                        println!(
+                            "experiment {} (model boundary {:.3}), f = {:.3}: {}",
+                            c.experiment, c.f_marginal_model, t.f, t.evidence
+                        );
+                    }
                 }
             }
         }
-        return Ok(());
-    }
-    let f_marginal = cases
-        .iter()
-        .map(|c| c.f_marginal)
-        .fold(f64::INFINITY, f64::min);
-    let f_model = cases
-        .iter()
-        .map(|c| c.f_marginal_model)
-        .fold(f64::INFINITY, f64::min);
-    let tuning = Tuning {
-        subject: subject.name.clone(),
-        kp: kp_used,
-        cases,
-        f_marginal,
-        f_tuned: (f_marginal - PAPER_MARGIN_F).max(0.0),
-        f_marginal_model: f_model,
-        f_tuned_model: (f_model - PAPER_MARGIN_F).max(0.0),
-    };
-    if args.json {
-        println!("{}", serde_json::to_string_pretty(&tuning)?);
-    } else {
-        print_tuning(&tuning);
+        Outcome::Tuning(tuning) => {
+            if args.json {
+                println!("{}", serde_json::to_string_pretty(&tuning)?);
+            } else {
+                print_tuning(&tuning);
+            }
+        }
     }
     Ok(())
 }

@@ -1,17 +1,22 @@
 //! `exo diagnose -o DIR`'s HTML: Bode overlays of data, nominal and updated
 //! model per transfer function with their residuals, a time-domain overlay
-//! of the window the nominal model missed most, and the tables.
+//! of the window the nominal model missed most, and the tables; and
+//! `exo diagnose-bench`'s table of its cases ([`bench_table`]).
 
 use std::fmt::Write as _;
 
-use anyhow::Result;
+use std::path::Path;
+
+use anyhow::{Context, Result};
+use exo_diagnose::bench::Outcome;
 use exo_diagnose::data::{Dataset, Tf};
 use exo_diagnose::engine::Score;
-use exo_diagnose::{Diagnosis, Physics};
+use exo_diagnose::{Diagnosis, Physics, Term};
+use exo_plant_sim::PlantModel;
 use num_complex::Complex64;
 use plotters::prelude::*;
 
-use crate::report::{bounds, esc, plot_err, PALETTE};
+use crate::figures::{bounds, esc, plot_err, PALETTE};
 
 struct Series {
     experiment: u32,
@@ -376,4 +381,311 @@ pub fn html(d: &Dataset, r: &Diagnosis) -> Result<String> {
     }
     let _ = write!(w, "</body></html>");
     Ok(h)
+}
+
+fn names(t: &[Term]) -> String {
+    if t.is_empty() {
+        "—".into()
+    } else {
+        t.iter()
+            .map(|t| format!("{t:?}"))
+            .collect::<Vec<_>>()
+            .join(" + ")
+    }
+}
+
+/// `exo diagnose-bench`'s table: each case's true and named effects, the
+/// fit before and after, and the confusion ([`confusion`]).
+pub fn bench_table(o: &[Outcome]) -> String {
+    let mut s = String::new();
+    let _ = writeln!(
+        s,
+        "\n{:<13} {:<34} {:<34} {:>9} {:>12} {:>10} {:>9}  ok",
+        "case", "true effect", "named", "R² refit", "RSS refit", "RSS final", "held-out"
+    );
+    for x in o {
+        let _ = writeln!(
+            s,
+            "{:<13} {:<34} {:<34} {:>9.4} {:>12.1} {:>10.1} {:>8.0}%  {}",
+            x.case,
+            names(&x.expected),
+            names(&x.named),
+            x.r2_refit,
+            x.rss[0],
+            x.rss[1],
+            100.0 * x.heldout_change,
+            if x.correct { "yes" } else { "NO" }
+        );
+    }
+    let concealed = o.iter().filter(|x| !x.expected.is_empty()).count();
+    let named_ok = o
+        .iter()
+        .filter(|x| !x.expected.is_empty() && x.correct)
+        .count();
+    let nulls = o.iter().filter(|x| x.expected.is_empty()).count();
+    let clean = o
+        .iter()
+        .filter(|x| x.expected.is_empty() && x.named.is_empty())
+        .count();
+    let _ = writeln!(
+        s,
+        "\nconcealed effects named exactly: {named_ok} of {concealed}; null cases with nothing named: {clean} of {nulls}"
+    );
+    s.push_str(&confusion(o));
+    for x in o {
+        let _ = writeln!(s, "\n{} — {}", x.case, x.what);
+        for v in &x.verdict {
+            let _ = writeln!(s, "  {v}");
+        }
+    }
+    s
+}
+
+/// The confusion matrix: rows are the true effects (and `none` for the null
+/// cases), columns the terms named (and `none`). A true effect counts on
+/// the diagonal when it was named, under `none` when it was missed; a term
+/// named that the case does not have counts in the row of the case's
+/// effect (or `none`), so every off-diagonal number is an error.
+pub fn confusion(o: &[Outcome]) -> String {
+    let label = |t: Option<Term>| t.map_or("none".to_string(), |t| format!("{t:?}"));
+    let mut rows: Vec<Option<Term>> = Vec::new();
+    let mut cols: Vec<Option<Term>> = Vec::new();
+    let mut cells: std::collections::BTreeMap<(String, String), usize> = Default::default();
+    let mut add = |r: Option<Term>,
+                   c: Option<Term>,
+                   rows: &mut Vec<Option<Term>>,
+                   cols: &mut Vec<Option<Term>>| {
+        if !rows.contains(&r) {
+            rows.push(r);
+        }
+        if !cols.contains(&c) {
+            cols.push(c);
+        }
+        *cells.entry((label(r), label(c))).or_default() += 1;
+    };
+    for x in o {
+        if x.expected.is_empty() {
+            if x.named.is_empty() {
+                add(None, None, &mut rows, &mut cols);
+            }
+            for n in &x.named {
+                add(None, Some(*n), &mut rows, &mut cols);
+            }
+            continue;
+        }
+        for t in &x.expected {
+            let hit = x.named.contains(t);
+            add(
+                Some(*t),
+                if hit { Some(*t) } else { None },
+                &mut rows,
+                &mut cols,
+            );
+        }
+        for n in x.named.iter().filter(|n| !x.expected.contains(n)) {
+            add(Some(x.expected[0]), Some(*n), &mut rows, &mut cols);
+        }
+    }
+    let mut s = String::from(
+        "\nconfusion (rows: true effect, columns: named; a case with two effects counts in both rows)\n",
+    );
+    let _ = write!(s, "{:<20}", "true \\ named");
+    for c in &cols {
+        let _ = write!(s, " {:>18}", label(*c));
+    }
+    s.push('\n');
+    for r in &rows {
+        let _ = write!(s, "{:<20}", label(*r));
+        for c in &cols {
+            let n = cells.get(&(label(*r), label(*c))).copied().unwrap_or(0);
+            let _ = write!(
+                s,
+                " {:>18}",
+                if n == 0 {
+                    ".".to_string()
+                } else {
+                    n.to_string()
+                }
+            );
+        }
+        s.push('\n');
+    }
+    s
+}
+
+fn score_rows(w: &mut String, label: &str, s: &Score) {
+    for t in &s.per_tf {
+        let _ = writeln!(
+            w,
+            "  {label:<22} {:<15} {:>6} {:>14.1} {:>9.4} {:>14.1}",
+            t.tf.name(),
+            t.points,
+            t.rss,
+            t.r2,
+            t.heldout_rss
+        );
+    }
+}
+
+/// The human-readable report of `exo diagnose`.
+pub fn text(r: &Diagnosis) -> String {
+    let mut w = String::new();
+    let _ = writeln!(w, "exo diagnose: {}", r.sources.join(", "));
+    let _ = writeln!(
+        w,
+        "transfer functions compared: {}",
+        r.supported
+            .iter()
+            .map(|t| format!("{} = {}", t.name(), t.signals()))
+            .collect::<Vec<_>>()
+            .join(", ")
+    );
+    if !r.notes.is_empty() {
+        let _ = writeln!(w, "\nnot used ({}):", r.notes.len());
+        for n in r.notes.iter().take(12) {
+            let _ = writeln!(w, "  - {n}");
+        }
+        if r.notes.len() > 12 {
+            let _ = writeln!(w, "  … and {} more (see --json)", r.notes.len() - 12);
+        }
+    }
+    let _ = writeln!(w, "\n1. Where the model and the data differ");
+    for l in &r.location.summary {
+        let _ = writeln!(w, "  - {l}");
+    }
+    for s in &r.location.scaling {
+        let _ = writeln!(
+            w,
+            "  - {} residual after the refit: correlation of its quadrature part with 1/amplitude {:+.2}, of its in-phase part with K_h {:+.2}, of its phase with ω {:+.2} ({} points)",
+            s.tf.name(),
+            s.with_inverse_amplitude,
+            s.with_stiffness,
+            s.phase_with_omega,
+            s.windows
+        );
+    }
+    let harm: Vec<String> = r
+        .location
+        .time
+        .iter()
+        .filter(|t| t.harmonics[1] > 3.0 * t.floor && t.harmonics[1] > 0.01)
+        .map(|t| {
+            format!(
+                "{} in experiment {} (3rd harmonic {:.1} % of the fundamental, floor {:.1} %)",
+                t.channel,
+                t.experiment,
+                100.0 * t.harmonics[1],
+                100.0 * t.floor
+            )
+        })
+        .collect();
+    if harm.is_empty() {
+        let _ = writeln!(
+            w,
+            "  - time domain: no harmonic of the excitation above the noise floor"
+        );
+    } else {
+        let _ = writeln!(
+            w,
+            "  - time domain: harmonics of the excitation above the noise: {}",
+            harm.join("; ")
+        );
+    }
+    let _ = writeln!(w, "\n2. Parameters of the nominal model, refitted");
+    let _ = writeln!(
+        w,
+        "  {:<36} {:>12} {:>12} {:>10} {:>9}",
+        "parameter", "nominal", "fitted", "s.e.", "change"
+    );
+    for c in &r.parameter_changes {
+        let _ = writeln!(
+            w,
+            "  {:<36} {:>12.4} {:>12.4} {:>10.4} {:>8.1}%",
+            c.label, c.nominal, c.fitted, c.std_error, c.change_pct
+        );
+    }
+    let _ = writeln!(w, "\n3. Candidate physics, one term at a time");
+    if r.steps.is_empty() {
+        let _ = writeln!(
+            w,
+            "  not searched: after the refit the model is within the measured noise (χ²/dof {:.2}, lack-of-fit p = {:.2})",
+            r.refit.chi2_per_dof, r.refit.lack_of_fit_p
+        );
+    }
+    for st in &r.steps {
+        let _ = writeln!(
+            w,
+            "  step {}: {:<44} {:>4} {:>10} {:>8} {:>10} {:>8} {:>9}",
+            st.step, "candidate", "+p", "F", "F_crit", "p (Holm)", "ΔAIC", "held-out"
+        );
+        for c in &st.candidates {
+            let _ = writeln!(
+                w,
+                "  {} {:<50} {:>4} {:>10.2} {:>8.2} {:>10.2e} {:>8.1} {:>8.1}%  {}",
+                if c.chosen { "→" } else { " " },
+                c.words,
+                c.added_parameters,
+                c.f,
+                c.f_critical,
+                c.p_holm,
+                c.delta_aic,
+                100.0 * c.heldout_change,
+                if c.identified {
+                    c.description.clone()
+                } else {
+                    format!("{} (not determined)", c.description)
+                }
+            );
+        }
+    }
+    let _ = writeln!(w, "\n4. Fit before and after");
+    let _ = writeln!(
+        w,
+        "  {:<22} {:<15} {:>6} {:>14} {:>9} {:>14}",
+        "model", "transfer fn", "points", "RSS (χ²)", "R²", "held-out RSS"
+    );
+    score_rows(&mut w, "nominal as given", &r.nominal);
+    score_rows(&mut w, "nominal refitted", &r.refit);
+    score_rows(&mut w, "with terms found", &r.final_score);
+    let _ = writeln!(w, "\nVerdict");
+    for v in &r.verdict {
+        let _ = writeln!(w, "  {v}");
+    }
+    w
+}
+
+/// Writes the report, the updated model, the fitted subject and the JSON
+/// into `dir` (created if missing): `report.html`, `updated-plant.toml`,
+/// `updated-subject.toml`, `diagnosis.json`.
+pub fn write_outputs(dir: &Path, nominal: &PlantModel, d: &Dataset, r: &Diagnosis) -> Result<()> {
+    exo_recording::files::create_output_dir(dir)
+        .with_context(|| format!("creating {}", dir.display()))?;
+    let updated = r.updated_plant(nominal);
+    let mut plant = format!(
+        "# Updated by exo diagnose from {}.\n# Terms added: {}.\n\n",
+        r.sources.join(", "),
+        if r.found.is_empty() {
+            "none".to_string()
+        } else {
+            r.found
+                .iter()
+                .map(|f| format!("{} ({}: {})", f.words, f.toml_key, f.description))
+                .collect::<Vec<_>>()
+                .join("; ")
+        }
+    );
+    plant.push_str(&updated.to_toml_string());
+    let p = dir.join("updated-plant.toml");
+    exo_recording::files::write_output_file(&p, plant)
+        .with_context(|| format!("writing {}", p.display()))?;
+    let p = dir.join("updated-subject.toml");
+    exo_recording::files::write_output_file(&p, r.final_physics.subject_toml("diagnosed"))
+        .with_context(|| format!("writing {}", p.display()))?;
+    let p = dir.join("diagnosis.json");
+    exo_recording::files::write_output_file(&p, serde_json::to_string_pretty(r)?)
+        .with_context(|| format!("writing {}", p.display()))?;
+    let p = dir.join("report.html");
+    exo_recording::files::write_output_file(&p, html(d, r)?)
+        .with_context(|| format!("writing {}", p.display()))?;
+    Ok(())
 }

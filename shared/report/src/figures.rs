@@ -12,6 +12,7 @@ use exo_impedance::{Complex64, DynamicStiffness};
 use plotters::prelude::*;
 
 use exo_analysis::study::{FitReport, ModelRow, SubjectReport};
+use exo_recording::Recording;
 
 /// A stretch of recorded signals for the time-response figure.
 #[derive(Debug, Clone, Default)]
@@ -26,6 +27,59 @@ pub struct TimeTrace {
     pub tau_c_nm: Vec<f64>,
     /// τ_s (Nm).
     pub tau_s_nm: Vec<f64>,
+}
+
+/// One analysis window of `r` (the middle window of its first experiment,
+/// or the whole record), with a second before it: θ_e, τ_c, τ_s, at most
+/// about 4000 points; `None` for a record without samples there. `subject`
+/// goes into the title.
+pub fn trace_of(r: &Recording, subject: &str) -> Option<TimeTrace> {
+    // Closed windows only: a window the record ends in has no span to plot.
+    let windows: Vec<(u32, u32, u64, u64)> = exo_analysis::analysis_windows(&r.protocol)
+        .into_iter()
+        .filter_map(|w| Some((w.state.experiment, w.state.period, w.start_ns, w.end_ns?)))
+        .collect();
+    // The middle window of the first experiment, or the whole record.
+    let pick = windows
+        .iter()
+        .filter(|w| Some(w.0) == windows.first().map(|f| f.0))
+        .nth(windows.len().min(10) / 2)
+        .or(windows.first())
+        .copied();
+    let (title, lo, hi) = match pick {
+        Some((e, p, s, t)) => (
+            format!(
+                "{}: subject {}, experiment {e}, period {p}",
+                r.source, subject
+            ),
+            s.saturating_sub(1_000_000_000),
+            t,
+        ),
+        None => (
+            format!("{}: subject {}", r.source, subject),
+            r.sensor.first().map_or(0, |s| s.stamp_ns),
+            r.sensor.last().map_or(0, |s| s.stamp_ns + 1),
+        ),
+    };
+    let sel: Vec<_> = r
+        .sensor
+        .iter()
+        .filter(|s| s.stamp_ns >= lo && s.stamp_ns < hi)
+        .collect();
+    // At most ~4000 points per trace keep the SVG small.
+    let step = (sel.len() / 4000).max(1);
+    let t0 = sel.first().map_or(0, |s| s.stamp_ns);
+    let mut tr = TimeTrace {
+        title,
+        ..Default::default()
+    };
+    for s in sel.iter().step_by(step) {
+        tr.t_s.push((s.stamp_ns - t0) as f64 * 1e-9);
+        tr.theta_e_rad.push(s.theta_e);
+        tr.tau_c_nm.push(s.tau_c);
+        tr.tau_s_nm.push(s.tau_s);
+    }
+    (!tr.t_s.is_empty()).then_some(tr)
 }
 
 pub(crate) const PALETTE: [RGBColor; 10] = [

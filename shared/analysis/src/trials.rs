@@ -31,20 +31,17 @@ use anyhow::{bail, Context, Result};
 use serde::Deserialize;
 
 /// The unit of a CSV's time column.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Deserialize, clap::ValueEnum)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Deserialize)]
 pub enum TimeUnit {
     /// Seconds.
     #[default]
     #[serde(rename = "s")]
-    #[value(name = "s")]
     S,
     /// Milliseconds.
     #[serde(rename = "ms")]
-    #[value(name = "ms")]
     Ms,
     /// Microseconds.
     #[serde(rename = "us")]
-    #[value(name = "us")]
     Us,
 }
 

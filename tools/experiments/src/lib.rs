@@ -1,0 +1,17 @@
+//! # exo-experiments
+//!
+//! The paper's experiments automated on the in-process simulator
+//! ([`exo_sim`]), as libraries the `exo` tool and tests call:
+//!
+//! - [`simulate`]: one subject through a base run configuration, recorded
+//!   to the contract, bounded and stopped at a latched safe state
+//!   (`exo reproduce`, `exo diagnose-bench`);
+//! - [`tune`]: the tuning experiment (spring-release trials raising f,
+//!   the boundary bisected, beside the model's prediction; `exo tune`).
+//!
+//! A crate of its own rather than modules of `exo-sim`: these write run
+//! files and recordings and report with `anyhow` errors naming them,
+//! while `exo-sim` is the bare lockstep composition of the nodes.
+
+pub mod simulate;
+pub mod tune;
