@@ -8,7 +8,7 @@ use std::process::Command;
 use std::time::Duration;
 
 use exo_config::Subject;
-use exo_service_kit::channels::SENSOR;
+use exo_service_kit::channels::{PROTOCOL, SENSOR};
 use exo_tests::*;
 use serde_json::Value;
 
@@ -441,4 +441,84 @@ fn a_restarted_recorder_continues_in_a_new_segment_read_as_one_recording() {
         );
     }
     assert!(one.source.contains("(+1 segment)"), "{}", one.source);
+}
+
+/// The children of `parent` whose command name is `comm`.
+fn children_named(parent: u32, comm: &str) -> Vec<i32> {
+    let mut out = Vec::new();
+    for entry in std::fs::read_dir("/proc").unwrap().flatten() {
+        let Ok(pid) = entry.file_name().to_string_lossy().parse::<i32>() else {
+            continue;
+        };
+        let Ok(stat) = std::fs::read_to_string(entry.path().join("stat")) else {
+            continue;
+        };
+        // pid (comm) state ppid …
+        let (Some(open), Some(close)) = (stat.find('('), stat.rfind(')')) else {
+            continue;
+        };
+        let name = &stat[open + 1..close];
+        let ppid = stat[close + 1..].split_whitespace().nth(1);
+        if name == comm && ppid == Some(&parent.to_string()) {
+            out.push(pid);
+        }
+    }
+    out
+}
+
+#[test]
+fn exo_run_restarts_a_killed_recorder_and_in_lockstep_loses_no_sample() {
+    // Issue 22: the lockstep main job, its recorder killed -9 at experiment
+    // 1 period 4: the run's recordings together hold every exo/sensor seq
+    // from the first to the last, none missing, and the restart is named.
+    let sc = Scenario::new(
+        "recrestart",
+        &[("experiments = [1, 7]", "experiments = [1]")],
+    );
+    let protocol = sc.collect(PROTOCOL);
+    let samples = sc.collect(SENSOR);
+    let mut run = Command::new(workspace_bin("exo"))
+        .args(["run", sc.config.to_str().unwrap()])
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    protocol.wait_for(Duration::from_secs(120), "experiment 1 period 4", |p| {
+        p.iter().any(|s| s.experiment == 1 && s.period == 4)
+    });
+    let recorders = children_named(run.id(), "exo-recorder");
+    assert_eq!(recorders.len(), 1, "{recorders:?}");
+    // SAFETY: a process this test's `exo run` started.
+    unsafe { libc::kill(recorders[0], libc::SIGKILL) };
+    let status = wait_exit(&mut run, Duration::from_secs(300), "exo run");
+    let mut out = String::new();
+    let mut err = String::new();
+    use std::io::Read;
+    run.stdout.take().unwrap().read_to_string(&mut out).unwrap();
+    run.stderr.take().unwrap().read_to_string(&mut err).unwrap();
+    // Finished, with the restart named as a fault (exit code 3).
+    assert_eq!(status.code(), Some(3), "{err}");
+    assert!(
+        err.contains("recorder stopped") && err.contains("restarted"),
+        "{err}"
+    );
+    assert!(!err.contains("samples may be missing"), "{err}");
+    let rec = recording_in(&out);
+    assert!(exo_recording::segments::segments(&rec).len() == 2, "{err}");
+    let joined = exo_recording::read_recording(&rec).unwrap();
+    let published = samples.finish();
+    let seqs: Vec<u64> = joined.sensor.iter().map(|s| s.seq).collect();
+    assert_eq!(seqs.first(), published.first().map(|s| &s.seq));
+    assert_eq!(seqs.last(), published.last().map(|s| &s.seq));
+    let missing: Vec<u64> = seqs
+        .windows(2)
+        .filter(|w| w[1] != w[0] + 1)
+        .map(|w| w[0] + 1)
+        .collect();
+    assert!(missing.is_empty(), "sensor seqs missing from {missing:?}");
+    assert!(
+        !joined.warnings.iter().any(|w| w.contains("in no segment")),
+        "{:?}",
+        joined.warnings
+    );
 }

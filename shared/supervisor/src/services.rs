@@ -1,7 +1,9 @@
 //! The processes of a run configuration, in start order.
 
 use anyhow::Result;
-use exo_config::RunConfig;
+use std::time::Duration;
+
+use exo_config::{RunConfig, TimingMode};
 use exo_messages::channels::ProcessName;
 
 use crate::supervise::{config_args, sibling_program, Ready, ReadyProbe, Role, ServiceSpec};
@@ -63,6 +65,13 @@ pub fn services_of(
                     instance: cfg.run.instance.clone(),
                     probe,
                 }),
+                holds_clock: (process == ProcessName::PlantSim
+                    && cfg.run.timing == TimingMode::Lockstep)
+                    .then(|| {
+                        // Half the loop's lockstep time-out: the driver and
+                        // the controller wait that long for the plant.
+                        Duration::from_secs_f64(cfg.safety.lockstep_timeout_ms * 0.5e-3)
+                    }),
             });
         }
     }

@@ -37,6 +37,12 @@ pub struct ServiceSpec {
     pub role: Role,
     /// For an off-path service: how to tell it has opened all its ports.
     pub ready: Option<Ready>,
+    /// Whether stopping this process (SIGSTOP) stops the run's simulated
+    /// time, and for how long at most: the plant simulator in lockstep,
+    /// which the supervisor holds while a restarted off-path service
+    /// connects, so that in lockstep a restart loses nothing and costs the
+    /// loop nothing. The bound stays below the loop's lockstep time-out.
+    pub holds_clock: Option<Duration>,
 }
 
 /// How the supervisor tells that an off-path service has opened every port
@@ -344,6 +350,12 @@ pub fn supervise_checked(
             eprintln!("exo: stop requested; stopping every service");
             break Ok(Ended::Signal);
         }
+        // The process that holds simulated time, if any (the plant in
+        // lockstep), while it runs.
+        let clock = running.iter().find_map(|r| {
+            let pid = libc::pid_t::try_from(r.child.id()).ok()?;
+            r.spec.holds_clock.map(|patience| (pid, patience))
+        });
         for r in running.iter_mut() {
             let status = match r.child.try_wait() {
                 Ok(Some(s)) => s,
@@ -361,9 +373,14 @@ pub fn supervise_checked(
                     // process's new ports make the real-time path build
                     // connections (ARCHITECTURE.md, "Start-up order").
                     eprintln!(
-                        "exo: {name} stopped ({}); restarting it ({}/{MAX_RESTARTS}); control goes on (a restart can cost the real-time path deadlines while its ports connect)",
+                        "exo: {name} stopped ({}); restarting it ({}/{MAX_RESTARTS}); {}",
                         describe(status),
-                        r.restarts
+                        r.restarts,
+                        if clock.is_some() {
+                            "simulated time is held until it has connected"
+                        } else {
+                            "control goes on (a restart can cost the real-time path deadlines while its ports connect)"
+                        }
                     );
                     restarts.push(format!(
                         "the {name} stopped ({}) {:.1} s into the run and was restarted ({}/{MAX_RESTARTS})",
@@ -371,9 +388,12 @@ pub fn supervise_checked(
                         started.elapsed().as_secs_f64(),
                         r.restarts
                     ));
-                    std::thread::sleep(Duration::from_millis(200 * u64::from(r.restarts)));
-                    match spawn(&r.spec, logs, &r.tail) {
-                        Ok(child) => r.child = child,
+                    match restart(r, logs, clock) {
+                        Ok(None) => {}
+                        Ok(Some(warning)) => {
+                            eprintln!("exo: warning: {warning}");
+                            restarts.push(warning);
+                        }
                         Err(e) => break 'supervise Err(e),
                     }
                 }
@@ -411,6 +431,57 @@ pub fn supervise_checked(
     };
     stop_all(&mut running);
     outcome.map(|ended| Supervised { ended, restarts })
+}
+
+/// Starts `r` again. With `clock` (the pid of the process holding
+/// simulated time and the longest it may be held) the clock is stopped
+/// first and resumed once the new process has opened its ports (its
+/// [`Ready`] probe), or after the patience, which is returned as a warning:
+/// samples published after the old process died and before the new one
+/// connected come to it from the channels' history, so in lockstep none is
+/// lost. Without a clock (real time) it starts after a back-off.
+fn restart(
+    r: &mut Running,
+    logs: Logs,
+    clock: Option<(libc::pid_t, Duration)>,
+) -> Result<Option<String>> {
+    let Some((pid, patience)) = clock else {
+        std::thread::sleep(Duration::from_millis(200 * u64::from(r.restarts)));
+        r.child = spawn(&r.spec, logs, &r.tail)?;
+        return Ok(None);
+    };
+    // SAFETY: signalling a child of ours that has not been reaped.
+    unsafe { libc::kill(pid, libc::SIGSTOP) };
+    let held = Instant::now();
+    // A probe node that also clears the dead process's ports, so the count
+    // before the start is without them.
+    let probe = r.spec.ready.as_ref().and_then(|ready| {
+        let node = format!("exo_sup_{}_restart", std::process::id());
+        let ipc = exo_service_kit::ipc::Ipc::open(&node, &ready.instance, None).ok()?;
+        let before = ready.count(&ipc).ok()?;
+        Some((ready, ipc, before))
+    });
+    let started = spawn(&r.spec, logs, &r.tail);
+    let mut ready = probe.is_none();
+    if let (Ok(_), Some((ready_probe, ipc, before))) = (&started, &probe) {
+        while held.elapsed() < patience {
+            if ready_probe.count(ipc).is_ok_and(|n| n > *before) {
+                ready = true;
+                break;
+            }
+            std::thread::sleep(Duration::from_millis(2));
+        }
+    }
+    // SAFETY: as above.
+    unsafe { libc::kill(pid, libc::SIGCONT) };
+    r.child = started?;
+    Ok((!ready).then(|| {
+        format!(
+            "the {} had not opened its ports {:.0} ms after its restart; simulated time went on without it, so samples may be missing from its output",
+            r.spec.name,
+            patience.as_secs_f64() * 1e3
+        )
+    }))
 }
 
 /// The standard argument list of a service: `--config FILE`.
