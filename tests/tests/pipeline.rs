@@ -359,7 +359,22 @@ fn the_launcher_keeps_off_the_control_path_cpus() {
     sc.append("\n[realtime]\nplant_sim_cpu = 0\nsensor_driver_cpu = 0\ncontroller_cpu = 0\n");
     let out = exo(&["run", sc.config.to_str().unwrap()]);
     let err = stderr(&out);
-    assert!(out.status.success(), "{err}");
+    // Three processes on one CPU of a shared machine may miss real-time
+    // deadlines: then the run finishes with that fault named (exit 3) and
+    // no other.
+    let faults: Vec<&str> = err
+        .lines()
+        .filter(|l| l.starts_with("exo: fault:"))
+        .collect();
+    assert!(
+        out.status.success()
+            || (out.status.code() == Some(3)
+                && !faults.is_empty()
+                && faults
+                    .iter()
+                    .all(|l| l.contains("missed") && l.contains("real-time deadlines"))),
+        "{err}"
+    );
     let cpus = exo_service_kit::allowed_cpus().unwrap();
     let rest: Vec<usize> = cpus.iter().copied().filter(|&c| c != 0).collect();
     let expected = if rest.is_empty() {

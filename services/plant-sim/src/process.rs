@@ -40,6 +40,8 @@ pub struct PlantProcess {
     realtime: bool,
     log_every: u64,
     missed_deadlines: u64,
+    /// The next frame is sent past its deadline.
+    late: bool,
     wall_start: Option<u64>,
 }
 
@@ -69,6 +71,7 @@ impl Process for PlantProcess {
             realtime: cfg.run.timing == TimingMode::Realtime,
             log_every: cfg.run.rate_hz as u64 * 10,
             missed_deadlines: 0,
+            late: false,
             wall_start: None,
         })
     }
@@ -86,17 +89,22 @@ impl Process for PlantProcess {
             self.node.on_protocol(&p);
         }
         let k = self.node.tick();
-        let frame = self.node.frame(if self.realtime {
+        let mut frame = self.node.frame(if self.realtime {
             monotonic_ns()
         } else {
             self.node.lockstep_stamp_ns()
         });
+        if std::mem::take(&mut self.late) {
+            frame.status |= exo_messages::bus_status::LATE;
+        }
         self.bus_out.send(frame)?;
         if self.realtime {
             let period_ns = self.node.period_ns();
             let deadline = wall_start + (k + 1) * period_ns;
             if monotonic_ns() > deadline + period_ns {
                 self.missed_deadlines += 1;
+                // The next frame goes out past its deadline: flag it.
+                self.late = true;
             } else {
                 sleep_until_ns(deadline);
             }

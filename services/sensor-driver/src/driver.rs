@@ -148,7 +148,9 @@ impl Driver {
         }
         self.current_frame = Some(f.seq);
         self.answered = false;
-        if f.status != 0 {
+        // A late frame (bus_status::LATE) is counted by `exo run`, not a
+        // fault of the devices.
+        if f.status & exo_messages::bus_status::FAULTS != 0 {
             st |= status::BUS_FAULT;
         }
         let theta = self.calibration.theta_rad(f.encoder_counts);
@@ -342,5 +344,32 @@ mod tests {
             d.on_command(2, f64::INFINITY).unwrap().source,
             CommandSource::SafeZeroTorque
         );
+    }
+
+    #[test]
+    fn a_late_frame_is_no_bus_fault_and_a_device_fault_is() {
+        use exo_messages::bus_status;
+        let mut d = Driver::new(&rig(), 1000.0, SafeState::ZeroTorque, 40.0, 4.5);
+        let late = RawFrame {
+            status: bus_status::LATE,
+            ..frame(1)
+        };
+        assert_eq!(d.on_frame(&late).status & status::BUS_FAULT, 0);
+        for (k, bit) in [
+            bus_status::FRAME_ERROR,
+            bus_status::ENCODER_ERROR,
+            bus_status::FT_ERROR,
+            bus_status::SEA_ENCODER_ERROR,
+            bus_status::DRIVE_FAULT,
+        ]
+        .into_iter()
+        .enumerate()
+        {
+            let f = RawFrame {
+                status: bit | bus_status::LATE,
+                ..frame(2 + k as u64)
+            };
+            assert_ne!(d.on_frame(&f).status & status::BUS_FAULT, 0, "bit {bit}");
+        }
     }
 }

@@ -21,8 +21,16 @@ pub mod bus_status {
     pub const SEA_ENCODER_ERROR: u32 = 1 << 3;
     /// The motor drive reported a fault (over-current, over-temperature, disabled).
     pub const DRIVE_FAULT: u32 = 1 << 4;
+    /// Not a fault of the devices: the bus sent this frame past its
+    /// cycle's deadline (the simulated bus, in real time, missed a
+    /// deadline before it). The sensor driver does not latch on it; `exo
+    /// run` counts and names it in its summary.
+    pub const LATE: u32 = 1 << 5;
+    /// The bits that report a fault of the devices or the frame.
+    pub const FAULTS: u32 =
+        FRAME_ERROR | ENCODER_ERROR | FT_ERROR | SEA_ENCODER_ERROR | DRIVE_FAULT;
     /// Every bit with a meaning.
-    pub const KNOWN: u32 = FRAME_ERROR | ENCODER_ERROR | FT_ERROR | SEA_ENCODER_ERROR | DRIVE_FAULT;
+    pub const KNOWN: u32 = FAULTS | LATE;
 }
 
 /// Indices into [`BusSensorFrame::cuff_wrench`].

@@ -1,6 +1,7 @@
 //! What `exo run` watches for besides the processes' exits: the safe state
-//! the controller or the sensor driver latched, and bus or drive faults,
-//! seen on the run's own channels. A run that finishes with any of them is
+//! the controller or the sensor driver latched, bus or drive faults, and
+//! the simulated bus's missed real-time deadlines, seen on the run's own
+//! channels. A run that finishes with any of them is
 //! named in the summary and exits with [`FINISHED_WITH_FAULTS`], not 0.
 //!
 //! The run's end is not a fault: once the controller has finished the
@@ -12,7 +13,9 @@ use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::Arc;
 
 use anyhow::{Context, Result};
-use exo_messages::{status, ActuatorCommand, BusSensorFrame, ControlMode, SensorSample};
+use exo_messages::{
+    bus_status, status, ActuatorCommand, BusSensorFrame, ControlMode, SensorSample,
+};
 use exo_service_kit::channels::{BUS_SENSOR, COMMAND, SENSOR};
 use exo_service_kit::collect::Collector;
 
@@ -70,14 +73,14 @@ impl FaultWatch {
             .context("watching the commands for a safe state")?,
             samples: Collector::start_filtered(&node, instance, SENSOR, is_fault_sample)
                 .context("watching the samples for faults")?,
-            // Keeps no frame, only the last one's stamp.
+            // Keeps the late frames, and the last one's stamp.
             frames: Collector::start_filtered(
                 &node,
                 instance,
                 BUS_SENSOR,
                 move |f: &BusSensorFrame| {
                     last.store(f.stamp_ns, Ordering::Relaxed);
-                    false
+                    f.status & bus_status::LATE != 0
                 },
             )
             .context("watching the bus for its last frame")?,
@@ -89,7 +92,7 @@ impl FaultWatch {
     /// The faults seen before the run's end ([`describe`]).
     pub fn faults(self) -> Result<Vec<String>> {
         let (commands, samples) = (self.commands.finish()?, self.samples.finish()?);
-        self.frames.finish()?;
+        let late = self.frames.finish()?;
         let end_ns = self
             .done_ns
             .load(Ordering::Relaxed)
@@ -103,8 +106,26 @@ impl FaultWatch {
             .into_iter()
             .filter(|s| before_end(s.stamp_ns))
             .collect();
-        Ok(describe(&commands, &samples))
+        let late: Vec<_> = late
+            .into_iter()
+            .filter(|f| before_end(f.stamp_ns))
+            .collect();
+        let mut faults = describe(&commands, &samples);
+        faults.extend(describe_late(&late));
+        Ok(faults)
     }
+}
+
+/// The bus frames flagged late ([`bus_status::LATE`]: the simulated bus
+/// missed real-time deadlines), as one line, or none.
+pub fn describe_late(late: &[BusSensorFrame]) -> Option<String> {
+    let first = late.first()?;
+    Some(format!(
+        "the bus (plant-sim) missed {} real-time deadlines, the first before frame {} (stamp {:.3} s)",
+        late.len(),
+        first.seq,
+        first.stamp_ns as f64 * 1e-9
+    ))
 }
 
 /// A command in a safe-state mode.
@@ -159,5 +180,28 @@ pub fn describe(commands: &[ActuatorCommand], samples: &[SensorSample]) -> Vec<S
             }
         }
         out
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn late_frames_are_named_with_their_count_and_the_first() {
+        assert_eq!(describe_late(&[]), None);
+        let frame = |seq: u64| BusSensorFrame {
+            seq,
+            stamp_ns: seq * 1_000_000,
+            status: bus_status::LATE,
+            ..Default::default()
+        };
+        let line = describe_late(&[frame(1500), frame(1501), frame(2000)]).unwrap();
+        assert!(
+            line.contains("missed 3 real-time deadlines")
+                && line.contains("frame 1500")
+                && line.contains("1.500 s"),
+            "{line}"
+        );
     }
 }
