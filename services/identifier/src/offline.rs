@@ -203,15 +203,42 @@ pub fn load_inputs(a: &FitOptions, note: &mut dyn FnMut(String)) -> Result<Vec<L
         );
     }
     let total = inputs.len();
+    // Each input is read and identified on its own: one per core, the
+    // notes and the results in the inputs' order.
+    let next = std::sync::atomic::AtomicUsize::new(0);
+    let results: Vec<std::sync::Mutex<Option<Result<Loaded>>>> =
+        inputs.iter().map(|_| std::sync::Mutex::new(None)).collect();
+    let workers = std::thread::available_parallelism()
+        .map_or(1, std::num::NonZeroUsize::get)
+        .clamp(1, total.max(1));
+    std::thread::scope(|scope| {
+        for _ in 0..workers {
+            scope.spawn(|| loop {
+                let i = next.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+                let Some((p, trial)) = inputs.get(i) else {
+                    break;
+                };
+                let r = match trial {
+                    Some(t) => exo_analysis::import::recording_from_csv(p, t)
+                        .and_then(|rec| identify_recording(rec, p, a)),
+                    None => load(p, a),
+                };
+                *results[i]
+                    .lock()
+                    .unwrap_or_else(std::sync::PoisonError::into_inner) = Some(r);
+            });
+        }
+    });
     let mut loaded = Vec::with_capacity(total);
-    for (i, (p, trial)) in inputs.iter().enumerate() {
+    for (i, ((p, _), r)) in inputs.iter().zip(results).enumerate() {
         if total > 1 {
             note(format!("exo fit: [{}/{}] {}", i + 1, total, p.display()));
         }
-        loaded.push(match trial {
-            Some(t) => identify_recording(exo_analysis::import::recording_from_csv(p, t)?, p, a)?,
-            None => load(p, a)?,
-        });
+        let r = r
+            .into_inner()
+            .unwrap_or_else(std::sync::PoisonError::into_inner)
+            .unwrap_or_else(|| Err(anyhow::anyhow!("{} was not read", p.display())));
+        loaded.push(r?);
     }
     Ok(loaded)
 }

@@ -24,7 +24,7 @@ use anyhow::{bail, Context, Result};
 use clap::Args;
 use exo_analysis::reproduce::{compare, Criteria};
 use exo_config::{RunConfig, Subject};
-use exo_experiments::simulate::simulate;
+use exo_experiments::simulate::{default_workers, simulate_each, Job};
 use exo_identifier::offline::{fit, FitOptions};
 use exo_report::reproduction::tables;
 
@@ -60,36 +60,49 @@ pub fn run(a: &ReproduceArgs) -> Result<()> {
     let dir = a.output.clone().unwrap_or(base.run.output_dir.clone());
     std::fs::create_dir_all(&dir).with_context(|| format!("creating {}", dir.display()))?;
     let mut subjects = Vec::new();
-    let mut recordings = Vec::new();
-    for (i, s) in a.subjects.iter().enumerate() {
+    let mut jobs = Vec::new();
+    for s in &a.subjects {
         let file = subject_path(s);
         let subject = Subject::from_file(&file)?;
-        let name = subject.name.clone();
         for n in &base.protocol.experiments {
             if subject.get(*n).is_none() {
                 bail!("{}: no impedance for experiment {n}", file.display());
             }
         }
-        let recording = if a.fit_only {
-            let r = dir.join(format!("{name}.mcap"));
+        jobs.push(Job {
+            subject: file,
+            name: subject.name.clone(),
+            plant: None,
+        });
+        subjects.push(subject);
+    }
+    let recordings = if a.fit_only {
+        let mut recordings = Vec::new();
+        for job in &jobs {
+            let r = dir.join(format!("{}.mcap", job.name));
             if !r.is_file() {
                 bail!(
                     "--fit-only: {} does not exist (run without --fit-only first)",
                     r.display()
                 );
             }
-            r
-        } else {
+            recordings.push(r);
+        }
+        recordings
+    } else {
+        // The subjects are independent: one simulation per core.
+        let announce = |i: usize| {
             eprintln!(
-                "exo reproduce: subject {name} ({}/{})",
+                "exo reproduce: subject {} ({}/{})",
+                jobs[i].name,
                 i + 1,
-                a.subjects.len()
+                jobs.len()
             );
-            simulate(&base, &file, None, &name, &dir)?
         };
-        recordings.push(recording);
-        subjects.push(subject);
-    }
+        simulate_each(&base, &jobs, &dir, default_workers(), &announce)
+            .into_iter()
+            .collect::<Result<Vec<_>>>()?
+    };
     let (_, report) = fit(&FitOptions::for_recordings(recordings.clone()), &mut note)?;
     let mut r = compare(
         &subjects,

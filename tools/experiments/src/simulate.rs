@@ -71,6 +71,59 @@ pub fn simulate(
     }
 }
 
+/// One run of [`simulate_each`]: the subject file, its name, another plant
+/// model if any.
+#[derive(Debug, Clone)]
+pub struct Job {
+    /// The subject file.
+    pub subject: PathBuf,
+    /// The name of the run (and of its recording, `NAME.mcap`).
+    pub name: String,
+    /// Another plant model than the base configuration's.
+    pub plant: Option<PathBuf>,
+}
+
+/// [`simulate`] for each job, `workers` at a time (each on its own
+/// thread, one core each); `on_start` is told each job's index as it
+/// starts. The results are in the jobs' order.
+pub fn simulate_each(
+    base: &RunConfig,
+    jobs: &[Job],
+    dir: &Path,
+    workers: usize,
+    on_start: &(dyn Fn(usize) + Sync),
+) -> Vec<Result<PathBuf>> {
+    let next = std::sync::atomic::AtomicUsize::new(0);
+    let results: Vec<std::sync::Mutex<Option<Result<PathBuf>>>> =
+        jobs.iter().map(|_| std::sync::Mutex::new(None)).collect();
+    std::thread::scope(|scope| {
+        for _ in 0..workers.clamp(1, jobs.len().max(1)) {
+            scope.spawn(|| loop {
+                let i = next.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+                let Some(job) = jobs.get(i) else { break };
+                on_start(i);
+                let r = simulate(base, &job.subject, job.plant.as_deref(), &job.name, dir);
+                *results[i]
+                    .lock()
+                    .unwrap_or_else(std::sync::PoisonError::into_inner) = Some(r);
+            });
+        }
+    });
+    results
+        .into_iter()
+        .map(|m| {
+            m.into_inner()
+                .unwrap_or_else(std::sync::PoisonError::into_inner)
+                .unwrap_or_else(|| Err(anyhow::anyhow!("the simulation did not run")))
+        })
+        .collect()
+}
+
+/// The number of simulations to run at once: one per available core.
+pub fn default_workers() -> usize {
+    std::thread::available_parallelism().map_or(1, std::num::NonZeroUsize::get)
+}
+
 /// Simulated time (s) a run gets beyond its protocol before it counts as hung.
 const BOUND_MARGIN_S: f64 = 10.0;
 
@@ -156,5 +209,42 @@ mod tests {
         assert_eq!(locate(&cfg, 65.0 * 16.5 + 3.0), "in experiment 7 period 6");
         assert_eq!(locate(&cfg, 0.0), "in experiment 1 period 1");
         assert_eq!(locate(&cfg, 90.0 * 16.5 + 1.0), "after the protocol");
+    }
+
+    #[test]
+    fn jobs_run_side_by_side_and_come_back_in_order() {
+        // Two short runs (one experiment, one period) and a subject file
+        // that does not exist: each result in its job's place.
+        let mut cfg =
+            RunConfig::from_file(&exo_config::configs_dir().join("default.toml")).unwrap();
+        cfg.protocol.experiments = vec![1];
+        cfg.protocol.periods = Some(vec![1]);
+        cfg.services.identifier = false;
+        let dir = std::env::temp_dir().join(format!("exo-simulate-each-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let subjects = exo_config::configs_dir().join("subjects");
+        let job = |s: &str, name: &str| Job {
+            subject: subjects.join(s),
+            name: name.into(),
+            plant: None,
+        };
+        let jobs = [
+            job("B.toml", "b"),
+            job("missing.toml", "m"),
+            job("C.toml", "c"),
+        ];
+        let started = std::sync::Mutex::new(Vec::new());
+        let results = simulate_each(&cfg, &jobs, &dir, 2, &|i| {
+            started.lock().unwrap().push(i);
+        });
+        assert_eq!(results.len(), 3);
+        assert_eq!(results[0].as_ref().unwrap(), &dir.join("b.mcap"));
+        assert!(format!("{:#}", results[1].as_ref().unwrap_err()).contains("missing.toml"));
+        assert_eq!(results[2].as_ref().unwrap(), &dir.join("c.mcap"));
+        let mut started = started.into_inner().unwrap();
+        started.sort_unstable();
+        assert_eq!(started, [0, 1, 2]);
+        let b = exo_recording::read_recording(&dir.join("b.mcap")).unwrap();
+        assert_eq!(b.meta("subject"), Some("B"));
     }
 }
