@@ -21,7 +21,7 @@ use exo_config::{RunConfig, Subject};
 use exo_diagnose::bench::{cases, Case, Outcome};
 use exo_diagnose::data::{reduce, Reduction};
 use exo_diagnose::{diagnose, Settings};
-use exo_experiments::simulate::simulate;
+use exo_experiments::simulate::{default_workers, simulate_each, Job};
 use exo_plant_sim::PlantModel;
 use exo_recording::read_recording;
 use exo_report::diagnosis::bench_table as table;
@@ -92,7 +92,11 @@ pub fn run(a: &BenchArgs) -> Result<()> {
     let dir = a.output.clone().unwrap_or(base.run.output_dir.clone());
     std::fs::create_dir_all(&dir).with_context(|| format!("creating {}", dir.display()))?;
     let mut outcomes = Vec::new();
-    for (i, c) in chosen.iter().enumerate() {
+    // Each case's true and nominal plant files, then the simulations (one
+    // per core), then each diagnosis.
+    let mut jobs = Vec::new();
+    let mut nominals = Vec::new();
+    for c in &chosen {
         let mut truth = default_plant;
         (c.truth)(&mut truth, &subject, a.scale);
         truth.integration.seed = truth.integration.seed.wrapping_add(a.seed_offset);
@@ -102,30 +106,46 @@ pub fn run(a: &BenchArgs) -> Result<()> {
         let nominal_file = dir.join(format!("{}-nominal.toml", c.name));
         write_plant(&truth, &truth_file, c.what)?;
         write_plant(&nominal, &nominal_file, "the nominal model")?;
-        let recording = if a.diagnose_only {
+        jobs.push(Job {
+            subject: base.subject_file.clone(),
+            name: c.name.to_string(),
+            plant: Some(truth_file),
+        });
+        nominals.push(nominal);
+    }
+    let recordings: Vec<PathBuf> = if a.diagnose_only {
+        let mut out = Vec::new();
+        for c in &chosen {
             let r = dir.join(format!("{}.mcap", c.name));
             if !r.is_file() {
                 bail!("--diagnose-only: {} does not exist", r.display());
             }
-            r
-        } else {
+            out.push(r);
+        }
+        out
+    } else {
+        let announce = |i: usize| {
             eprintln!(
                 "exo diagnose-bench: case {} ({}/{}): {}",
-                c.name,
+                chosen[i].name,
                 i + 1,
                 chosen.len(),
-                c.what
+                chosen[i].what
             );
-            simulate(&base, &base.subject_file, Some(&truth_file), c.name, &dir)?
         };
-        let rec = read_recording(&recording)
+        simulate_each(&base, &jobs, &dir, default_workers(), &announce)
+            .into_iter()
+            .collect::<Result<Vec<_>>>()?
+    };
+    for ((c, nominal), recording) in chosen.iter().zip(&nominals).zip(&recordings) {
+        let rec = read_recording(recording)
             .with_context(|| format!("reading {}", recording.display()))?;
         let d = reduce(&[rec], &Reduction::default());
-        let r = diagnose(&d, &nominal, &Settings::default())
+        let r = diagnose(&d, nominal, &Settings::default())
             .with_context(|| format!("diagnosing case {}", c.name))?;
         exo_report::diagnosis::write_outputs(
             &dir.join(format!("{}-diagnosis", c.name)),
-            &nominal,
+            nominal,
             &d,
             &r,
         )?;
