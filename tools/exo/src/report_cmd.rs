@@ -6,6 +6,7 @@ use std::path::{Path, PathBuf};
 use anyhow::{Context, Result};
 use clap::Args;
 
+use exo_analysis::study::FitReport;
 use exo_identifier::offline::{fit, FitOptions, Loaded};
 
 use crate::fit_cmd::{note, FitArgs};
@@ -33,6 +34,16 @@ fn traces(loaded: &[Loaded]) -> Vec<TimeTrace> {
 /// Fits `fit` and writes `<out>/report.html`; returns its path.
 pub fn write_report(fit_args: &FitOptions, out: &Path) -> Result<PathBuf> {
     let (loaded, report) = fit(fit_args, &mut note)?;
+    write_fitted_report(fit_args, &loaded, &report, out)
+}
+
+/// [`write_report`] of recordings already fitted.
+pub fn write_fitted_report(
+    fit_args: &FitOptions,
+    loaded: &[Loaded],
+    report: &FitReport,
+    out: &Path,
+) -> Result<PathBuf> {
     eprintln!("exo report: drawing the figures");
     let sources: Vec<String> = fit_args
         .recordings
@@ -42,8 +53,8 @@ pub fn write_report(fit_args: &FitOptions, out: &Path) -> Result<PathBuf> {
     let page = html(
         "exo report: complex-stiffness identification",
         &sources,
-        &report,
-        &traces(&loaded),
+        report,
+        &traces(loaded),
     )?;
     exo_recording::files::create_output_dir(out)
         .with_context(|| format!("creating {}", out.display()))?;

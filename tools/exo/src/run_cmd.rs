@@ -256,7 +256,7 @@ pub fn fit_and_report(cfg: &RunConfig, recording: &Path, no_report: bool) -> Res
         return Ok(());
     }
     let fit_args = FitOptions::for_recordings(vec![recording.to_path_buf()]);
-    let (_, report) = fit(&fit_args, &mut crate::fit_cmd::note)?;
+    let (loaded, report) = fit(&fit_args, &mut crate::fit_cmd::note)?;
     print!("{}", exo_report::fit::tables(&report));
     let stem = recording
         .file_stem()
@@ -265,7 +265,7 @@ pub fn fit_and_report(cfg: &RunConfig, recording: &Path, no_report: bool) -> Res
         .parent()
         .unwrap_or(std::path::Path::new("."))
         .join(format!("{stem}-report"));
-    let page = crate::report_cmd::write_report(&fit_args, &dir)?;
+    let page = crate::report_cmd::write_fitted_report(&fit_args, &loaded, &report, &dir)?;
     println!("recording: {}", recording.display());
     println!("report:    {}", page.display());
     Ok(())
