@@ -847,6 +847,20 @@ mod tests {
             worst = worst.max((s.sin(theta) - theta.sin()).abs());
         }
         assert!(worst <= 4.0 * f64::EPSILON, "worst error {worst:e}");
+        // The anchor stays within the reach (no `sin` call) and moves
+        // beyond it, or on a non-finite angle.
+        let mut s = SineNear::new(0.0);
+        s.sin(SineNear::REACH);
+        s.sin(-SineNear::REACH);
+        assert_eq!(s.theta0, 0.0);
+        s.sin(1.5 * SineNear::REACH);
+        assert_eq!(s.theta0, 1.5 * SineNear::REACH);
+        s.sin(f64::NAN);
+        assert!(s.theta0.is_nan());
+        s.sin(0.25);
+        assert_eq!(s.theta0, 0.25);
+        s.sin(0.25 + 0.5 * SineNear::REACH);
+        assert_eq!(s.theta0, 0.25);
         // Just inside and just outside the reach from the anchor.
         let mut s = SineNear::new(1.0);
         for d in [SineNear::REACH, -SineNear::REACH, 1.5 * SineNear::REACH] {
