@@ -62,7 +62,7 @@ if [ -n "$base" ]; then
   git diff "$base" -- >"$diff_file"
 fi
 
-count() { [ -f "$1" ] && grep -c . "$1" || echo 0; }
+count() { if [ -f "$1" ]; then grep -c . "$1" || true; else echo 0; fi; }
 
 for c in "${crates[@]}"; do
   args=(mutants --package "$c" --output "$out/$c" --no-shuffle)

@@ -116,3 +116,22 @@ fn band_groups_and_select_band_by_hand() {
     near("band 2 coherence", s[1].coherence, 0.9);
     near("band 2 S_xx", s[1].s_xx, 8.0);
 }
+
+/// A bin without input power is never kept, even with no relative power
+/// threshold (its H = S_xy/S_xx is undefined).
+#[test]
+fn a_bin_without_input_power_is_never_kept() {
+    let bins: Vec<H1Bin> = (0..6)
+        .map(|k| {
+            bin(
+                1.0 + k as f64,
+                1.0,
+                0.0,
+                0.9,
+                if k == 3 { 0.0 } else { 1.0 },
+            )
+        })
+        .collect();
+    let g = band_groups(&bins, 0.0, 0.0, 0.0, 100.0, 1);
+    assert_eq!(g, vec![vec![2, 4, 5]]);
+}

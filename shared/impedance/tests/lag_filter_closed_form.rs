@@ -104,6 +104,11 @@ fn discrete_step_response_settles_at_k_f_over_p1_to_the_f() {
             (y - gain).abs() < 1e-9 * gain,
             "n {n} p1 {p1}: {y} vs {gain}"
         );
+        assert!(
+            (d.gain() - gain).abs() < 1e-14 * gain,
+            "discrete gain {}",
+            d.gain()
+        );
     }
 }
 
@@ -179,5 +184,25 @@ fn discrete_cascade_matches_the_tustin_closed_form_in_the_time_domain() {
                 assert!(rel(want, continuous(w, n, p1, r_pp, f, k_f)) > 1e-6);
             }
         }
+    }
+}
+
+/// The discretisation refuses a section centred at or above 0.9 of the
+/// Nyquist frequency (π · rate): at 50 Hz (Nyquist 157.08 rad/s) one
+/// section with `p = ω₀/√r_zp`, `r_zp = 4^0.5 = 2`, centred at 0.95 of it
+/// is refused and one at 0.85 is accepted.
+#[test]
+fn a_section_near_nyquist_is_refused() {
+    let rate = 50.0;
+    let nyquist = std::f64::consts::PI * rate;
+    for (frac, ok) in [(0.95, false), (0.85, true)] {
+        let p1 = frac * nyquist / 2f64.sqrt();
+        let lf = LagFilter::new(1, p1, 4.0, 0.5, 1.0).unwrap();
+        assert!(((lf.pole_rad_s(0) * lf.zero_rad_s(0)).sqrt() - frac * nyquist).abs() < 1e-9);
+        assert_eq!(
+            lf.discretize(rate).is_ok(),
+            ok,
+            "section at {frac} of Nyquist"
+        );
     }
 }

@@ -36,3 +36,6 @@ for dof in [1, 2, 3, 5, 14, 16, 30, 511, 512, 2000]:
 print("// (x, dof, scipy.stats.chi2.sf(x, dof))")
 for x, dof in [(0.5, 1), (3.0, 2), (16.0, 16), (40.0, 16), (150.0, 100), (5.0, 30)]:
     print(f"    ({x!r}, {dof}, {float(chi2.sf(x, dof))!r}),")
+
+# ftest_inputs.rs: a nested test adding three parameters (p_r = 1, p_f = 4).
+print(f"    f.sf(2.0, 6, 32) = {float(f.sf(2.0, 6, 32))!r}; f.isf(0.05, 6, 32) = {float(f.isf(0.05, 6, 32))!r}")
