@@ -13,7 +13,8 @@
 //! - Holm's step-down adjustment over the m candidates of the step, sorted
 //!   by raw p: `p̃_(i) = max_{j ≤ i} min(1, (m − j + 1) p_(j))`;
 //! - the critical value at the candidate's Holm level `α/(m − i + 1)`;
-//! and for the term found, its F statistic from the two models' residual
+//!
+//! And for the term found, its F statistic from the two models' residual
 //! sums, `F = ((RSS₀ − RSS₁)/Δp) / (RSS₁/(n − p₁))`.
 
 use std::path::PathBuf;
