@@ -2,13 +2,23 @@
 
 use exo_impedance::*;
 use proptest::prelude::*;
+use proptest::test_runner::{FileFailurePersistence, RngSeed};
 
 fn frequencies(w0: f64, n: usize) -> Vec<f64> {
     (0..n).map(|i| w0 * 10f64.powf(0.1 * i as f64)).collect()
 }
 
 proptest! {
-    #![proptest_config(ProptestConfig { cases: 128, failure_persistence: None, ..ProptestConfig::default() })]
+    // A fixed seed (issue 23): every run draws the same 128 cases, so a CI
+    // failure reproduces locally (`PROPTEST_RNG_SEED` still overrides it),
+    // and the cases that failed before, kept in
+    // `properties.proptest-regressions`, are re-run first.
+    #![proptest_config(ProptestConfig {
+        cases: 128,
+        rng_seed: RngSeed::Fixed(0x0023_5EED),
+        failure_persistence: Some(Box::new(FileFailurePersistence::SourceParallel("proptest-regressions"))),
+        ..ProptestConfig::default()
+    })]
 
     /// Noise-free points from M3 with random parameters: every model's fit
     /// is reproduced by M3 exactly, and M3 recovers its parameters.

@@ -1,0 +1,160 @@
+//! The diagnosis's nested F-test and Holm's correction recomputed by hand
+//! from its public output (issue 23).
+//!
+//! A concealed hysteretic damping (`jH` per experiment: three parameters
+//! added at once) behind a viscous nominal model, simulated in process. For
+//! every step of the search this test recomputes, with the formulas written
+//! here:
+//! - the degrees of freedom `(Δp, n − p₁)`: Δp = the term's added parameters,
+//!   n = the real residuals of the dataset, p₁ = the current model's free
+//!   parameters plus Δp;
+//! - the raw p-value `P(F_{Δp, n−p₁} > F)` (`f_survival`, itself pinned to
+//!   scipy in `shared/impedance/tests/ftest_scipy.rs`);
+//! - Holm's step-down adjustment over the m candidates of the step, sorted
+//!   by raw p: `p̃_(i) = max_{j ≤ i} min(1, (m − j + 1) p_(j))`;
+//! - the critical value at the candidate's Holm level `α/(m − i + 1)`;
+//!
+//! And for the term found, its F statistic from the two models' residual
+//! sums, `F = ((RSS₀ − RSS₁)/Δp) / (RSS₁/(n − p₁))`.
+
+use std::path::PathBuf;
+
+use exo_diagnose::data::{reduce, Reduction};
+use exo_diagnose::fit::rss;
+use exo_diagnose::synth::{synthesize, SynthPeriod, SynthSettings};
+use exo_diagnose::{diagnose, Settings, Term};
+use exo_impedance::ftest::{f_critical, f_survival};
+use exo_plant_sim::PlantModel;
+
+fn default_plant() -> PlantModel {
+    let p = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../configs/plants/default.toml");
+    PlantModel::from_file(&p).expect("default plant")
+}
+
+/// Three experiments of ten periods, as in `tests/engine.rs`.
+fn protocol() -> Vec<SynthPeriod> {
+    let mut v = Vec::new();
+    for (e, k, h, load, bias) in [
+        (1, 15.0, 5.0, 0.0, 0.0),
+        (2, 30.0, 10.0, 4.5, 0.0),
+        (3, 45.0, 14.0, 0.0, 3.0),
+    ] {
+        for n in 0..10 {
+            v.push(SynthPeriod {
+                experiment: e,
+                period: n + 1,
+                omega_rad_s: 2.0 * 10f64.powf(0.1 * n as f64),
+                amplitude_nm: if n >= 7 { 2.0 * 10f64.powf(0.2) } else { 2.0 },
+                k_h: k,
+                h_h: h,
+                load_kg: load,
+                bias_nm: bias,
+            });
+        }
+    }
+    v
+}
+
+fn close(what: &str, got: f64, want: f64, tol: f64) {
+    if got == want {
+        return; // includes a p-value that underflows to 0 on both sides
+    }
+    let rel = ((got - want) / want).abs();
+    assert!(
+        rel <= tol,
+        "{what}: {got:e} vs hand-computed {want:e} (relative {rel:.2e})"
+    );
+}
+
+#[test]
+fn f_test_degrees_of_freedom_and_holm_match_the_hand_computation() {
+    let truth = default_plant();
+    let mut nominal = truth;
+    nominal.human.hysteretic_damping.enabled = false;
+    nominal.human.viscous_damping.enabled = true;
+    nominal.human.viscous_damping.b_nm_s_per_rad = 1.0;
+    let rec = synthesize(&truth, &protocol(), &SynthSettings::default());
+    let d = reduce(&[rec], &Reduction::default());
+    let s = Settings::default();
+    let r = diagnose(&d, &nominal, &s).expect("diagnosis");
+
+    let experiments = d.impedance_experiments();
+    let (_, n) = rss(&d, &r.refit_physics, &|_, _| true);
+    let n = n as f64;
+    let mut p_current = r.refit.parameters as f64;
+    let mut nontrivial_holm = false;
+    assert!(!r.steps.is_empty());
+    for step in &r.steps {
+        let c = &step.candidates;
+        let m = c.len();
+        // Sorted by raw p (ties by fit), as Holm's procedure needs.
+        assert!(c.windows(2).all(|w| w[0].p_value <= w[1].p_value));
+        let mut running: f64 = 0.0;
+        for (i, cand) in c.iter().enumerate() {
+            eprintln!(
+                "step {} {:?}: Δp {} F {:.3} p {:.3e} Holm {:.3e} crit {:.3}",
+                step.step,
+                cand.term,
+                cand.added_parameters,
+                cand.f,
+                cand.p_value,
+                cand.p_holm,
+                cand.f_critical
+            );
+            let dp = cand.term.params(&experiments).len();
+            assert_eq!(cand.added_parameters, dp, "{:?}", cand.term);
+            let dof = n - (p_current + dp as f64);
+            if cand.f.is_finite() && cand.f > 0.0 {
+                close(
+                    &format!("step {} {:?} p", step.step, cand.term),
+                    cand.p_value,
+                    f_survival(cand.f, dp as f64, dof).unwrap(),
+                    1e-12,
+                );
+            } else {
+                assert_eq!(cand.p_value, 1.0);
+            }
+            let holm = ((m - i) as f64 * cand.p_value).min(1.0);
+            running = running.max(holm);
+            close(
+                &format!("step {} {:?} Holm", step.step, cand.term),
+                cand.p_holm,
+                running,
+                1e-12,
+            );
+            if m - i > 1 && holm < 1.0 && cand.p_value > 0.0 {
+                nontrivial_holm = true;
+            }
+            close(
+                &format!("step {} {:?} critical", step.step, cand.term),
+                cand.f_critical,
+                f_critical(dp as f64, dof, s.level / (m - i) as f64).unwrap(),
+                1e-12,
+            );
+        }
+        if let Some(ch) = c.iter().find(|c| c.chosen) {
+            p_current += ch.added_parameters as f64;
+        }
+    }
+    assert!(
+        nontrivial_holm,
+        "no candidate where Holm's factor changes the p-value"
+    );
+
+    // The term found and its F from the two models' residual sums.
+    assert_eq!(
+        r.found.len(),
+        1,
+        "found {:?}",
+        r.found.iter().map(|f| f.term).collect::<Vec<_>>()
+    );
+    assert_eq!(r.found[0].term, Term::HystereticDamping);
+    let dp = experiments.len() as f64;
+    assert!(dp > 1.0, "the check of F's division by Δp needs Δp > 1");
+    let (rss0, _) = rss(&d, &r.refit_physics, &|_, _| true);
+    let (rss1, _) = rss(&d, &r.final_physics, &|_, _| true);
+    let p1 = r.refit.parameters as f64 + dp;
+    assert_eq!(r.final_score.parameters as f64, p1);
+    let f = ((rss0 - rss1) / dp) / (rss1 / (n - p1));
+    close("F of the term found", r.found[0].f, f, 1e-9);
+}

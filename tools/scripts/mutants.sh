@@ -1,0 +1,93 @@
+#!/usr/bin/env bash
+# Mutation testing of exo's science and safety code with cargo-mutants
+# (issue 23). Each crate's mutants are tested by that crate's own tests.
+#
+#   tools/scripts/mutants.sh                      # every crate, whole (slow: hours on 2 cores)
+#   tools/scripts/mutants.sh --shard 2/8          # one shard of every crate
+#   tools/scripts/mutants.sh --crate exo-impedance --shard 1/4
+#   tools/scripts/mutants.sh --in-diff main       # only code changed since main (the habit before a commit)
+#   tools/scripts/mutants.sh --crate exo-impedance --file shared/impedance/src/ftest.rs \
+#       -- --in-place -- --lib --test ftest_scipy   # one file; args after -- go to cargo mutants
+#                                                   # (after a second --, to cargo test)
+#
+# Writes per crate  $OUT/<crate>/mutants.out/  (cargo-mutants' own files)
+# and the scores to $OUT/score.tsv: crate, shard, caught, missed, timeout,
+# unviable, and caught / (caught + missed + timeout) in percent.
+# OUT defaults to target/mutants. Not part of .ci/run (too slow on 2 cores).
+set -euo pipefail
+root="$(cd "$(dirname "$0")/../.." && pwd)"
+cd "$root"
+
+# The science and safety code: crate and the files of it that are mutated.
+declare -A FILES=(
+  [exo-impedance]="shared/impedance/src/*.rs"
+  [exo-identifier]="services/identifier/src/*.rs"
+  [exo-controller]="services/controller/src/*.rs"
+  [exo-diagnose]="tools/diagnose/src/*.rs"
+  [exo-sensor-driver]="services/sensor-driver/src/driver.rs services/sensor-driver/src/node.rs"
+  [exo-config]="shared/config/src/run.rs shared/config/src/subject.rs shared/config/src/experiments.rs"
+)
+ORDER=(exo-impedance exo-identifier exo-controller exo-diagnose exo-sensor-driver exo-config)
+
+shard="" crates=() files=() base="" out="${MUTANTS_OUT:-$root/target/mutants}" extra=()
+while [ $# -gt 0 ]; do
+  case "$1" in
+    --shard) shard="$2"; shift 2 ;;
+    --crate) crates+=("$2"); shift 2 ;;
+    --file) files+=("$2"); shift 2 ;;
+    --in-diff) base="$2"; shift 2 ;;
+    --out) out="$2"; shift 2 ;;
+    --) shift; extra=("$@"); break ;;
+    -h|--help) sed -n '2,18p' "$0"; exit 0 ;;
+    *) echo "mutants.sh: unknown argument $1 (see --help)" >&2; exit 2 ;;
+  esac
+done
+[ ${#crates[@]} -gt 0 ] || crates=("${ORDER[@]}")
+for c in "${crates[@]}"; do
+  [ -n "${FILES[$c]+x}" ] || { echo "mutants.sh: $c is not one of: ${ORDER[*]}" >&2; exit 2; }
+done
+
+# cargo-mutants, installed by this script when missing.
+if ! cargo mutants --version >/dev/null 2>&1; then
+  echo "mutants.sh: installing cargo-mutants (cargo install cargo-mutants --locked)" >&2
+  cargo install cargo-mutants --locked
+fi
+
+mkdir -p "$out"
+score="$out/score.tsv"
+[ -f "$score" ] || printf 'crate\tshard\tcaught\tmissed\ttimeout\tunviable\tscore_pct\n' >"$score"
+diff_file=""
+if [ -n "$base" ]; then
+  diff_file="$out/in-diff.patch"
+  git diff "$base" -- >"$diff_file"
+fi
+
+count() { if [ -f "$1" ]; then grep -c . "$1" || true; else echo 0; fi; }
+
+for c in "${crates[@]}"; do
+  args=(mutants --package "$c" --output "$out/$c" --no-shuffle)
+  if [ ${#files[@]} -gt 0 ]; then
+    for f in "${files[@]}"; do args+=(--file "$f"); done
+  else
+    for f in ${FILES[$c]}; do args+=(--file "$f"); done
+  fi
+  [ -n "$shard" ] && args+=(--shard "$shard")
+  [ -n "$diff_file" ] && args+=(--in-diff "$diff_file")
+  echo "mutants.sh: cargo ${args[*]} ${extra[*]:-}" >&2
+  # cargo-mutants exits 2 when mutants are missed, 3 on timeouts: not errors here.
+  set +e
+  cargo "${args[@]}" "${extra[@]}"
+  rc=$?
+  set -e
+  case $rc in 0|2|3) ;; *) echo "mutants.sh: cargo mutants failed on $c (exit $rc)" >&2; exit $rc ;; esac
+  d="$out/$c/mutants.out"
+  caught=$(count "$d/caught.txt"); missed=$(count "$d/missed.txt")
+  timeout=$(count "$d/timeout.txt"); unviable=$(count "$d/unviable.txt")
+  viable=$((caught + missed + timeout))
+  pct=$(awk -v c="$caught" -v v="$viable" 'BEGIN { if (v > 0) printf "%.1f", 100 * c / v; else print "n/a" }')
+  printf '%s\t%s\t%s\t%s\t%s\t%s\t%s\n' "$c" "${shard:-whole}${base:+ in-diff $base}" \
+    "$caught" "$missed" "$timeout" "$unviable" "$pct" >>"$score"
+  echo "mutants.sh: $c: caught $caught, missed $missed, timeout $timeout, unviable $unviable ($pct % of viable)" >&2
+  if [ "$missed" -gt 0 ]; then sed 's/^/  missed: /' "$d/missed.txt" >&2; fi
+done
+echo "mutants.sh: scores in $score" >&2
