@@ -139,6 +139,8 @@ fn killed_controller_brings_the_driver_to_its_safe_state_and_a_restart_works() {
     let sc = Scenario::new("kill", SHORT_RUN);
     let samples = sc.collect(SENSOR);
     let commands = sc.collect(COMMAND);
+    // A second subscriber to the commands, finished right after the kill.
+    let answered = sc.collect(COMMAND);
     let mut plant = sc.spawn("exo-plant-sim", &[]);
     let mut driver = sc.spawn("exo-sensor-driver", &[]);
     let mut controller = sc.spawn("exo-controller", &[]);
@@ -146,10 +148,12 @@ fn killed_controller_brings_the_driver_to_its_safe_state_and_a_restart_works() {
         s.iter().any(|s| s.seq >= 2000)
     });
     kill_9(&mut controller);
-    // Everything the controller answered before it died.
-    std::thread::sleep(Duration::from_millis(50));
-    let last_answered = commands
-        .snapshot()
+    // Everything the controller answered before it died, without a wait:
+    // `kill_9` has reaped it, so every command it sent is already in this
+    // subscriber's queue (a publisher delivers on send), and `finish` halts
+    // the collector and drains that queue before returning.
+    let last_answered = answered
+        .finish()
         .iter()
         .map(|c| c.sensor_seq)
         .max()
