@@ -79,6 +79,16 @@ fn found(v: &Value) -> Vec<(String, bool)> {
         .collect()
 }
 
+/// The characterisation of what remains in one transfer function.
+fn remains<'a>(v: &'a Value, tf: &str) -> &'a Value {
+    v["remains"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|r| r["tf"] == tf)
+        .unwrap_or_else(|| panic!("no {tf} in remains"))
+}
+
 /// No sentence says both that nothing is missing and that structure remains.
 fn assert_exclusive(v: &Value) {
     for line in verdict(v) {
@@ -104,6 +114,9 @@ fn physics_outside_the_catalogue_is_reported_unexplained_not_named() {
         verdict(&v)
     );
     assert_exclusive(&v);
+    for r in v["remains"].as_array().unwrap() {
+        assert!(r["findings"].as_array().unwrap().is_empty(), "{r:#}");
+    }
 
     // A stiffening spring τ = K(θ − θ_p) + K₃(θ − θ_p)³ in the human joint.
     for k3 in ["120", "400"] {
@@ -120,6 +133,17 @@ fn physics_outside_the_catalogue_is_reported_unexplained_not_named() {
         );
         assert!(text.contains("unexplained"), "K₃ = {k3}:\n{text}");
         assert_exclusive(&v);
+        // What remains is said to depend on the amplitude: S_h stiffens
+        // with the angle amplitude (¾K₃A² makes the in-phase part grow).
+        let a = &remains(&v, "S_h")["angle_amplitude"];
+        assert!(
+            a["significant"] == true && a["in_phase"]["value"].as_f64().unwrap() > 0.0,
+            "K₃ = {k3}: {a:#}\n{text}"
+        );
+        assert!(
+            text.contains("S_h: changes with the angle amplitude"),
+            "K₃ = {k3}:\n{text}"
+        );
         if k3 == "120" {
             // Every significant candidate absorbs part of the spring at one
             // amplitude only: none is accepted at all.
@@ -149,5 +173,10 @@ fn physics_outside_the_catalogue_is_reported_unexplained_not_named() {
         "no significant candidate contradicted by the static balance:\n{text}"
     );
     assert_exclusive(&v);
+    // A linear spring: no dependence on the angle amplitude is claimed.
+    for tf in ["S_h", "S_h-e"] {
+        let a = &remains(&v, tf)["angle_amplitude"];
+        assert!(a["significant"] == false, "exo spring {tf}: {a:#}");
+    }
     let _ = std::fs::remove_dir_all(&dir);
 }

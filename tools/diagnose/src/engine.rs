@@ -1312,32 +1312,7 @@ pub fn diagnose(
     // point (only the significant findings, or that one amplitude cannot tell).
     let remains_words: Vec<String> = remains
         .iter()
-        .flat_map(|r| {
-            let mut v = Vec::new();
-            if r.amplitude.as_ref().is_some_and(|a| a.significant) {
-                v.extend(
-                    r.words
-                        .iter()
-                        .filter(|w| w.contains("depends on amplitude"))
-                        .cloned(),
-                );
-            }
-            if r.operating_point.as_ref().is_some_and(|a| a.significant) {
-                v.extend(
-                    r.words
-                        .iter()
-                        .filter(|w| w.contains("operating points (F-test"))
-                        .cloned(),
-                );
-            }
-            v.extend(
-                r.words
-                    .iter()
-                    .filter(|w| w.contains("one excitation amplitude"))
-                    .cloned(),
-            );
-            v
-        })
+        .flat_map(|r| r.findings.iter().cloned())
         .map(|w| format!("what remains: {w}"))
         .collect();
     // Exclusive verdicts: "no missing physics" only when nothing beyond the
