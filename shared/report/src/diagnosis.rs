@@ -328,13 +328,13 @@ pub fn html(d: &Dataset, r: &Diagnosis) -> Result<String> {
     for st in &r.steps {
         let _ = write!(
             w,
-            "<h3>Step {}</h3><table><tr><th>candidate</th><th>+p</th><th>F</th><th>F crit</th><th>p (Holm)</th><th>ΔAIC</th><th>held-out</th><th>fitted</th></tr>",
+            "<h3>Step {}</h3><table><tr><th>candidate</th><th>+p</th><th>F</th><th>F crit</th><th>p (Holm)</th><th>ΔAIC</th><th>held-out</th><th>fitted</th><th>share of misfit</th><th>not added because</th></tr>",
             st.step
         );
         for c in &st.candidates {
             let _ = write!(
                 w,
-                "<tr{}><td>{}</td><td>{}</td><td>{:.2}</td><td>{:.2}</td><td>{:.2e}</td><td>{:.1}</td><td>{:+.1} %</td><td>{}</td></tr>",
+                "<tr{}><td>{}</td><td>{}</td><td>{:.2}</td><td>{:.2}</td><td>{:.2e}</td><td>{:.1}</td><td>{:+.1} %</td><td>{}</td><td>{:.0} %</td><td>{}</td></tr>",
                 if c.chosen { " style=\"font-weight:bold\"" } else { "" },
                 esc(c.words),
                 c.added_parameters,
@@ -343,12 +343,20 @@ pub fn html(d: &Dataset, r: &Diagnosis) -> Result<String> {
                 c.p_holm,
                 c.delta_aic,
                 100.0 * c.heldout_change,
-                esc(&c.description)
+                esc(&c.description),
+                100.0 * c.explained_share,
+                esc(&c.rejected_because.join("; "))
             );
         }
         let _ = write!(w, "</table>");
     }
-    let _ = write!(w, "<h2>Bode overlays</h2>");
+    let _ = write!(w, "<h2>What remains, per transfer function</h2><ul>");
+    for rm in &r.remains {
+        for l in &rm.words {
+            let _ = write!(w, "<li>{}</li>", esc(l));
+        }
+    }
+    let _ = write!(w, "</ul><h2>Bode overlays</h2>");
     for &tf in &r.supported {
         let _ = write!(w, "{}", bode_svg(d, tf, r)?);
     }
