@@ -254,10 +254,11 @@ pub struct TfCheck {
     pub confirmed: f64,
     /// Standard error of `β` (`1/|m|`).
     pub confirmed_se: f64,
-    /// The data contradict the candidate here: `β` lies below ½ by more
-    /// than the one-sided critical value (level Bonferroni-divided over
-    /// the supported transfer functions) — the fit is worse there beyond
-    /// its noise, or a change it predicts is not in the data.
+    /// The data contradict the candidate here: it moves the prediction by at
+    /// least one noise σ in all (`|m|² ≥ 1`) and `β` lies below ½ by more
+    /// than the one-sided critical value (level Bonferroni-divided over the
+    /// supported transfer functions) — the fit is worse there beyond its
+    /// noise, or a change it predicts is not in the data.
     pub contradicts: bool,
 }
 
@@ -681,7 +682,11 @@ fn tf_checks(d: &Dataset, before: &Physics, after: &Physics, z: f64) -> Vec<TfCh
                 moved: m2,
                 confirmed,
                 confirmed_se,
-                contradicts: m2 > 0.0 && confirmed < 0.5 - z * confirmed_se,
+                // Only where the candidate moves the prediction by at least
+                // one noise σ in all (|m| ≥ 1): below that the change is
+                // within the noise of a single point (and, near zero,
+                // numerical rounding).
+                contradicts: m2 >= 1.0 && confirmed < 0.5 - z * confirmed_se,
             }
         })
         .collect()
@@ -833,6 +838,7 @@ fn amplitude_check(
     g: &AmpGroups,
     free: &[Param],
     added: &[Param],
+    must_confirm: bool,
     level: f64,
 ) -> AmplitudeCheck {
     let mut fits = Vec::new();
@@ -876,6 +882,22 @@ fn amplitude_check(
             fits[1].std_error(q).unwrap_or(f64::NAN),
         ];
         let both = se[0].is_finite() && se[1].is_finite() && se[0] > 0.0 && se[1] > 0.0;
+        if must_confirm
+            && !(crate::terms::determined(v[0], se[0]) && crate::terms::determined(v[1], se[1]))
+        {
+            inconsistent.push(format!(
+                "{} is not determined at both amplitudes ({} at {:.1} Nm, periods {}; {} at {:.1} Nm, periods {}), so its 1/amplitude scaling cannot be confirmed",
+                q.label(),
+                plain_pm(v[0], se[0]),
+                g.amplitudes[0],
+                g.periods[0],
+                plain_pm(v[1], se[1]),
+                g.amplitudes[1],
+                g.periods[1]
+            ));
+            params.push((q.label(), v, se));
+            continue;
+        }
         let diff = (v[0] - v[1]).abs();
         if both && diff > z * se[0].hypot(se[1]) && diff > material * v[0].abs().max(v[1].abs()) {
             inconsistent.push(format!(
@@ -912,7 +934,7 @@ fn amplitude_check(
         )
     } else {
         format!(
-            "the data do not scale with amplitude as it predicts: {} (the higher amplitude is also the higher frequencies)",
+            "the data do not show the amplitude scaling it predicts: {} (the higher amplitude is also the higher frequencies)",
             inconsistent.join("; ")
         )
     };
@@ -1181,7 +1203,15 @@ pub fn diagnose(
             if why.is_empty() && pick.is_none() {
                 if let Some(groups) = &amp_groups {
                     let added = r.0.term.params(&experiments);
-                    let check = amplitude_check(d, &r.1, groups, &r.3, &added, s.level);
+                    let check = amplitude_check(
+                        d,
+                        &r.1,
+                        groups,
+                        &r.3,
+                        &added,
+                        r.0.term.amplitude_dependent(),
+                        s.level,
+                    );
                     if check.inconsistent {
                         why.push(check.words.clone());
                     }

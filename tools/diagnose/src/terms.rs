@@ -176,6 +176,14 @@ impl Term {
         }
     }
 
+    /// Whether the term's own effect depends on the excitation amplitude
+    /// (Coulomb friction's describing function falls as 1/amplitude): then
+    /// the amplitude check must confirm its parameters at each amplitude,
+    /// not merely fail to refute them.
+    pub fn amplitude_dependent(self) -> bool {
+        matches!(self, Term::CoulombFriction)
+    }
+
     /// Starting values when the term is added to `p`.
     pub fn start(self, p: &mut Physics) {
         match self {
