@@ -1262,13 +1262,13 @@ pub fn diagnose(
             );
             let sentence = if partial {
                 format!(
-                    "partly explained by {}, {description}: it explains {:.0} % of the misfit; most of it remains ({stats})",
+                    "partly explained by {}, {description}: it explains {:.0} % of the misfit left at its step; most of it remains ({stats})",
                     t.words(),
                     100.0 * c.explained_share
                 )
             } else {
                 format!(
-                    "left out: {}, {description}; explains {:.0} % of the misfit; {stats}",
+                    "left out: {}, {description}; explains {:.0} % of the misfit left at its step; {stats}",
                     t.words(),
                     100.0 * c.explained_share
                 )

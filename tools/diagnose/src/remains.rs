@@ -328,7 +328,21 @@ pub fn characterise(d: &Dataset, phys: &Physics, level: f64) -> Vec<Remains> {
         };
 
         // Angle amplitude: per-experiment trends plus a shared slope in A².
-        let angle_amplitude = if tf.is_dynamic() {
+        // Only when the angle amplitude varies within an experiment (single
+        // sines at several frequencies): a broadband window has one
+        // amplitude for all its bands, which the per-experiment trend
+        // already holds.
+        let varies = exps.iter().any(|&e| {
+            let mut a: Vec<i64> = rs
+                .iter()
+                .filter(|r| exp_of(r) == e)
+                .map(|r| (d.conditions[r.o.window].theta_amp_rad * 1e6).round() as i64)
+                .collect();
+            a.sort_unstable();
+            a.dedup();
+            a.len() >= 3
+        });
+        let angle_amplitude = if tf.is_dynamic() && varies {
             let th = |r: &Row| d.conditions[r.o.window].theta_amp_rad;
             let mut cols = Vec::new();
             for &e in &exps {
