@@ -270,12 +270,18 @@ def min_jerk(x):
     return x**3 * (10.0 - 15.0 * x + 6.0 * x**2)
 
 
-def simulate(specs, pre_window_s=PRE_WINDOW_S):
+def simulate(specs, pre_window_s=PRE_WINDOW_S, k_cubic=0.0, k_exo_spring=0.0):
     """Simulates the periods side by side (vectorised over periods), RK4 with
     the controller's torque held over each 2 ms tick, from rest at the start
     of the ramp-in to the end of the analysis window. Returns the recorded
     ticks (pre_window_s before the analysis window to its end, inclusive) of
-    every period as (P, n) arrays."""
+    every period as (P, n) arrays. k_cubic (Nm/rad^3): a stiffening spring of the
+    human joint, K3 (theta - theta_p)^3 added to the human's linear spring
+    K (theta - theta_p) (theta_p: the subject's reference posture).
+    k_exo_spring (Nm/rad): a spring in the exoskeleton joint centred at the
+    period's posture goal, -k (theta - theta_goal) on the arm (a cable or
+    harness; no term of exo's catalogue): it stiffens S_h-e by k without
+    changing the static balance at the goal posture."""
     rec0 = T_ANALYSIS - ticks(pre_window_s)
     n_rec = N_SIM - rec0
     col = lambda key: np.array([s[key] for s in specs], dtype=float)
@@ -327,7 +333,9 @@ def simulate(specs, pre_window_s=PRE_WINDOW_S):
         un = u[:, n]
         # --- sensors at tick n
         f_h = b * om + k * th + km * (th - q) - un  # the human's passive torque less the voluntary
-        acc = (ts - g_true * np.sin(th) - f_h) * inv_m
+        if k_cubic:
+            f_h = f_h + k_cubic * (th - th_p[:, n]) ** 3
+        acc = (ts - g_true * np.sin(th) - k_exo_spring * (th - th_goal) - f_h) * inv_m
         tau_c = m_h * acc + f_h
         th_m = np.round((th + n_enc[:, n]) / ENC_Q) * ENC_Q
         tc_m = tau_c + n_tc[:, n]
@@ -353,8 +361,13 @@ def simulate(specs, pre_window_s=PRE_WINDOW_S):
         if n == N_SIM - 1:
             break
         # --- plant: RK4 over [t, t + h] with tau_d and u held
+        thp = th_p[:, n]
+
         def f(th_, om_, ts_, dts_, q_):
-            return (om_, (ts_ - g_true * np.sin(th_) - b * om_ - k * th_ - km * (th_ - q_) + un) * inv_m,
+            cubic = k_cubic * (th_ - thp) ** 3 if k_cubic else 0.0
+            spring = k_exo_spring * (th_ - th_goal)
+            return (om_, (ts_ - g_true * np.sin(th_) - spring - b * om_ - k * th_ - km * (th_ - q_) - cubic + un)
+                    * inv_m,
                     dts_, w2 * (tau_d - ts_) - z2 * dts_, (th_ - q_) * inv_tau)
         k1 = f(th, om, ts, dts, q)
         k2 = f(*(x + 0.5 * h * d for x, d in zip((th, om, ts, dts, q), k1)))
@@ -759,6 +772,10 @@ def main(argv=None):
                     help="Monte Carlo: every subject uses the table (default: drawn from its seed)")
     ap.add_argument("--pre-window", type=float, default=PRE_WINDOW_S, metavar="S",
                     help="seconds of samples written before each analysis window (0-5)")
+    ap.add_argument("--k3", type=float, default=0.0, metavar="K3",
+                    help="stiffening spring of the human joint: K3 (theta - theta_p)^3, Nm/rad^3 (0 = linear)")
+    ap.add_argument("--exo-spring", type=float, default=0.0, metavar="K",
+                    help="spring in the exoskeleton joint centred at the posture goal, Nm/rad (0 = none)")
     ap.add_argument("--batch-periods", type=int, default=400, help="periods simulated side by side")
     a = ap.parse_args(argv)
     experiments = parse_experiments(a.experiments)
@@ -819,11 +836,11 @@ def main(argv=None):
     name = a.subject or f"indep{a.seed}"
     specs = period_specs(a.seed, subj, experiments, a.periods, a.noise_scale, a.twitch, a.damping)
     warn_unstable([(name, specs)])
-    sim = simulate(specs, a.pre_window)
+    sim = simulate(specs, a.pre_window, a.k3, a.exo_spring)
     write_recording(a.out, name, a.seed, specs, sim, a.noise_scale, a.writer)
     if a.truth:
         t = subject_truth(name, a.seed, subj, specs)
-        t.update(rig=rig_truth(), noise_scale=a.noise_scale, twitch_sigma_nms=a.twitch, damping=a.damping,
+        t.update(rig=rig_truth(), k3_nm_per_rad3=a.k3, exo_spring_nm_per_rad=a.exo_spring, noise_scale=a.noise_scale, twitch_sigma_nms=a.twitch, damping=a.damping,
                  experiments_written=experiments,
                  periods=a.periods)
         with open(a.truth, "w") as f:

@@ -328,13 +328,13 @@ pub fn html(d: &Dataset, r: &Diagnosis) -> Result<String> {
     for st in &r.steps {
         let _ = write!(
             w,
-            "<h3>Step {}</h3><table><tr><th>candidate</th><th>+p</th><th>F</th><th>F crit</th><th>p (Holm)</th><th>ΔAIC</th><th>held-out</th><th>fitted</th></tr>",
+            "<h3>Step {}</h3><table><tr><th>candidate</th><th>+p</th><th>F</th><th>F crit</th><th>p (Holm)</th><th>ΔAIC</th><th>held-out</th><th>fitted</th><th>share of misfit</th><th>not added because</th></tr>",
             st.step
         );
         for c in &st.candidates {
             let _ = write!(
                 w,
-                "<tr{}><td>{}</td><td>{}</td><td>{:.2}</td><td>{:.2}</td><td>{:.2e}</td><td>{:.1}</td><td>{:+.1} %</td><td>{}</td></tr>",
+                "<tr{}><td>{}</td><td>{}</td><td>{:.2}</td><td>{:.2}</td><td>{:.2e}</td><td>{:.1}</td><td>{:+.1} %</td><td>{}</td><td>{:.0} %</td><td>{}</td></tr>",
                 if c.chosen { " style=\"font-weight:bold\"" } else { "" },
                 esc(c.words),
                 c.added_parameters,
@@ -343,12 +343,20 @@ pub fn html(d: &Dataset, r: &Diagnosis) -> Result<String> {
                 c.p_holm,
                 c.delta_aic,
                 100.0 * c.heldout_change,
-                esc(&c.description)
+                esc(&c.description),
+                100.0 * c.explained_share,
+                esc(&c.rejected_because.join("; "))
             );
         }
         let _ = write!(w, "</table>");
     }
-    let _ = write!(w, "<h2>Bode overlays</h2>");
+    let _ = write!(w, "<h2>What remains, per transfer function</h2><ul>");
+    for rm in &r.remains {
+        for l in &rm.words {
+            let _ = write!(w, "<li>{}</li>", esc(l));
+        }
+    }
+    let _ = write!(w, "</ul><h2>Bode overlays</h2>");
     for &tf in &r.supported {
         let _ = write!(w, "{}", bode_svg(d, tf, r)?);
     }
@@ -363,11 +371,11 @@ pub fn html(d: &Dataset, r: &Diagnosis) -> Result<String> {
     for c in &r.parameter_changes {
         let _ = write!(
             w,
-            "<tr><td>{}</td><td>{:.4}</td><td>{:.4}</td><td>{:.4}</td><td>{:+.1} %</td></tr>",
+            "<tr><td>{}</td><td>{:.4}</td><td>{:.4}</td><td>{}</td><td>{:+.1} %</td></tr>",
             esc(&c.label),
             c.nominal,
             c.fitted,
-            c.std_error,
+            std_error_cell(c.fitted, c.std_error),
             c.change_pct
         );
     }
@@ -528,6 +536,16 @@ fn score_rows(w: &mut String, label: &str, s: &Score) {
 }
 
 /// The human-readable report of `exo diagnose`.
+/// The standard-error cell of a refitted parameter: "not determined" when
+/// it is not finite, zero or larger than the value.
+fn std_error_cell(v: f64, se: f64) -> String {
+    if exo_diagnose::terms::determined(v, se) {
+        format!("{se:.4}")
+    } else {
+        "not determined".into()
+    }
+}
+
 pub fn text(r: &Diagnosis) -> String {
     let mut w = String::new();
     let _ = writeln!(w, "exo diagnose: {}", r.sources.join(", "));
@@ -600,8 +618,12 @@ pub fn text(r: &Diagnosis) -> String {
     for c in &r.parameter_changes {
         let _ = writeln!(
             w,
-            "  {:<36} {:>12.4} {:>12.4} {:>10.4} {:>8.1}%",
-            c.label, c.nominal, c.fitted, c.std_error, c.change_pct
+            "  {:<36} {:>12.4} {:>12.4} {:>10} {:>8.1}%",
+            c.label,
+            c.nominal,
+            c.fitted,
+            std_error_cell(c.fitted, c.std_error),
+            c.change_pct
         );
     }
     let _ = writeln!(w, "\n3. Candidate physics, one term at a time");
@@ -633,9 +655,22 @@ pub fn text(r: &Diagnosis) -> String {
                 if c.identified {
                     c.description.clone()
                 } else {
-                    format!("{} (not determined)", c.description)
+                    format!(
+                        "{} (not distinguishable from the term's absence)",
+                        c.description
+                    )
                 }
             );
+            // Why a significant candidate was not added: each criterion
+            // that rejected it, with its reason.
+            if !c.chosen && c.significant {
+                for why in &c.rejected_because {
+                    let _ = writeln!(w, "      rejected: {why}");
+                }
+            }
+            if let Some(a) = &c.amplitude_check {
+                let _ = writeln!(w, "      amplitude check: {}", a.words);
+            }
         }
     }
     let _ = writeln!(w, "\n4. Fit before and after");
@@ -647,6 +682,12 @@ pub fn text(r: &Diagnosis) -> String {
     score_rows(&mut w, "nominal as given", &r.nominal);
     score_rows(&mut w, "nominal refitted", &r.refit);
     score_rows(&mut w, "with terms found", &r.final_score);
+    let _ = writeln!(w, "\n5. What remains, per transfer function (final model)");
+    for rm in &r.remains {
+        for l in &rm.words {
+            let _ = writeln!(w, "  - {l}");
+        }
+    }
     let _ = writeln!(w, "\nVerdict");
     for v in &r.verdict {
         let _ = writeln!(w, "  {v}");

@@ -215,8 +215,73 @@ pub struct Candidate {
     /// Its parameters are determined: one differs from the term's absence
     /// by more than two standard errors.
     pub identified: bool,
+    /// What the candidate does to each supported transfer function.
+    pub tf_checks: Vec<TfCheck>,
+    /// Share of the current model's misfit beyond the noise that the
+    /// candidate removes: `(RSS₀ − RSS₁)/(RSS₀ − (n − p₀))`, 0–1.
+    pub explained_share: f64,
+    /// Its parameters fitted separately at each excitation amplitude
+    /// (checked only for a candidate every other criterion accepts).
+    pub amplitude_check: Option<AmplitudeCheck>,
+    /// Its F-test is significant after Holm's correction.
+    pub significant: bool,
+    /// Why it was not accepted (empty when accepted).
+    pub rejected_because: Vec<String>,
     /// Chosen at this step.
     pub chosen: bool,
+}
+
+/// What a candidate does to one supported transfer function: its weighted
+/// RSS before and after, and how far the candidate moves the prediction.
+///
+/// With `r` the whitened residual of the current model and `m` the whitened
+/// change of the prediction the candidate makes, `RSS₁ − RSS₀ = |m|² −
+/// 2 r·m`; `β = r·m/|m|²` is the fraction of the predicted change the data
+/// follow (1: the data moved exactly as the candidate predicts; 0: the data
+/// did not move at all), with standard error `1/|m|` against the measured
+/// noise.
+#[derive(Debug, Clone, Serialize)]
+pub struct TfCheck {
+    /// Transfer function.
+    pub tf: Tf,
+    /// Weighted RSS of the current model.
+    pub rss_before: f64,
+    /// Weighted RSS with the candidate.
+    pub rss_after: f64,
+    /// `|m|²`: squared whitened size of the predicted change.
+    pub moved: f64,
+    /// `β`, the fraction of the predicted change the data confirm.
+    pub confirmed: f64,
+    /// Standard error of `β` (`1/|m|`).
+    pub confirmed_se: f64,
+    /// The data contradict the candidate here: it moves the prediction by at
+    /// least one noise σ in all (`|m|² ≥ 1`) and `β` lies below ½ by more
+    /// than the one-sided critical value (level Bonferroni-divided over the
+    /// supported transfer functions) — the fit is worse there beyond its
+    /// noise, or a change it predicts is not in the data.
+    pub contradicts: bool,
+}
+
+/// A candidate's parameters fitted separately at two excitation amplitudes.
+/// Every catalogue term's parameters are amplitude-independent (friction's
+/// describing function carries the amplitude), so a parameter that differs
+/// between the amplitudes beyond its standard errors (z-test, level
+/// Bonferroni-divided over its parameters) and materially (by more than
+/// `1 − 1/√r` of the larger value, `r` the ratio of the amplitudes: halfway
+/// in ratio to an effect that scales with the amplitude) says the data do
+/// not scale as the term predicts.
+#[derive(Debug, Clone, Serialize)]
+pub struct AmplitudeCheck {
+    /// Excitation amplitudes (Nm) of the low and high groups.
+    pub amplitudes_nm: [f64; 2],
+    /// Periods in each group, in words (e.g. "1–7").
+    pub periods: [String; 2],
+    /// Per added parameter: label, value and standard error at low and at high amplitude.
+    pub params: Vec<(String, [f64; 2], [f64; 2])>,
+    /// The parameters differ beyond their standard errors.
+    pub inconsistent: bool,
+    /// In words.
+    pub words: String,
 }
 
 /// One step of the search.
@@ -247,6 +312,11 @@ pub struct Found {
     pub p_holm: f64,
     /// Held-out RSS change when it was added (relative).
     pub heldout_change: f64,
+    /// Share of the misfit beyond the noise it removed when it was added.
+    pub explained_share: f64,
+    /// It explains less than half of the misfit and structure remains after
+    /// it: a part of the answer, not the answer.
+    pub partial: bool,
     /// The sentence.
     pub sentence: String,
 }
@@ -282,6 +352,8 @@ pub struct Diagnosis {
     pub refit_physics: Physics,
     /// Final coefficients.
     pub final_physics: Physics,
+    /// What remains of the final model's misfit, per transfer function.
+    pub remains: Vec<crate::remains::Remains>,
 }
 
 impl Diagnosis {
@@ -570,6 +642,333 @@ fn time_rows(d: &Dataset, nominal: &Physics, fin: &Physics) -> Vec<TimeRow> {
         .collect()
 }
 
+fn normal_quantile(p: f64) -> f64 {
+    use statrs::distribution::Normal;
+    Normal::new(0.0, 1.0).map_or(f64::NAN, |n| n.inverse_cdf(p.clamp(1e-300, 1.0 - 1e-16)))
+}
+
+/// What `after` does to each supported transfer function compared with
+/// `before` ([`TfCheck`]), `z` the one-sided critical value.
+fn tf_checks(d: &Dataset, before: &Physics, after: &Physics, z: f64) -> Vec<TfCheck> {
+    d.supported
+        .iter()
+        .map(|&tf| {
+            let (mut r0, mut r1, mut m2) = (0.0, 0.0, 0.0);
+            for o in d.of(tf) {
+                let c = &d.conditions[o.window];
+                let (e0, e1) = (
+                    before.predict(o, c) - o.value,
+                    after.predict(o, c) - o.value,
+                );
+                let parts = if tf.is_dynamic() { 2 } else { 1 };
+                for k in 0..parts {
+                    let part = |v: Complex64| if k == 0 { v.re } else { v.im };
+                    let sd = sigma_floor(o, k);
+                    let (a, b) = (part(e0) / sd, part(e1) / sd);
+                    r0 += a * a;
+                    r1 += b * b;
+                    m2 += (b - a).powi(2);
+                }
+            }
+            let (confirmed, confirmed_se) = if m2 > 0.0 {
+                ((m2 - (r1 - r0)) / (2.0 * m2), 1.0 / m2.sqrt())
+            } else {
+                (f64::NAN, f64::INFINITY)
+            };
+            TfCheck {
+                tf,
+                rss_before: r0,
+                rss_after: r1,
+                moved: m2,
+                confirmed,
+                confirmed_se,
+                // Only where the candidate moves the prediction by at least
+                // one noise σ in all (|m| ≥ 1): below that the change is
+                // within the noise of a single point (and, near zero,
+                // numerical rounding).
+                contradicts: m2 >= 1.0 && confirmed < 0.5 - z * confirmed_se,
+            }
+        })
+        .collect()
+}
+
+/// The reasons, other than the amplitude check, why a candidate is not
+/// accepted (empty: every criterion accepts it).
+fn statistical_reasons(c: &Candidate, level: f64) -> Vec<String> {
+    let mut why = Vec::new();
+    if c.p_holm.is_nan() || c.p_holm >= level {
+        why.push(format!(
+            "F-test not significant after Holm's correction (p = {:.2e})",
+            c.p_holm
+        ));
+    }
+    if c.delta_aic.is_nan() || c.delta_aic >= 0.0 {
+        why.push(format!(
+            "Akaike's criterion does not fall (Δ = {:+.1})",
+            c.delta_aic
+        ));
+    }
+    if c.heldout_change.is_nan() || c.heldout_change >= 0.0 {
+        why.push(format!(
+            "the held-out RSS does not fall ({:+.1} %)",
+            100.0 * c.heldout_change
+        ));
+    }
+    if !c.identified {
+        why.push("its parameters are not determined".into());
+    }
+    for t in c.tf_checks.iter().filter(|t| t.contradicts) {
+        why.push(if t.rss_after > t.rss_before {
+            format!(
+                "{} contradicts it: the fit there gets worse beyond its noise (RSS {:.1} → {:.1}; the data follow {:.0} ± {:.0} % of the change it predicts there)",
+                t.tf.name(),
+                t.rss_before,
+                t.rss_after,
+                100.0 * t.confirmed,
+                100.0 * t.confirmed_se
+            )
+        } else {
+            format!(
+                "{} contradicts it: it predicts a change there of {:.1} σ and the data follow only {:.0} ± {:.0} % of it (RSS {:.1} → {:.1})",
+                t.tf.name(),
+                t.moved.sqrt(),
+                100.0 * t.confirmed,
+                100.0 * t.confirmed_se,
+                t.rss_before,
+                t.rss_after
+            )
+        });
+    }
+    why
+}
+
+/// The windows at the lowest excitation amplitude and those above it, when
+/// the single-sine windows have at least two amplitudes.
+#[derive(Debug, Clone)]
+struct AmpGroups {
+    /// Per window: 0 low, 1 high, `None` broadband.
+    group: Vec<Option<u8>>,
+    amplitudes: [f64; 2],
+    periods: [String; 2],
+}
+
+fn amplitude_groups(d: &Dataset) -> Option<AmpGroups> {
+    let amps: Vec<f64> = d
+        .conditions
+        .iter()
+        .map(|c| c.amplitude_nm)
+        .filter(|a| *a > 0.0)
+        .collect();
+    let lo = amps.iter().copied().fold(f64::INFINITY, f64::min);
+    let hi = amps.iter().copied().fold(0.0, f64::max);
+    if amps.is_empty() || hi <= lo * 1.05 {
+        return None;
+    }
+    let group: Vec<Option<u8>> = d
+        .conditions
+        .iter()
+        .map(|c| (c.amplitude_nm > 0.0).then(|| u8::from(c.amplitude_nm > lo * 1.05)))
+        .collect();
+    let words = |g: u8| {
+        let mut p: Vec<u32> = d
+            .conditions
+            .iter()
+            .zip(&group)
+            .filter(|(_, x)| **x == Some(g))
+            .map(|(c, _)| c.period)
+            .collect();
+        p.sort_unstable();
+        p.dedup();
+        ranges(&p)
+    };
+    let mean = |g: u8| {
+        let v: Vec<f64> = d
+            .conditions
+            .iter()
+            .zip(&group)
+            .filter(|(_, x)| **x == Some(g))
+            .map(|(c, _)| c.amplitude_nm)
+            .collect();
+        v.iter().sum::<f64>() / v.len().max(1) as f64
+    };
+    Some(AmpGroups {
+        amplitudes: [mean(0), mean(1)],
+        periods: [words(0), words(1)],
+        group,
+    })
+}
+
+/// `v ± se` to two significant digits of `se` (a comparison, where a value
+/// within its standard error of zero is a measurement, not undetermined);
+/// "not determined" only when `se` is not finite and positive.
+fn plain_pm(v: f64, se: f64) -> String {
+    if se.is_finite() && se > 0.0 {
+        let d = (1 - se.log10().floor() as i64).clamp(0, 9) as usize;
+        format!("{v:.d$} ± {se:.d$}")
+    } else {
+        format!("{v:.4} (not determined)")
+    }
+}
+
+/// "1–7, 9" from sorted numbers.
+fn ranges(p: &[u32]) -> String {
+    let mut out: Vec<String> = Vec::new();
+    let mut i = 0;
+    while i < p.len() {
+        let mut j = i;
+        while j + 1 < p.len() && p[j + 1] == p[j] + 1 {
+            j += 1;
+        }
+        out.push(if j > i {
+            format!("{}–{}", p[i], p[j])
+        } else {
+            p[i].to_string()
+        });
+        i = j + 1;
+    }
+    out.join(", ")
+}
+
+/// Fits the candidate model (`fitted`, free parameters `free`) on each
+/// amplitude group alone and compares the candidate's own parameters
+/// (`added`) between the groups.
+fn amplitude_check(
+    d: &Dataset,
+    fitted: &Fitted,
+    g: &AmpGroups,
+    free: &[Param],
+    added: &[Param],
+    must_confirm: bool,
+    level: f64,
+) -> AmplitudeCheck {
+    let mut fits = Vec::new();
+    for grp in 0..2u8 {
+        let sel = |_: usize, o: &Observation| g.group[o.window] == Some(grp);
+        // Per-experiment parameters of experiments absent from the group
+        // are not fitted there.
+        let present: std::collections::BTreeSet<u32> = d
+            .observations
+            .iter()
+            .filter(|o| g.group[o.window] == Some(grp))
+            .map(|o| d.conditions[o.window].experiment)
+            .collect();
+        let f: Vec<Param> = free
+            .iter()
+            .copied()
+            .filter(|q| match q {
+                Param::K(e) | Param::H(e) => present.contains(e),
+                _ => true,
+            })
+            .collect();
+        fits.push(fit(d, &fitted.physics, &f, &sel));
+    }
+    let z = normal_quantile(1.0 - level / (2.0 * added.len().max(1) as f64));
+    // Materiality: the forward model's own systematic error (0.5 %, and
+    // 1.7–2.5 % for friction's describing function) moves a parameter
+    // fitted on part of the band by more than its noise-only standard
+    // error, so a difference must also be material. The alternative to
+    // "amplitude-independent" is an effect that scales with the amplitude
+    // (ratio r of the groups' excitation amplitudes, or 1/r); halfway in
+    // ratio is √r, so a difference counts when it exceeds 1 − 1/√r of the
+    // larger value (21 % for the protocol's r = 10^0.2).
+    let r = (g.amplitudes[1] / g.amplitudes[0]).max(1.0);
+    let material = 1.0 - 1.0 / r.sqrt();
+    let mut params = Vec::new();
+    let mut inconsistent = Vec::new();
+    for &q in added {
+        let v = [fits[0].physics.get(q), fits[1].physics.get(q)];
+        let se = [
+            fits[0].std_error(q).unwrap_or(f64::NAN),
+            fits[1].std_error(q).unwrap_or(f64::NAN),
+        ];
+        let both = se[0].is_finite() && se[1].is_finite() && se[0] > 0.0 && se[1] > 0.0;
+        if must_confirm
+            && !(crate::terms::determined(v[0], se[0]) && crate::terms::determined(v[1], se[1]))
+        {
+            inconsistent.push(format!(
+                "{} is not determined at both amplitudes ({} at {:.1} Nm, periods {}; {} at {:.1} Nm, periods {}), so its 1/amplitude scaling cannot be confirmed",
+                q.label(),
+                plain_pm(v[0], se[0]),
+                g.amplitudes[0],
+                g.periods[0],
+                plain_pm(v[1], se[1]),
+                g.amplitudes[1],
+                g.periods[1]
+            ));
+            params.push((q.label(), v, se));
+            continue;
+        }
+        let diff = (v[0] - v[1]).abs();
+        if both && diff > z * se[0].hypot(se[1]) && diff > material * v[0].abs().max(v[1].abs()) {
+            inconsistent.push(format!(
+                "{} = {} at {:.1} Nm (periods {}) but {} at {:.1} Nm (periods {})",
+                q.label(),
+                plain_pm(v[0], se[0]),
+                g.amplitudes[0],
+                g.periods[0],
+                plain_pm(v[1], se[1]),
+                g.amplitudes[1],
+                g.periods[1]
+            ));
+        }
+        params.push((q.label(), v, se));
+    }
+    let words = if inconsistent.is_empty() {
+        let each: Vec<String> = params
+            .iter()
+            .map(|(l, v, se)| {
+                format!(
+                    "{l} {} and {}",
+                    plain_pm(v[0], se[0]),
+                    plain_pm(v[1], se[1])
+                )
+            })
+            .collect();
+        format!(
+            "its parameters agree between {:.1} Nm (periods {}) and {:.1} Nm (periods {}): {}",
+            g.amplitudes[0],
+            g.periods[0],
+            g.amplitudes[1],
+            g.periods[1],
+            each.join("; ")
+        )
+    } else {
+        format!(
+            "the data do not show the amplitude scaling it predicts: {} (the higher amplitude is also the higher frequencies)",
+            inconsistent.join("; ")
+        )
+    };
+    AmplitudeCheck {
+        amplitudes_nm: g.amplitudes,
+        periods: g.periods.clone(),
+        params,
+        inconsistent: !inconsistent.is_empty(),
+        words,
+    }
+}
+
+/// The significant candidates of the last step that were not added, each
+/// with the first reason: what the data contradict.
+fn not_named(steps: &[Step]) -> Vec<String> {
+    let Some(last) = steps.last() else {
+        return Vec::new();
+    };
+    last.candidates
+        .iter()
+        .filter(|c| !c.chosen && c.significant && !c.rejected_because.is_empty())
+        .take(3)
+        .map(|c| {
+            format!(
+                "not named: {} (F = {:.1}, would explain {:.0} % of the misfit): {}",
+                c.words,
+                c.f,
+                100.0 * c.explained_share,
+                c.rejected_because.join("; ")
+            )
+        })
+        .collect()
+}
+
 /// The nominal model's own free parameters: the human's per-experiment
 /// stiffness (and hysteretic damping when the model has it), its inertia,
 /// and the parameters of every term the model already has.
@@ -685,8 +1084,12 @@ pub fn diagnose(
         .filter(|t| t.in_nominal(&p0))
         .collect();
     let mut steps = Vec::new();
-    let mut found: Vec<(Term, Candidate)> = Vec::new();
+    let mut found: Vec<(Term, Candidate, bool)> = Vec::new();
     let mut lack_p = refit_score.lack_of_fit_p;
+    // One-sided critical value of the per-transfer-function checks,
+    // Bonferroni over the supported transfer functions.
+    let z_tf = normal_quantile(1.0 - s.level / d.supported.len().max(1) as f64);
+    let amp_groups = amplitude_groups(d);
     for step in 1..=s.max_terms {
         // Nothing left to explain: the model is within the measured noise
         // and its own accuracy.
@@ -737,6 +1140,12 @@ pub fn diagnose(
             t.start_variant(variant, &mut cstart);
             let ho = heldout(d, &cstart, &free).values().sum::<f64>();
             let se = |q: Param| f1.std_error(q);
+            let beyond_noise = current.rss - (current.n as f64 - current.p() as f64);
+            let explained_share = if beyond_noise > 0.0 {
+                ((current.rss - f1.rss) / beyond_noise).clamp(0.0, 1.0)
+            } else {
+                f64::NAN
+            };
             rows.push((
                 Candidate {
                     term: t,
@@ -750,6 +1159,11 @@ pub fn diagnose(
                     heldout_change: (ho - current_ho) / current_ho.max(1e-300),
                     description: t.describe(&f1.physics, &se),
                     identified: t.identified(&f1.physics, &se, &experiments),
+                    tf_checks: tf_checks(d, &current.physics, &f1.physics, z_tf),
+                    explained_share,
+                    amplitude_check: None,
+                    significant: false,
+                    rejected_because: Vec::new(),
                     chosen: false,
                 },
                 f1,
@@ -779,13 +1193,36 @@ pub fn diagnose(
             .unwrap_or(f64::NAN);
         }
         // The most significant candidate that Holm's test, Akaike's
-        // criterion and the held-out error all accept.
-        let pick = rows.iter().position(|r| {
-            r.0.p_holm < s.level
-                && r.0.delta_aic < 0.0
-                && r.0.heldout_change < 0.0
-                && r.0.identified
-        });
+        // criterion and the held-out error all accept, whose parameters are
+        // determined, that no supported transfer function contradicts, and
+        // whose parameters agree between the excitation amplitudes.
+        let mut pick = None;
+        for (i, r) in rows.iter_mut().enumerate() {
+            r.0.significant = r.0.p_holm < s.level;
+            let mut why = statistical_reasons(&r.0, s.level);
+            if why.is_empty() && pick.is_none() {
+                if let Some(groups) = &amp_groups {
+                    let added = r.0.term.params(&experiments);
+                    let check = amplitude_check(
+                        d,
+                        &r.1,
+                        groups,
+                        &r.3,
+                        &added,
+                        r.0.term.amplitude_dependent(),
+                        s.level,
+                    );
+                    if check.inconsistent {
+                        why.push(check.words.clone());
+                    }
+                    r.0.amplitude_check = Some(check);
+                }
+                if why.is_empty() {
+                    pick = Some(i);
+                }
+            }
+            r.0.rejected_because = why;
+        }
         let accept = pick.is_some();
         if let Some(i) = pick {
             rows[i].0.chosen = true;
@@ -800,35 +1237,54 @@ pub fn diagnose(
         let (cand, f1, cstart, _free) = rows.swap_remove(pick.unwrap_or(0));
         current_ho *= 1.0 + cand.heldout_change;
         in_model.push(cand.term);
-        found.push((cand.term, cand));
         current = f1;
         current_start = cstart;
         lack_p = lack_of_fit_p(d, &current.physics, current.p());
+        // Less than half of the misfit and structure remains: a part of
+        // the answer, reported as such.
+        let partial =
+            (cand.explained_share.is_nan() || cand.explained_share < 0.5) && lack_p < s.level;
+        found.push((cand.term, cand, partial));
     }
     let final_score = score(d, &current_start, &current.physics, &current.free);
 
     let found: Vec<Found> = found
         .into_iter()
-        .map(|(t, c)| {
+        .map(|(t, c, partial)| {
             let se = |q: Param| current.std_error(q);
             let description = t.describe(&current.physics, &se);
+            let stats = format!(
+                "F = {:.1} against a critical {:.2} (Holm-adjusted p = {:.2e}); held-out RSS {:+.0} %",
+                c.f,
+                c.f_critical,
+                c.p_holm,
+                100.0 * c.heldout_change
+            );
+            let sentence = if partial {
+                format!(
+                    "partly explained by {}, {description}: it explains {:.0} % of the misfit left at its step; most of it remains ({stats})",
+                    t.words(),
+                    100.0 * c.explained_share
+                )
+            } else {
+                format!(
+                    "left out: {}, {description}; explains {:.0} % of the misfit left at its step; {stats}",
+                    t.words(),
+                    100.0 * c.explained_share
+                )
+            };
             Found {
                 term: t,
                 toml_key: t.toml_key(),
                 words: t.words(),
-                sentence: format!(
-                    "left out: {}, {description}; F = {:.1} against a critical {:.2} (Holm-adjusted p = {:.2e}); held-out RSS {:+.0} %",
-                    t.words(),
-                    c.f,
-                    c.f_critical,
-                    c.p_holm,
-                    100.0 * c.heldout_change
-                ),
+                sentence,
                 description,
                 f: c.f,
                 f_critical: c.f_critical,
                 p_holm: c.p_holm,
                 heldout_change: c.heldout_change,
+                explained_share: c.explained_share,
+                partial,
             }
         })
         .collect();
@@ -853,6 +1309,7 @@ pub fn diagnose(
         .iter()
         .filter(|c| {
             c.change_pct.is_finite()
+                && crate::terms::determined(c.fitted, c.std_error)
                 && c.change_pct.abs()
                     > 2.0 * (100.0 * c.std_error / c.nominal.abs().max(1e-300)).max(1.0)
         })
@@ -880,22 +1337,37 @@ pub fn diagnose(
             100.0 * improvement
         ));
     }
+    let remains = crate::remains::characterise(d, &current.physics, s.level);
+    // Where structure remains, how it depends on amplitude and operating
+    // point (only the significant findings, or that one amplitude cannot tell).
+    let remains_words: Vec<String> = remains
+        .iter()
+        .flat_map(|r| r.findings.iter().cloned())
+        .map(|w| format!("what remains: {w}"))
+        .collect();
+    // Exclusive verdicts: "no missing physics" only when nothing beyond the
+    // noise remains; otherwise what remains is said, never both.
+    let beyond_noise = |p: f64| p < s.level;
     if found.is_empty() {
-        verdict.push(format!(
-            "no missing physics: no candidate term is significant (χ²/dof {:.2} after the refit{})",
-            refit_score.chi2_per_dof,
-            if refit_score.lack_of_fit_p < s.level {
-                "; some structure remains that no term of the catalogue explains"
-            } else {
-                ", within the measured noise"
-            }
-        ));
+        if beyond_noise(refit_score.lack_of_fit_p) {
+            verdict.push(format!(
+                "unexplained: structure beyond the measured noise remains after the refit (χ²/dof {:.2}, lack-of-fit p = {:.1e}) and no term of the catalogue explains it without the data contradicting it",
+                refit_score.chi2_per_dof, refit_score.lack_of_fit_p
+            ));
+            verdict.extend(not_named(&steps));
+            verdict.extend(remains_words.iter().cloned());
+        } else {
+            verdict.push(format!(
+                "no missing physics: after the refit the model is within the measured noise (χ²/dof {:.2}, lack-of-fit p = {:.2})",
+                refit_score.chi2_per_dof, refit_score.lack_of_fit_p
+            ));
+        }
     } else {
         for f in &found {
             verdict.push(f.sentence.clone());
         }
         verdict.push(format!(
-            "with {} added: RSS {:.1} → {:.1} ({:+.0} %), held-out {:+.0} %, χ²/dof {:.2} → {:.2}",
+            "with {} added: RSS {:.1} → {:.1} ({:+.0} %), held-out {:+.0} %, χ²/dof {:.2} → {:.2}; {}",
             found
                 .iter()
                 .map(|f| f.words)
@@ -906,8 +1378,20 @@ pub fn diagnose(
             100.0 * (final_score.rss / refit_score.rss - 1.0),
             100.0 * (final_score.heldout_rss / refit_score.heldout_rss - 1.0),
             refit_score.chi2_per_dof,
-            final_score.chi2_per_dof
+            final_score.chi2_per_dof,
+            if beyond_noise(final_score.lack_of_fit_p) {
+                format!(
+                    "structure beyond the measured noise remains unexplained (lack-of-fit p = {:.1e})",
+                    final_score.lack_of_fit_p
+                )
+            } else {
+                "the rest is within the measured noise".to_string()
+            }
         ));
+        if beyond_noise(final_score.lack_of_fit_p) {
+            verdict.extend(not_named(&steps));
+            verdict.extend(remains_words.iter().cloned());
+        }
     }
 
     Ok(Diagnosis {
@@ -924,6 +1408,7 @@ pub fn diagnose(
         verdict,
         nominal_physics: p0,
         refit_physics: base.physics,
+        remains,
         final_physics: current.physics,
     })
 }

@@ -280,7 +280,10 @@ pub fn fit(
         }
     }
     // Standard errors from the Gauss–Newton covariance, scaled by the
-    // residual variance (robust to a mis-scaled noise estimate).
+    // residual variance (robust to a mis-scaled noise estimate). A variance
+    // that is not positive and finite (a singular or numerically indefinite
+    // JᵀJ: the parameter is not determined by the data, e.g. held at its
+    // bound) is NaN, never 0: a zero standard error would claim precision.
     let mut std_errors = vec![f64::NAN; p];
     if p > 0 && n > p {
         jacobian(&phys, &mut jac, &mut col);
@@ -288,7 +291,12 @@ pub fn fit(
         if let Some(inv) = jtj.try_inverse() {
             let s2 = cost / (n - p) as f64;
             for (i, e) in std_errors.iter_mut().enumerate() {
-                *e = (inv[(i, i)] * s2).max(0.0).sqrt();
+                let var = inv[(i, i)] * s2;
+                *e = if var.is_finite() && var > 0.0 {
+                    var.sqrt()
+                } else {
+                    f64::NAN
+                };
             }
         }
     }

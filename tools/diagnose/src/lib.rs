@@ -27,6 +27,7 @@ pub mod data;
 pub mod engine;
 pub mod fit;
 pub mod model;
+pub mod remains;
 pub mod synth;
 pub mod terms;
 

@@ -176,6 +176,14 @@ impl Term {
         }
     }
 
+    /// Whether the term's own effect depends on the excitation amplitude
+    /// (Coulomb friction's describing function falls as 1/amplitude): then
+    /// the amplitude check must confirm its parameters at each amplitude,
+    /// not merely fail to refute them.
+    pub fn amplitude_dependent(self) -> bool {
+        matches!(self, Term::CoulombFriction)
+    }
+
     /// Starting values when the term is added to `p`.
     pub fn start(self, p: &mut Physics) {
         match self {
@@ -249,14 +257,12 @@ impl Term {
     }
 
     /// Its value in plain words with the fitted parameters, e.g.
-    /// "H = 12.3 ± 0.8 Nm/rad (c = 0.43)".
+    /// "H = 12.3 ± 0.8 Nm/rad (c = 0.43)". A parameter whose standard error
+    /// is not determined ([`determined`]) is printed as "not determined",
+    /// never with a ± that claims precision.
     pub fn describe(self, p: &Physics, se: &dyn Fn(Param) -> Option<f64>) -> String {
-        let pm = |q: Param, scale: f64, digits: usize| {
-            let v = p.get(q) * scale;
-            match se(q) {
-                Some(s) if s.is_finite() => format!("{v:.digits$} ± {:.digits$}", s * scale),
-                _ => format!("{v:.digits$}"),
-            }
+        let pm = |q: Param, scale: f64, digits: usize, unit: &str| {
+            value_pm(p.get(q) * scale, se(q).map(|s| s * scale), digits, unit)
         };
         match self {
             Term::HystereticDamping => {
@@ -269,50 +275,88 @@ impl Term {
                         / n;
                 let per: Vec<String> =
                     p.h.keys()
-                        .map(|&e| format!("exp {e}: {}", pm(Param::H(e), 1.0, 2)))
+                        .map(|&e| format!("exp {e}: {}", pm(Param::H(e), 1.0, 2, "")))
                         .collect();
                 format!(
                     "H = {h_mean:.2} Nm/rad on average (c = {c:.2}); {}",
                     per.join(", ")
                 )
             }
-            Term::HumanViscousDamping => format!("B_h = {} Nm·s/rad", pm(Param::Bh, 1.0, 3)),
-            Term::CoulombFriction => format!("F_c = {} Nm", pm(Param::Coulomb, 1.0, 3)),
-            Term::JointViscousFriction => format!("b_f = {} Nm·s/rad", pm(Param::Bf, 1.0, 3)),
-            Term::EncoderDelay => format!("d = {} ms", pm(Param::DelayTheta, 1e3, 2)),
-            Term::CuffSensorDelay => format!("d = {} ms", pm(Param::DelayTauC, 1e3, 2)),
-            Term::SeaSensorDelay => format!("d = {} ms", pm(Param::DelayTauS, 1e3, 2)),
-            Term::ActuatorDelay => format!("d = {} ms", pm(Param::DelayAct, 1e3, 2)),
+            Term::HumanViscousDamping => format!("B_h = {}", pm(Param::Bh, 1.0, 3, " Nm·s/rad")),
+            Term::CoulombFriction => format!("F_c = {}", pm(Param::Coulomb, 1.0, 3, " Nm")),
+            Term::JointViscousFriction => format!("b_f = {}", pm(Param::Bf, 1.0, 3, " Nm·s/rad")),
+            Term::EncoderDelay => format!("d = {}", pm(Param::DelayTheta, 1e3, 2, " ms")),
+            Term::CuffSensorDelay => format!("d = {}", pm(Param::DelayTauC, 1e3, 2, " ms")),
+            Term::SeaSensorDelay => format!("d = {}", pm(Param::DelayTauS, 1e3, 2, " ms")),
+            Term::ActuatorDelay => format!("d = {}", pm(Param::DelayAct, 1e3, 2, " ms")),
             Term::CuffCompliance => {
                 let c = p.cuff_compliance;
-                let k = if c > 0.0 { 1.0 / c } else { f64::INFINITY };
-                let rel = se(Param::CuffCompliance).map(|s| s / c.max(1e-300));
-                match rel {
-                    Some(r) if r.is_finite() => {
-                        format!("k_c = {k:.0} ± {:.0} Nm/rad", k * r)
+                match se(Param::CuffCompliance) {
+                    Some(s) if determined(c, s) => {
+                        // k_c = 1/c; its standard error by the delta method.
+                        let k = 1.0 / c;
+                        format!("k_c = {}", value_pm(k, Some(k * s / c), 0, " Nm/rad"))
                     }
-                    _ => format!("k_c = {k:.0} Nm/rad"),
+                    s => format!(
+                        "k_c not determined (compliance {c:.3e} rad/Nm; {})",
+                        why_undetermined(c, s)
+                    ),
                 }
             }
             Term::SeaBandwidth => format!(
-                "ω_n = {} rad/s ({:.2} Hz), ζ = {}",
-                pm(Param::SeaWn, 1.0, 1),
+                "ω_n = {} ({:.2} Hz), ζ = {}",
+                pm(Param::SeaWn, 1.0, 1, " rad/s"),
                 p.get(Param::SeaWn) / std::f64::consts::TAU,
-                pm(Param::SeaZeta, 1.0, 2)
+                pm(Param::SeaZeta, 1.0, 2, "")
             ),
-            Term::InertiaError => format!("ΔM_e = {} kg·m²", pm(Param::InertiaError, 1.0, 4)),
-            Term::GravityError => format!("Δ(mgl) = {} Nm", pm(Param::GravityError, 1.0, 3)),
-            Term::CuffSensorGain => format!("gain = {}", pm(Param::GainTauC, 1.0, 3)),
-            Term::SeaSensorGain => format!("gain = {}", pm(Param::GainTauS, 1.0, 3)),
+            Term::InertiaError => {
+                format!("ΔM_e = {}", pm(Param::InertiaError, 1.0, 4, " kg·m²"))
+            }
+            Term::GravityError => format!("Δ(mgl) = {}", pm(Param::GravityError, 1.0, 3, " Nm")),
+            Term::CuffSensorGain => format!("gain = {}", pm(Param::GainTauC, 1.0, 3, "")),
+            Term::SeaSensorGain => format!("gain = {}", pm(Param::GainTauS, 1.0, 3, "")),
             Term::TorqueSensorOffset => {
-                format!("Δ = {} Nm", pm(Param::TorqueOffset, 1.0, 3))
+                format!("Δ = {}", pm(Param::TorqueOffset, 1.0, 3, " Nm"))
             }
             Term::StretchReflex => format!(
-                "G = {} Nm·s/rad, δ = {} ms, ω_c = {} rad/s",
-                pm(Param::ReflexGain, 1.0, 2),
-                pm(Param::ReflexDelay, 1e3, 1),
-                pm(Param::ReflexCutoff, 1.0, 1)
+                "G = {}, δ = {}, ω_c = {}",
+                pm(Param::ReflexGain, 1.0, 2, " Nm·s/rad"),
+                pm(Param::ReflexDelay, 1e3, 1, " ms"),
+                pm(Param::ReflexCutoff, 1.0, 1, " rad/s")
             ),
         }
+    }
+}
+
+/// Whether a fitted value `v` with standard error `se` is determined: the
+/// standard error is finite, positive and no larger than the value itself.
+pub fn determined(v: f64, se: f64) -> bool {
+    v.is_finite() && se.is_finite() && se > 0.0 && se <= v.abs()
+}
+
+/// Why a value is not determined, in words.
+pub fn why_undetermined(v: f64, se: Option<f64>) -> String {
+    match se {
+        None => "not fitted".into(),
+        Some(s) if !s.is_finite() => "no finite standard error".into(),
+        Some(s) if s <= 0.0 => "standard error zero: the data do not constrain it".into(),
+        Some(s) if !v.is_finite() => format!("value {v}, standard error {s:.2e}"),
+        Some(s) => format!("standard error {s:.2e} larger than the value"),
+    }
+}
+
+/// `v ± se` with the standard error to two significant digits (at least
+/// `digits` decimals), or "not determined (…)" when it is not
+/// ([`determined`]).
+pub fn value_pm(v: f64, se: Option<f64>, digits: usize, unit: &str) -> String {
+    match se {
+        Some(s) if determined(v, s) => {
+            let d = (1 - s.log10().floor() as i64).clamp(digits as i64, 9) as usize;
+            format!("{v:.d$} ± {s:.d$}{unit}")
+        }
+        _ => format!(
+            "not determined ({v:.digits$}{unit}; {})",
+            why_undetermined(v, se)
+        ),
     }
 }
