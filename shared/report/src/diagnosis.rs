@@ -402,6 +402,24 @@ fn names(t: &[Term]) -> String {
     }
 }
 
+/// The named terms, a partial one ("partly explained by") marked.
+fn named_with_partial(x: &Outcome) -> String {
+    if x.named.is_empty() {
+        return "—".into();
+    }
+    x.named
+        .iter()
+        .map(|t| {
+            if x.partial.contains(t) {
+                format!("{t:?} (partial)")
+            } else {
+                format!("{t:?}")
+            }
+        })
+        .collect::<Vec<_>>()
+        .join(" + ")
+}
+
 /// `exo diagnose-bench`'s table: each case's true and named effects, the
 /// fit before and after, and the confusion ([`confusion`]).
 pub fn bench_table(o: &[Outcome]) -> String {
@@ -417,7 +435,7 @@ pub fn bench_table(o: &[Outcome]) -> String {
             "{:<13} {:<34} {:<34} {:>9.4} {:>12.1} {:>10.1} {:>8.0}%  {}",
             x.case,
             names(&x.expected),
-            names(&x.named),
+            named_with_partial(x),
             x.r2_refit,
             x.rss[0],
             x.rss[1],

@@ -156,6 +156,9 @@ pub struct Outcome {
     pub expected: Vec<Term>,
     /// Terms named.
     pub named: Vec<Term>,
+    /// Of those, the ones named only as partial ("partly explained by …":
+    /// under half the misfit, structure remaining). They count as named.
+    pub partial: Vec<Term>,
     /// The diagnosis' sentences.
     pub verdict: Vec<String>,
     /// Weighted RSS: nominal refitted, with the named terms.
@@ -183,6 +186,12 @@ impl Outcome {
             expected: c.expected.clone(),
             correct: e == n,
             named,
+            partial: r
+                .found
+                .iter()
+                .filter(|f| f.partial)
+                .map(|f| f.term)
+                .collect(),
             verdict: r.verdict.clone(),
             rss: [r.refit.rss, r.final_score.rss],
             heldout_change: r.final_score.heldout_rss / r.refit.heldout_rss - 1.0,
