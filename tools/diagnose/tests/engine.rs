@@ -1,41 +1,22 @@
 //! The diagnosis on simulated data (the plant simulator in process,
 //! `synth`): a concealed effect is named, a null case names nothing.
 
-use std::path::PathBuf;
+mod common;
+use common::default_plant;
 
 use exo_diagnose::data::{reduce, Reduction};
 use exo_diagnose::synth::{synthesize, SynthPeriod, SynthSettings};
 use exo_diagnose::{diagnose, Settings, Term};
 use exo_plant_sim::PlantModel;
 
-fn default_plant() -> PlantModel {
-    let p = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../configs/plants/default.toml");
-    PlantModel::from_file(&p).expect("default plant")
-}
-
 /// Three experiments of ten periods (Table I's frequencies from 2 rad/s),
 /// loads 0 and 4.5 kg, one with a bias torque.
 fn protocol() -> Vec<SynthPeriod> {
-    let mut v = Vec::new();
-    for (e, k, h, load, bias) in [
+    common::protocol(&[
         (1, 15.0, 5.0, 0.0, 0.0),
         (2, 30.0, 10.0, 4.5, 0.0),
         (3, 45.0, 14.0, 0.0, 3.0),
-    ] {
-        for n in 0..10 {
-            v.push(SynthPeriod {
-                experiment: e,
-                period: n + 1,
-                omega_rad_s: 2.0 * 10f64.powf(0.1 * n as f64),
-                amplitude_nm: if n >= 7 { 2.0 * 10f64.powf(0.2) } else { 2.0 },
-                k_h: k,
-                h_h: h,
-                load_kg: load,
-                bias_nm: bias,
-            });
-        }
-    }
-    v
+    ])
 }
 
 fn run(truth: &PlantModel, nominal: &PlantModel, s: SynthSettings) -> Vec<Term> {

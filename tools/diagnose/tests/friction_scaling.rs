@@ -3,37 +3,17 @@
 //! model, with hysteretic damping left out of the candidates, must not be
 //! named as Coulomb friction, whose describing function falls as 1/A.
 
-use std::path::PathBuf;
+mod common;
+use common::default_plant;
 
 use exo_diagnose::data::{reduce, Reduction};
 use exo_diagnose::synth::{synthesize, SynthPeriod, SynthSettings};
 use exo_diagnose::{diagnose, Settings, Term};
-use exo_plant_sim::PlantModel;
-
-fn default_plant() -> PlantModel {
-    let p = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../configs/plants/default.toml");
-    PlantModel::from_file(&p).expect("default plant")
-}
 
 /// Two experiments of ten periods from 2 rad/s, the amplitude 10^0.2×
 /// higher at periods 8–10 (the protocol's).
 fn protocol() -> Vec<SynthPeriod> {
-    let mut v = Vec::new();
-    for (e, k, h, load, bias) in [(1, 20.0, 8.0, 4.5, 0.0), (2, 40.0, 16.0, 4.5, 4.0)] {
-        for n in 0..10 {
-            v.push(SynthPeriod {
-                experiment: e,
-                period: n + 1,
-                omega_rad_s: 2.0 * 10f64.powf(0.1 * n as f64),
-                amplitude_nm: if n >= 7 { 2.0 * 10f64.powf(0.2) } else { 2.0 },
-                k_h: k,
-                h_h: h,
-                load_kg: load,
-                bias_nm: bias,
-            });
-        }
-    }
-    v
+    common::protocol(&[(1, 20.0, 8.0, 4.5, 0.0), (2, 40.0, 16.0, 4.5, 4.0)])
 }
 
 #[test]
