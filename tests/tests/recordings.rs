@@ -263,9 +263,12 @@ impl RecordedRun {
     }
 }
 
-/// Bytes of `path` on disk (0 when it does not exist).
+/// Bytes of recording segment `path` on disk, finished or still under its
+/// partial name (0 when neither exists).
 fn written(path: &Path) -> u64 {
-    std::fs::metadata(path).map_or(0, |m| m.len())
+    exo_recording::segments::on_disk(path)
+        .and_then(|p| std::fs::metadata(p).ok())
+        .map_or(0, |m| m.len())
 }
 
 #[test]
@@ -275,9 +278,31 @@ fn a_recorder_killed_mid_run_leaves_a_readable_file_and_control_goes_on() {
     let (_sc, rec, samples) = run.finish();
     // Control ran the whole protocol without a gap.
     assert!(samples.windows(2).all(|w| w[1].seq == w[0].seq + 1));
+    // The recording was never finished, so it never got its name: it is
+    // still its partial file, which the readers read in its place (and
+    // say so).
+    let partial = exo_recording::segments::partial_path(&rec);
+    assert!(!rec.exists() && partial.exists());
     // The file has no footer; its complete chunks are read.
     let r = exo_recording::read_recording(&rec).unwrap();
     assert!(r.truncated);
+    assert!(
+        r.warnings
+            .iter()
+            .any(|w| w.contains(&*partial.to_string_lossy()) && w.contains("not finished")),
+        "{:?}",
+        r.warnings
+    );
+    // No writer holds it any more: it is finished as it is, under its name.
+    assert_eq!(
+        exo_recording::segments::finish_orphans(&rec).unwrap(),
+        [rec.clone()]
+    );
+    assert!(rec.exists() && !partial.exists());
+    assert_eq!(
+        exo_recording::read_recording(&rec).unwrap().sensor,
+        r.sensor
+    );
     assert!(r.sensor.len() > 1000, "{} samples survived", r.sensor.len());
     assert!(r.sensor.windows(2).all(|w| w[1].seq == w[0].seq + 1));
     assert!(r.meta("subject").is_some());
@@ -441,6 +466,105 @@ fn a_restarted_recorder_continues_in_a_new_segment_read_as_one_recording() {
         );
     }
     assert!(one.source.contains("(+1 segment)"), "{}", one.source);
+}
+
+/// A full disk while a recording is written (ENOSPC): the error names the
+/// recording and the OS error, the exit is non-zero, an earlier recording
+/// of that name is left as it was and no half-written file stays beside
+/// it. The disk is a 256 kB tmpfs in a mount namespace of the test's own
+/// (`unshare -rm`, unprivileged), which fills in the first simulated
+/// seconds; what happened on it is reported by the shell inside, as the
+/// mount ends with the namespace.
+#[test]
+fn a_full_disk_names_the_recording_and_leaves_the_earlier_one() {
+    let sc = Scenario::new(
+        "enospc",
+        &[
+            ("periods = [1, 4, 7]", "periods = [1]"),
+            ("experiments = [1, 7]", "experiments = [1]"),
+        ],
+    );
+    let disk = sc.dir.join("disk");
+    std::fs::create_dir_all(&disk).unwrap();
+    let script = r#"mount -t tmpfs -o size=256k tmpfs "$1" || exit 90
+printf earlier > "$1/run.mcap"
+"$2" sim "$3" --no-report --output "$1/run.mcap"
+echo "exit=$?"
+echo "content=$(cat "$1/run.mcap")"
+echo "files=$(ls -A "$1" | tr '\n' ' ')""#;
+    let out = Command::new("unshare")
+        .args(["-rm", "sh", "-c", script, "sh"])
+        .arg(&disk)
+        .arg(workspace_bin("exo"))
+        .arg(&sc.config)
+        .output()
+        .unwrap();
+    let (so, se) = (stdout(&out), stderr(&out));
+    assert!(out.status.success(), "{so}\n{se}");
+    assert!(so.contains("exit=1\n"), "{so}\n{se}");
+    assert!(so.contains("content=earlier\n"), "{so}\n{se}");
+    assert!(so.contains("files=run.mcap \n"), "{so}\n{se}");
+    assert!(se.contains("run.mcap"), "{se}");
+    assert!(se.contains("No space left on device"), "{se}");
+    assert!(!se.contains("panicked"), "{se}");
+}
+
+/// The same through the processes: `exo run` with its run directory on a
+/// full disk. The recorder fails naming the file and the OS error, is
+/// restarted (each restart continues in a new segment, which fails too),
+/// and the run stops, exit non-zero, naming the recorder; what the first
+/// segment's complete chunks hold is kept under its name and read as the
+/// run's recording.
+#[test]
+fn a_run_on_a_full_disk_names_the_fault_and_keeps_what_was_written() {
+    let sc = Scenario::new(
+        "enospcrun",
+        &[
+            ("periods = [1, 4, 7]", "periods = [1]"),
+            ("experiments = [1, 7]", "experiments = [1]"),
+        ],
+    );
+    let disk = sc.dir.join("disk");
+    let kept = sc.dir.join("kept");
+    std::fs::create_dir_all(&disk).unwrap();
+    std::fs::create_dir_all(&kept).unwrap();
+    sc.edit(
+        &format!("output_dir = \"{}\"", sc.dir.display()),
+        &format!("output_dir = \"{}\"", disk.display()),
+    );
+    let script = r#"mount -t tmpfs -o size=512k tmpfs "$1" || exit 90
+"$2" run "$3" --no-report
+echo "exit=$?"
+cp -a "$1"/. "$4"/"#;
+    let out = Command::new("unshare")
+        .args(["-rm", "sh", "-c", script, "sh"])
+        .arg(&disk)
+        .arg(workspace_bin("exo"))
+        .arg(&sc.config)
+        .arg(&kept)
+        .output()
+        .unwrap();
+    let (so, se) = (stdout(&out), stderr(&out));
+    assert!(out.status.success(), "{so}\n{se}");
+    assert!(so.contains("exit=1\n"), "{so}\n{se}");
+    assert!(se.contains("No space left on device"), "{se}");
+    assert!(
+        se.contains("process `recorder`") && se.contains("stopped with exit code 1"),
+        "{se}"
+    );
+    assert!(!se.contains("panicked"), "{se}");
+    let first = std::fs::read_dir(&kept)
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .find(|p| {
+            p.extension().is_some_and(|x| x == "mcap")
+                && exo_recording::segments::first_segment_of(p).is_none()
+        })
+        .expect("the first segment is kept under its name");
+    let r = exo_recording::read_recording(&first).unwrap();
+    assert!(r.sensor.len() > 100, "{} samples kept", r.sensor.len());
+    assert!(r.sensor.windows(2).all(|w| w[1].seq > w[0].seq));
+    assert!(r.meta("subject").is_some());
 }
 
 /// The children of `parent` whose command name is `comm`.

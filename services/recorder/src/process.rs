@@ -194,6 +194,16 @@ impl Process for RecorderProcess {
         // A restarted recorder never truncates what the one before it
         // wrote: it continues in the next segment, read with the first as
         // one recording.
+        // A recorder before this one that died left its segment under its
+        // partial name: its complete chunks are the run's recording so far.
+        for done in exo_recording::segments::finish_orphans(&first)
+            .with_context(|| format!("finishing the segments of {}", first.display()))?
+        {
+            warn!(
+                "recorder: {} was left unfinished by a recorder that died: kept, with what its complete chunks hold",
+                done.display()
+            );
+        }
         let (segment, path) = exo_recording::segments::next_free_segment(&first);
         let taps = Taps::open(cx.ipc)?;
         let mut w = start_recording(&path, cfg, &args.config)?;
@@ -259,7 +269,7 @@ impl Process for RecorderProcess {
             .writer
             .join()
             .map_err(|_| anyhow::anyhow!("the writing thread panicked"))?
-            .with_context(|| format!("writing {path}"))?;
+            .context("the writing thread stopped")?;
         let received = self.received + last? as u64;
         let counted = drops.counted();
         w.write_metadata("exo.drops", &drops.metadata(discarded))?;

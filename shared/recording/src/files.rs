@@ -35,6 +35,31 @@ pub fn create_output_file(path: &Path) -> io::Result<File> {
         .open(path)
 }
 
+/// Creates (or empties) `path` with [`OUTPUT_FILE_MODE`] when it is new and
+/// holds an exclusive lock on it for the life of the returned file: the
+/// partial file of a recording segment ([`crate::segments`]). A file
+/// another live writer holds is refused, not emptied.
+pub fn create_locked_output_file(path: &Path) -> io::Result<File> {
+    let f = OpenOptions::new()
+        .write(true)
+        .create(true)
+        .truncate(false)
+        .mode(OUTPUT_FILE_MODE)
+        .open(path)?;
+    match f.try_lock() {
+        Ok(()) => {}
+        Err(std::fs::TryLockError::WouldBlock) => {
+            return Err(io::Error::new(
+                io::ErrorKind::ResourceBusy,
+                "another process is writing it",
+            ))
+        }
+        Err(std::fs::TryLockError::Error(e)) => return Err(e),
+    }
+    f.set_len(0)?;
+    Ok(f)
+}
+
 /// Writes `contents` to `path` atomically: a temporary file (mode
 /// [`OUTPUT_FILE_MODE`]) beside it, synced, then renamed over `path`. On
 /// any error (no space, no permission) the temporary file is removed and

@@ -125,9 +125,14 @@ impl RecordingError {
     }
 
     pub(crate) fn mcap(file: &Path, e: mcap::McapError) -> Self {
-        RecordingError::Mcap {
-            file: file.display().to_string(),
-            message: e.to_string(),
+        match e {
+            // The operating system's error itself (no space, no
+            // permission), not the library's summary of it.
+            mcap::McapError::Io(io) => RecordingError::io(file, io),
+            e => RecordingError::Mcap {
+                file: file.display().to_string(),
+                message: e.to_string(),
+            },
         }
     }
 }

@@ -142,18 +142,40 @@ pub fn read_recording_topics(path: &Path, topics: &[&str]) -> Result<Recording, 
 }
 
 fn read_segments(path: &Path, only: Option<&[&str]>) -> Result<Recording, RecordingError> {
-    let mut parts = crate::segments::segments(path).into_iter().map(|p| {
+    let mut first: Option<Recording> = None;
+    let mut rest = Vec::new();
+    let mut empty = Vec::new();
+    for p in crate::segments::segments(path) {
         let bytes = std::fs::read(&p).map_err(|e| RecordingError::io(&p, e))?;
-        read_bytes(&p.display().to_string(), &bytes, only)
-    });
-    let first = parts.next().unwrap_or_else(|| {
-        Err(RecordingError::io(
-            path,
-            std::io::ErrorKind::NotFound.into(),
-        ))
-    })?;
-    let rest = parts.collect::<Result<Vec<_>, _>>()?;
-    Ok(join_segments(first, rest))
+        if bytes.is_empty() && first.is_some() {
+            // A restarted recorder that stopped before it wrote anything
+            // (e.g. on a full disk): nothing to read, nothing lost.
+            empty.push(format!(
+                "{}: empty: its recorder stopped before it wrote anything",
+                p.display()
+            ));
+            continue;
+        }
+        let mut rec = read_bytes(&p.display().to_string(), &bytes, only)?;
+        if p.as_os_str()
+            .to_string_lossy()
+            .ends_with(crate::segments::PARTIAL_SUFFIX)
+        {
+            rec.warnings.push(format!(
+                "{}: read from its partial file: its writer has not finished it (still writing, or it died); what its complete chunks hold is used",
+                p.display()
+            ));
+        }
+        match first {
+            None => first = Some(rec),
+            Some(_) => rest.push(rec),
+        }
+    }
+    let first =
+        first.ok_or_else(|| RecordingError::io(path, std::io::ErrorKind::NotFound.into()))?;
+    let mut rec = join_segments(first, rest);
+    rec.warnings.extend(empty);
+    Ok(rec)
 }
 
 /// One recording from its segments: every topic's messages in time order

@@ -4,8 +4,79 @@
 //! (`RUN.mcap`), and the readers ([`crate::read_recording`],
 //! [`crate::read_recording_topics`]) take a first segment and its parts as
 //! one recording.
+//!
+//! A segment is written under its partial name, `<segment>.partial`, and
+//! renamed to its own name when its writer finishes it
+//! ([`crate::RecordingWriter::finish`]): a file at a segment's own name is
+//! always complete, and a write that fails (no space, no permission) never
+//! touches an earlier file of that name. The writer holds an exclusive lock
+//! on its partial file for as long as it writes; a partial file nobody
+//! holds is an orphan, left by a writer that died (`kill -9`, a failed
+//! write). Its complete chunks are the recording up to that point:
+//! [`finish_orphans`] (called by a restarted recorder and by `exo run` at
+//! the end of a run) gives it its own name, and the readers read an orphan
+//! (or a partial file still being written) in place of a missing segment.
 
+use std::fs::{File, TryLockError};
+use std::io;
 use std::path::{Path, PathBuf};
+
+/// What a segment's name gets while its writer writes it.
+pub const PARTIAL_SUFFIX: &str = ".partial";
+
+/// The name `path` is written under until its writer finishes it:
+/// `<path>.partial`.
+pub fn partial_path(path: &Path) -> PathBuf {
+    let mut name = path.as_os_str().to_os_string();
+    name.push(PARTIAL_SUFFIX);
+    PathBuf::from(name)
+}
+
+/// The file holding segment `path`: its own name when it was finished,
+/// else its partial file when that exists (a writer still writing it, or
+/// one that died); `None` when neither exists.
+pub fn on_disk(path: &Path) -> Option<PathBuf> {
+    if path.exists() {
+        return Some(path.to_path_buf());
+    }
+    let partial = partial_path(path);
+    partial.exists().then_some(partial)
+}
+
+/// Whether `path` (a partial file) is held by a live writer right now.
+fn held(path: &Path) -> io::Result<bool> {
+    let f = File::open(path)?;
+    match f.try_lock() {
+        Ok(()) => Ok(false),
+        Err(TryLockError::WouldBlock) => Ok(true),
+        Err(TryLockError::Error(e)) => Err(e),
+    }
+}
+
+/// Gives every orphaned partial file of `first`'s segments (one no live
+/// writer holds, whose segment has no finished file) its segment's own
+/// name, and returns the segments so finished. A partial file a writer
+/// still holds is left alone. Errors name the file.
+pub fn finish_orphans(first: &Path) -> io::Result<Vec<PathBuf>> {
+    let named = |p: &Path, e: io::Error| io::Error::new(e.kind(), format!("{}: {e}", p.display()));
+    let mut finished = Vec::new();
+    for part in 1.. {
+        let seg = segment_path(first, part);
+        let partial = partial_path(&seg);
+        if seg.exists() {
+            continue;
+        }
+        if !partial.exists() {
+            break;
+        }
+        if held(&partial).map_err(|e| named(&partial, e))? {
+            continue;
+        }
+        std::fs::rename(&partial, &seg).map_err(|e| named(&partial, e))?;
+        finished.push(seg);
+    }
+    Ok(finished)
+}
 
 /// Path of segment `part` (1-based) of the recording whose first segment
 /// is `first`: `first` itself for part 1, `<stem>-part<N>.<ext>` after.
@@ -23,29 +94,41 @@ pub fn segment_path(first: &Path, part: u32) -> PathBuf {
     first.with_file_name(name)
 }
 
+/// Removes the partial file a failed writer of `path` left (a one-shot
+/// writer such as `exo sim`, whose recording is worth nothing half
+/// written); a partial file a live writer holds is left alone.
+pub fn discard_partial(path: &Path) {
+    let partial = partial_path(path);
+    if matches!(held(&partial), Ok(false)) {
+        let _ = std::fs::remove_file(&partial);
+    }
+}
+
 /// The segment a (re)started recorder writes: the first of `first`'s
-/// segments not on disk yet, with its number.
+/// segments not on disk yet (neither finished nor partial), with its
+/// number.
 pub fn next_free_segment(first: &Path) -> (u32, PathBuf) {
     let mut part = 1;
     loop {
         let p = segment_path(first, part);
-        if !p.exists() {
+        if on_disk(&p).is_none() {
             return (part, p);
         }
         part += 1;
     }
 }
 
-/// The segments on disk of the recording whose first segment is `first`,
-/// in order: `first`, then each consecutive `-partN` that exists.
+/// The files of the recording whose first segment is `first`, in order:
+/// `first`, then each consecutive `-partN` on disk; each one as
+/// [`on_disk`] finds it (its partial file when it was not finished). The
+/// first is listed even when missing, so that reading it names it.
 pub fn segments(first: &Path) -> Vec<PathBuf> {
-    let mut out = vec![first.to_path_buf()];
+    let mut out = vec![on_disk(first).unwrap_or_else(|| first.to_path_buf())];
     for part in 2.. {
-        let p = segment_path(first, part);
-        if !p.exists() {
-            break;
+        match on_disk(&segment_path(first, part)) {
+            Some(p) => out.push(p),
+            None => break,
         }
-        out.push(p);
     }
     out
 }
@@ -98,6 +181,48 @@ mod tests {
         assert_eq!(first_segment_of(&first), None);
         assert_eq!(first_segment_of(&dir.join("x-part1.mcap")), None);
         assert_eq!(first_segment_of(&dir.join("-part2.mcap")), None);
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[test]
+    fn partial_files_take_their_segment_and_orphans_are_finished() {
+        let dir = std::env::temp_dir().join(format!("exo-seg-partial-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let first = dir.join("run.mcap");
+        let p1 = dir.join("run.mcap.partial");
+        let (s2, p2) = (
+            dir.join("run-part2.mcap"),
+            dir.join("run-part2.mcap.partial"),
+        );
+        assert_eq!(partial_path(&first), p1);
+        assert_eq!(on_disk(&first), None);
+        // A missing first segment is still listed, so reading it names it.
+        assert_eq!(segments(&first), [first.clone()]);
+        // Segment 1 being written (held), segment 2 an orphan.
+        let live = crate::files::create_locked_output_file(&p1).unwrap();
+        std::fs::write(&p2, b"x").unwrap();
+        assert_eq!(on_disk(&first), Some(p1.clone()));
+        assert_eq!(segments(&first), [p1.clone(), p2.clone()]);
+        assert_eq!(next_free_segment(&first).0, 3);
+        // The live writer's file is left alone; the orphan gets its name.
+        assert_eq!(finish_orphans(&first).unwrap(), [s2.clone()]);
+        assert!(p1.exists() && s2.exists() && !p2.exists());
+        assert_eq!(segments(&first), [p1.clone(), s2.clone()]);
+        // A live writer's file is not removed as a failed one's would be.
+        discard_partial(&first);
+        assert!(p1.exists());
+        // Once its writer is gone, it is an orphan too.
+        drop(live);
+        assert_eq!(finish_orphans(&first).unwrap(), [first.clone()]);
+        assert_eq!(segments(&first), [first.clone(), s2.clone()]);
+        assert_eq!(finish_orphans(&first).unwrap(), Vec::<PathBuf>::new());
+        // A partial file beside a finished segment (a failed rewrite) is
+        // never renamed over it; a failed one-shot writer's is discarded.
+        std::fs::write(&p1, b"half").unwrap();
+        assert_eq!(finish_orphans(&first).unwrap(), Vec::<PathBuf>::new());
+        assert_eq!(on_disk(&first), Some(first.clone()));
+        discard_partial(&first);
+        assert!(!p1.exists());
         std::fs::remove_dir_all(&dir).unwrap();
     }
 }

@@ -49,6 +49,9 @@ pub const SOFTWARE: &str = concat!("exo ", env!("CARGO_PKG_VERSION"));
 pub struct RecordingWriter<W: Write + Seek> {
     mcap: Writer<W>,
     file: PathBuf,
+    /// The partial file being written, renamed to `file` by
+    /// [`finish`](Self::finish); `None` for a writer on any other sink.
+    partial: Option<PathBuf>,
     channels: BTreeMap<&'static str, u16>,
     sequence: u32,
     messages: u64,
@@ -56,8 +59,12 @@ pub struct RecordingWriter<W: Write + Seek> {
 }
 
 impl RecordingWriter<BufWriter<File>> {
-    /// Creates `path` (its directory too) and starts a recording there with
-    /// [`DEFAULT_CHUNK_BYTES`].
+    /// Starts a recording for `path` (creating its directory) with
+    /// [`DEFAULT_CHUNK_BYTES`]. It is written to `path`'s partial file
+    /// (`<path>.partial`, locked while written, [`crate::segments`]) and
+    /// renamed to `path` by [`finish`](Self::finish): until then an earlier
+    /// file at `path` stays as it was, and a writer that fails or dies
+    /// never leaves a half file at `path`.
     pub fn create(path: &Path) -> Result<Self, RecordingError> {
         Self::create_with_chunk_bytes(path, DEFAULT_CHUNK_BYTES)
     }
@@ -68,8 +75,12 @@ impl RecordingWriter<BufWriter<File>> {
         if let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty()) {
             crate::files::create_output_dir(dir).map_err(|e| RecordingError::io(path, e))?;
         }
-        let f = crate::files::create_output_file(path).map_err(|e| RecordingError::io(path, e))?;
-        Self::new(BufWriter::new(f), path, chunk_bytes)
+        let partial = crate::segments::partial_path(path);
+        let f = crate::files::create_locked_output_file(&partial)
+            .map_err(|e| RecordingError::io(&partial, e))?;
+        let mut w = Self::new(BufWriter::new(f), path, chunk_bytes)?;
+        w.partial = Some(partial);
+        Ok(w)
     }
 }
 
@@ -94,6 +105,7 @@ impl<W: Write + Seek> RecordingWriter<W> {
         Ok(RecordingWriter {
             mcap,
             file: file.to_path_buf(),
+            partial: None,
             channels: BTreeMap::new(),
             sequence: 0,
             messages: 0,
@@ -234,12 +246,46 @@ impl<W: Write + Seek> RecordingWriter<W> {
             .map_err(|e| RecordingError::mcap(&self.file, e))
     }
 
-    /// Closes the last chunk, writes the summary and footer and flushes.
+    /// Closes the last chunk, writes the summary and footer and flushes; a
+    /// recording [`create`](RecordingWriter::create)d for a path is then
+    /// synced and renamed from its partial file to that path (replacing an
+    /// earlier file there in one step).
     pub fn finish(mut self) -> Result<(), RecordingError> {
         self.mcap
             .finish()
             .map_err(|e| RecordingError::mcap(&self.file, e))?;
         let mut inner = self.mcap.into_inner();
-        inner.flush().map_err(|e| RecordingError::io(&self.file, e))
+        inner
+            .flush()
+            .map_err(|e| RecordingError::io(&self.file, e))?;
+        let Some(partial) = &self.partial else {
+            return Ok(());
+        };
+        let publish = || -> std::io::Result<()> {
+            // The data must be on disk before the name says it is complete.
+            File::open(partial)?.sync_all()?;
+            std::fs::rename(partial, &self.file)?;
+            if let Some(dir) = self.file.parent().filter(|d| !d.as_os_str().is_empty()) {
+                // Best effort: makes the rename itself durable.
+                let _ = File::open(dir).and_then(|d| d.sync_all());
+            }
+            Ok(())
+        };
+        let done = publish().map_err(|e| {
+            RecordingError::io(
+                &self.file,
+                std::io::Error::new(
+                    e.kind(),
+                    format!(
+                        "finishing it from {}: {e}; the recording stays in {}",
+                        partial.display(),
+                        partial.display()
+                    ),
+                ),
+            )
+        });
+        // The lock on the partial file ends with the file.
+        drop(inner);
+        done
     }
 }

@@ -113,6 +113,60 @@ fn create_makes_the_directory_and_a_topic_without_messages_is_listed() {
 }
 
 #[test]
+fn a_recording_gets_its_name_only_when_complete() {
+    let dir = TempDir::new("publish");
+    let path = dir.join("run.mcap");
+    let partial = exo_recording::segments::partial_path(&path);
+    std::fs::write(&path, b"earlier").unwrap();
+    // While it is written, the earlier file is as it was and the new
+    // recording is its partial file, which a second writer cannot take.
+    let mut w = RecordingWriter::create(&path).unwrap();
+    w.write(&sample(1)).unwrap();
+    w.flush().unwrap();
+    assert_eq!(std::fs::read(&path).unwrap(), b"earlier");
+    assert!(partial.exists());
+    let e = RecordingWriter::create(&path).err().unwrap().to_string();
+    assert!(
+        e.contains("run.mcap.partial") && e.contains("another process"),
+        "{e}"
+    );
+    w.finish().unwrap();
+    // Finished: renamed over the earlier file in one step.
+    assert!(!partial.exists());
+    assert_eq!(read_recording(&path).unwrap().sensor, [sample(1)]);
+    // A writer that never finishes (its process failed or died) leaves
+    // the file at the path untouched.
+    let mut w = RecordingWriter::create(&path).unwrap();
+    w.write(&sample(2)).unwrap();
+    drop(w);
+    assert_eq!(read_recording(&path).unwrap().sensor, [sample(1)]);
+    assert!(partial.exists());
+}
+
+#[test]
+fn an_empty_later_segment_is_named_and_skipped() {
+    let dir = TempDir::new("emptyseg");
+    let path = dir.join("run.mcap");
+    let mut w = RecordingWriter::create(&path).unwrap();
+    w.write(&sample(1)).unwrap();
+    w.finish().unwrap();
+    let part2 = dir.join("run-part2.mcap");
+    std::fs::write(&part2, b"").unwrap();
+    let r = read_recording(&path).unwrap();
+    assert_eq!(r.sensor, [sample(1)]);
+    assert!(
+        r.warnings
+            .iter()
+            .any(|w| w.contains("run-part2.mcap") && w.contains("empty")),
+        "{:?}",
+        r.warnings
+    );
+    // An empty first segment is not a recording.
+    std::fs::write(&path, b"").unwrap();
+    assert!(read_recording(&path).is_err());
+}
+
+#[test]
 fn run_info_needs_a_subject_and_stores_the_config_twice() {
     let mut w = RecordingWriter::new(Cursor::new(Vec::new()), Path::new("mem.mcap"), 4096).unwrap();
     let e = w.write_run_info(&BTreeMap::new(), "x = 1").unwrap_err();

@@ -137,6 +137,16 @@ pub fn run_config(config: &std::path::Path, logs: Logs) -> Result<Finished> {
     progress.poll();
     let mut faults = outcome?;
     if let Some(r) = &recording {
+        // A recorder that died (and was not restarted) left its last
+        // segment under its partial name.
+        for done in exo_recording::segments::finish_orphans(r)
+            .with_context(|| format!("finishing the segments of {}", r.display()))?
+        {
+            faults.push(format!(
+                "the recorder did not finish {}: kept with what its complete chunks hold (the end of the run may be missing)",
+                done.display()
+            ));
+        }
         let segments = exo_recording::segments::segments(r);
         for s in &segments {
             eprintln!("exo: recording {}", s.display());

@@ -59,19 +59,28 @@ pub fn run(args: &SimArgs) -> Result<()> {
     let mut sim = Sim::new(&cfg, &model)?;
     let mut file = FileSink::create(&recording, &cfg, &args.config)?;
     let (mut fault_commands, mut fault_samples) = (Vec::new(), Vec::new());
-    let ended = sim
-        .run(|r| {
-            match r {
-                Record::Command(c) if is_fault_command(&c) => fault_commands.push(c),
-                Record::Sensor(s) if is_fault_sample(&s) => fault_samples.push(s),
-                _ => {}
-            }
-            file.write(r)
-        })
-        .with_context(|| format!("simulating {}", args.config.display()))?;
-    let messages = file
-        .finish()
-        .with_context(|| format!("finishing {}", recording.display()))?;
+    let ended = sim.run(|r| {
+        match r {
+            Record::Command(c) if is_fault_command(&c) => fault_commands.push(c),
+            Record::Sensor(s) if is_fault_sample(&s) => fault_samples.push(s),
+            _ => {}
+        }
+        file.write(r)
+    });
+    // The recording is renamed into place only when complete: on a failure
+    // an earlier file of that name stays as it was, and the half-written
+    // partial file goes.
+    let written = ended
+        .with_context(|| format!("simulating {}", args.config.display()))
+        .and_then(|ended| {
+            let messages = file
+                .finish()
+                .with_context(|| format!("finishing {}", recording.display()))?;
+            Ok((ended, messages))
+        });
+    let (ended, messages) = written.inspect_err(|_| {
+        exo_recording::segments::discard_partial(&recording);
+    })?;
     let wall_s = started.elapsed().as_secs_f64();
     let sim_s = sim.plant().tick() as f64 * sim.plant().period_ns() as f64 * 1e-9;
     eprintln!(
