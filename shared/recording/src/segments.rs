@@ -197,7 +197,7 @@ mod tests {
         assert_eq!(partial_path(&first), p1);
         assert_eq!(on_disk(&first), None);
         // A missing first segment is still listed, so reading it names it.
-        assert_eq!(segments(&first), [first.clone()]);
+        assert_eq!(segments(&first), std::slice::from_ref(&first));
         // Segment 1 being written (held), segment 2 an orphan.
         let live = crate::files::create_locked_output_file(&p1).unwrap();
         std::fs::write(&p2, b"x").unwrap();
@@ -205,7 +205,7 @@ mod tests {
         assert_eq!(segments(&first), [p1.clone(), p2.clone()]);
         assert_eq!(next_free_segment(&first).0, 3);
         // The live writer's file is left alone; the orphan gets its name.
-        assert_eq!(finish_orphans(&first).unwrap(), [s2.clone()]);
+        assert_eq!(finish_orphans(&first).unwrap(), std::slice::from_ref(&s2));
         assert!(p1.exists() && s2.exists() && !p2.exists());
         assert_eq!(segments(&first), [p1.clone(), s2.clone()]);
         // A live writer's file is not removed as a failed one's would be.
@@ -213,7 +213,10 @@ mod tests {
         assert!(p1.exists());
         // Once its writer is gone, it is an orphan too.
         drop(live);
-        assert_eq!(finish_orphans(&first).unwrap(), [first.clone()]);
+        assert_eq!(
+            finish_orphans(&first).unwrap(),
+            std::slice::from_ref(&first)
+        );
         assert_eq!(segments(&first), [first.clone(), s2.clone()]);
         assert_eq!(finish_orphans(&first).unwrap(), Vec::<PathBuf>::new());
         // A partial file beside a finished segment (a failed rewrite) is
