@@ -14,14 +14,16 @@
 
 pub mod backends;
 pub mod calibration;
+pub mod cia402;
 pub mod driver;
+pub mod ethercat;
 pub mod node;
 pub mod process;
 pub mod round_trip;
 
 pub use calibration::{Calibration, VelocityFilter};
 pub use driver::{
-    status, CalibratedSample, CommandSource, Driver, DriverOutput, RawFrame, SafetyEvent,
+    status, BusFault, CalibratedSample, CommandSource, Driver, DriverOutput, RawFrame, SafetyEvent,
 };
 pub use node::DriverNode;
 pub use round_trip::{RoundTrip, RoundTripReport};
@@ -48,4 +50,11 @@ pub trait HardwareBus {
         tau_motor_nm: f64,
         enable: bool,
     ) -> Result<(), Self::Error>;
+    /// A fault the bus found in the cycle just read (a hardware bus's own
+    /// supervision: lost frames, working counter, drive state), named once
+    /// when it latches; the driver then latches its safe state in the same
+    /// cycle. Default: the bus finds none of its own.
+    fn take_fault(&mut self) -> Option<BusFault> {
+        None
+    }
 }
