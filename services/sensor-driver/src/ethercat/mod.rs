@@ -290,6 +290,7 @@ pub struct EthercatBus {
     new_fault: Option<BusFault>,
     saw_disable: bool,
     counters: EthercatCounters,
+    last_master_error: Option<ethercrab::error::Error>,
 }
 
 impl EthercatBus {
@@ -370,6 +371,12 @@ impl EthercatBus {
                 "sensor-driver: EtherCAT device {position} on {iface}: {name:?}, vendor {:#x}, product {:#x}, revision {:#x}",
                 id.vendor_id, id.product_id, id.revision
             );
+            for (pdo, key) in [
+                (&s.rx_pdo, "bus.ethercat.rx_pdo"),
+                (&s.tx_pdo, "bus.ethercat.tx_pdo"),
+            ] {
+                check_objects(&mut pump, &sd, pdo, key)?;
+            }
             if s.write_mapping {
                 for (pdo, assign, key) in [
                     (&s.rx_pdo, 0x1C12u16, "bus.ethercat.rx_pdo"),
@@ -443,6 +450,7 @@ impl EthercatBus {
             new_fault: None,
             saw_disable: false,
             counters: EthercatCounters::default(),
+            last_master_error: None,
         })
     }
 
@@ -454,6 +462,12 @@ impl EthercatBus {
     /// Counts since the bus opened.
     pub fn counters(&self) -> EthercatCounters {
         self.counters
+    }
+
+    /// The last error ethercrab returned from a cyclic exchange (a time-out
+    /// of its own, a frame it could not place), if any.
+    pub fn last_master_error(&self) -> Option<ethercrab::error::Error> {
+        self.last_master_error
     }
 
     /// The CiA 402 phase the master is in.
@@ -472,10 +486,11 @@ impl EthercatBus {
         let (md, group, pump) = (self.md, &self.group, &mut self.pump);
         let response = match pump.drive(group.tx_rx(md), deadline) {
             Err(l) => return Err(BusFault::FrameLost { os_error: l.os_error }),
-            Ok(Err(_)) => {
+            Ok(Err(e)) => {
+                self.last_master_error = Some(e);
                 return Err(BusFault::FrameLost {
                     os_error: pump.last_os_error,
-                })
+                });
             }
             Ok(Ok(r)) => r,
         };
@@ -517,6 +532,37 @@ fn al_code(s: SubDeviceState) -> u8 {
         SubDeviceState::Other(x) => x,
         SubDeviceState::None => 0,
     }
+}
+
+/// Reads every object a PDO maps, by SDO, at the entry's width: an object
+/// the drive lacks (or of another width) is refused naming its entry.
+fn check_objects<S>(
+    pump: &mut Pump,
+    sd: &ethercrab::SubDeviceRef<'_, S>,
+    pdo: &PdoSettings,
+    key: &str,
+) -> Result<()>
+where
+    S: std::ops::Deref<Target = ethercrab::SubDevice>,
+{
+    for (i, e) in pdo.entries.iter().enumerate() {
+        let soon = Instant::now() + Duration::from_secs(2);
+        let (index, sub) = (e.index, e.subindex);
+        let read = match e.bits {
+            8 => pump.drive(sd.sdo_read::<u8>(index, sub), soon).map(|r| r.map(drop)),
+            16 => pump.drive(sd.sdo_read::<u16>(index, sub), soon).map(|r| r.map(drop)),
+            _ => pump.drive(sd.sdo_read::<u32>(index, sub), soon).map(|r| r.map(drop)),
+        };
+        match read {
+            Ok(Ok(())) => {}
+            Ok(Err(err)) => bail!(
+                "{key}.entries[{i}]: the drive has no {}-bit object {index:#06x}:{sub} to map ({err})",
+                e.bits
+            ),
+            Err(_) => bail!("{key}.entries[{i}]: no answer to the SDO read of {index:#06x}:{sub}"),
+        }
+    }
+    Ok(())
 }
 
 /// Writes one PDO's mapping and assignment by SDO in PRE-OP (CiA 301).
