@@ -195,7 +195,8 @@ impl Cia402 {
                 // needs no quick stop.
                 if cycles_left == 0
                     || !state.is_powered()
-                    || (state == DriveState::QuickStopActive && cycles_left < self.quick_stop_cycles)
+                    || (state == DriveState::QuickStopActive
+                        && cycles_left < self.quick_stop_cycles)
                 {
                     self.phase = Phase::Off;
                     controlword::DISABLE_VOLTAGE
@@ -228,9 +229,7 @@ impl Cia402 {
             DriveState::NotReadyToSwitchOn => controlword::DISABLE_VOLTAGE,
             DriveState::SwitchOnDisabled => controlword::SHUTDOWN,
             DriveState::ReadyToSwitchOn => controlword::SWITCH_ON,
-            DriveState::SwitchedOn | DriveState::OperationEnabled => {
-                controlword::ENABLE_OPERATION
-            }
+            DriveState::SwitchedOn | DriveState::OperationEnabled => controlword::ENABLE_OPERATION,
             // Out of quick stop: disable voltage first (transition 12).
             DriveState::QuickStopActive => controlword::DISABLE_VOLTAGE,
         }

@@ -73,9 +73,9 @@ struct Ports {
 
 /// What the bus is.
 enum Bus {
-    /// The plant simulator's, served in closed loop.
-    Simulator(SimulatorBus),
-    /// A CiA 402 drive on EtherCAT (boxed: it holds its process image).
+    /// The plant simulator's, served in closed loop (boxed: its ports are large).
+    Simulator(Box<SimulatorBus>),
+    /// A CiA 402 drive on EtherCAT.
     Ethercat(Box<EthercatBus>),
 }
 
@@ -144,7 +144,7 @@ impl Process for DriverProcess {
                     deadline,
                     cfg.safety.safe_state
                 );
-                Bus::Simulator(bus)
+                Bus::Simulator(Box::new(bus))
             }
         };
         Ok(DriverProcess {
@@ -190,7 +190,7 @@ impl Process for DriverProcess {
             timing,
         };
         match bus {
-            Bus::Simulator(bus) => cycle.serve_one(bus, stop),
+            Bus::Simulator(bus) => cycle.serve_one(bus.as_mut(), stop),
             Bus::Ethercat(bus) => cycle.serve_one(bus.as_mut(), stop),
         }
     }
@@ -234,7 +234,8 @@ impl Cycle<'_> {
         // starve the very plant it waits for).
         let watch_bus = self.timing.armed && !self.timing.lockstep;
         let wait = if watch_bus && !self.timing.silence_flagged {
-            self.timing.bus_deadline
+            self.timing
+                .bus_deadline
                 .saturating_sub(self.timing.last_frame_at.elapsed())
                 .min(Duration::from_millis(100))
         } else {

@@ -33,6 +33,28 @@ use exo_sensor_driver::cia402::{DriveState, Phase};
 use exo_sensor_driver::ethercat::EthercatBus;
 use exo_sensor_driver::{BusFault, DriverNode, HardwareBus, SafetyEvent};
 
+/// Counts the heap allocations of the thread that arms it (the cycle's).
+struct Counting;
+static ALLOCATIONS: std::sync::atomic::AtomicUsize = std::sync::atomic::AtomicUsize::new(0);
+thread_local! {
+    static ARMED: std::cell::Cell<bool> = const { std::cell::Cell::new(false) };
+}
+
+unsafe impl std::alloc::GlobalAlloc for Counting {
+    unsafe fn alloc(&self, layout: std::alloc::Layout) -> *mut u8 {
+        if ARMED.try_with(|a| a.get()).unwrap_or(false) {
+            ALLOCATIONS.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+        }
+        unsafe { std::alloc::System.alloc(layout) }
+    }
+    unsafe fn dealloc(&self, ptr: *mut u8, layout: std::alloc::Layout) {
+        unsafe { std::alloc::System.dealloc(ptr, layout) }
+    }
+}
+
+#[global_allocator]
+static GLOBAL: Counting = Counting;
+
 const IN_NETNS: &str = "EXO_ETHERCAT_IN_NETNS";
 const RATE_HZ: f64 = 100.0;
 /// Marks a child that failed on a timing fault it did not provoke.
@@ -216,8 +238,10 @@ impl Rig {
             .unwrap()
             .expect("a frame every cycle");
         let fault = self.bus.take_fault();
-        if let (false, Some(f @ (BusFault::CycleMissed { .. } | BusFault::FrameLost { os_error: 0 }))) =
-            (self.provoking, fault)
+        if let (
+            false,
+            Some(f @ (BusFault::CycleMissed { .. } | BusFault::FrameLost { os_error: 0 })),
+        ) = (self.provoking, fault)
         {
             panic!(
                 "{TIMING_FAULT} at cycle {}: {f:?} (ethercrab: {:?})",
@@ -290,7 +314,8 @@ fn tau_of(k: u64) -> f64 {
 
 #[test]
 fn the_drive_comes_up_to_operation_enabled_and_follows_torque_set_points() {
-    let Some(mut net) = netns("the_drive_comes_up_to_operation_enabled_and_follows_torque_set_points")
+    let Some(mut net) =
+        netns("the_drive_comes_up_to_operation_enabled_and_follows_torque_set_points")
     else {
         return;
     };
@@ -303,14 +328,25 @@ fn the_drive_comes_up_to_operation_enabled_and_follows_torque_set_points() {
         "in OP, before the master's first controlword"
     );
     let took = rig.enable();
-    assert!(took >= 3, "three transitions need three cycles, took {took}");
+    assert!(
+        took >= 3,
+        "three transitions need three cycles, took {took}"
+    );
     assert_eq!(rig.bus.readings().statusword & 0x6F, 0x27);
     let scale = 0.001; // Nm per unit of 0x6071 and 0x6077, as in the run file
     let mut targets = Vec::new();
     let mut actuals = Vec::new();
     let mut wkcs = Vec::new();
+    targets.reserve(2000);
+    actuals.reserve(2000);
+    wkcs.reserve(2000);
+    let mut allocations = 0;
     for k in 0..2000 {
+        let before = ALLOCATIONS.load(std::sync::atomic::Ordering::Relaxed);
+        ARMED.with(|a| a.set(true));
         let s = rig.step(tau_of(k));
+        ARMED.with(|a| a.set(false));
+        allocations += ALLOCATIONS.load(std::sync::atomic::Ordering::Relaxed) - before;
         assert_eq!(
             s.fault,
             None,
@@ -323,7 +359,10 @@ fn the_drive_comes_up_to_operation_enabled_and_follows_torque_set_points() {
         assert_eq!(r.statusword & 0x6F, 0x27, "cycle {k}: still enabled");
         assert_eq!(r.controlword, 0x000F);
         // What reached the process image is the set-point in drive units.
-        assert_eq!(r.target_torque_units, (s.tau_written_nm / scale).round() as i64);
+        assert_eq!(
+            r.target_torque_units,
+            (s.tau_written_nm / scale).round() as i64
+        );
         targets.push(r.target_torque_units);
         actuals.push((r.torque_nm / scale).round() as i64);
         wkcs.push(r.working_counter);
@@ -358,15 +397,81 @@ fn the_drive_comes_up_to_operation_enabled_and_follows_torque_set_points() {
         targets.iter().filter(|t| **t != 0).count() > 1900,
         "the set-points were not trivial"
     );
-    assert!(wkcs.iter().all(|w| *w == 3), "working counter of an LRW on one drive");
+    assert!(
+        wkcs.iter().all(|w| *w == 3),
+        "working counter of an LRW on one drive"
+    );
     let c = rig.bus.counters();
     assert_eq!((c.frames_lost, c.wkc_errors, c.cycles_missed), (0, 0, 0));
+    assert_eq!(
+        allocations, 0,
+        "heap allocations in 2000 cycles of read → driver → write"
+    );
     assert!(net.sim_alive());
 }
 
 #[test]
+fn a_missed_cycle_and_a_vanished_drive_each_latch_within_the_cycle() {
+    let Some(mut net) = netns("a_missed_cycle_and_a_vanished_drive_each_latch_within_the_cycle")
+    else {
+        return;
+    };
+    let cfg = config();
+    let mut rig = Rig::new(&cfg);
+    rig.enable();
+    for k in 0..50 {
+        rig.step(tau_of(k));
+    }
+    // The driver's thread stalls for three periods: the next cycle starts
+    // more than a period late, and latches in that cycle.
+    rig.provoking = true;
+    std::thread::sleep(Duration::from_secs_f64(3.0 / RATE_HZ));
+    let s = rig.step(tau_of(50));
+    assert!(
+        matches!(s.fault, Some(BusFault::CycleMissed { late_us }) if late_us >= 20_000),
+        "{s:?}"
+    );
+    assert_ne!(s.sample_status & status::SAFE_STATE, 0);
+    assert_eq!(rig.bus.readings().target_torque_units, 0);
+    assert_eq!(rig.bus.counters().cycles_missed, 1);
+    for _ in 0..10 {
+        rig.step(0.01);
+    }
+    assert_eq!(
+        drive_state(&rig.bus),
+        DriveState::SwitchOnDisabled,
+        "powered down"
+    );
+    // Reset, up again.
+    rig.provoking = false;
+    rig.reset(1);
+    rig.enable();
+    for k in 0..50 {
+        assert_eq!(rig.step(tau_of(k)).fault, None);
+    }
+    // The drive vanishes (its process killed: no device answers any more).
+    rig.provoking = true;
+    net.sim.kill().unwrap();
+    net.sim.wait().unwrap();
+    let s = rig.step(tau_of(0));
+    assert!(
+        matches!(s.fault, Some(BusFault::FrameLost { os_error: 0 })),
+        "the first cycle after the drive vanished: {s:?}"
+    );
+    assert_ne!(s.sample_status & status::SAFE_STATE, 0);
+    assert_ne!(s.frame_status & bus_status::FRAME_ERROR, 0);
+    // Every later cycle returns (each bounded by the PDU time-out), flagged, latched.
+    for _ in 0..20 {
+        let s = rig.step(0.01);
+        assert_ne!(s.frame_status & bus_status::DRIVE_FAULT, 0);
+        assert_eq!(s.tau_written_nm, 0.0);
+    }
+}
+
+#[test]
 fn a_link_taken_down_latches_within_the_cycle_and_the_drive_restarts_cleanly() {
-    let Some(mut net) = netns("a_link_taken_down_latches_within_the_cycle_and_the_drive_restarts_cleanly")
+    let Some(mut net) =
+        netns("a_link_taken_down_latches_within_the_cycle_and_the_drive_restarts_cleanly")
     else {
         return;
     };
@@ -418,7 +523,11 @@ fn a_link_taken_down_latches_within_the_cycle_and_the_drive_restarts_cleanly() {
         assert_ne!(s.sample_status & status::SAFE_STATE, 0);
         assert_eq!(s.tau_written_nm, 0.0, "zero_torque safe state");
     }
-    assert_eq!(rig.bus.phase(), Phase::Off, "disable voltage after the quick stop");
+    assert_eq!(
+        rig.bus.phase(),
+        Phase::Off,
+        "disable voltage after the quick stop"
+    );
     assert!(rig.bus.counters().frames_lost >= 40);
     // The link returns: frames flow again, the drive has been disabled by
     // the master and stays so, the latch holds until the operator resets.
@@ -437,7 +546,11 @@ fn a_link_taken_down_latches_within_the_cycle_and_the_drive_restarts_cleanly() {
     assert!(net.sim_alive(), "the simulator survived the break");
     for _ in 0..20 {
         let s = rig.step(0.01);
-        assert_eq!(s.frame_status, bus_status::DRIVE_FAULT, "latched, no new fault");
+        assert_eq!(
+            s.frame_status,
+            bus_status::DRIVE_FAULT,
+            "latched, no new fault"
+        );
         assert_ne!(s.sample_status & status::SAFE_STATE, 0);
         assert_eq!(drive_state(&rig.bus), DriveState::SwitchOnDisabled);
     }

@@ -236,7 +236,10 @@ impl EthercatSettings {
             if pdo.find(role).is_none() {
                 c.note(
                     &format!("{key}.entries"),
-                    format!("a CST drive needs an entry with role = \"{}\"", role_name(role)),
+                    format!(
+                        "a CST drive needs an entry with role = \"{}\"",
+                        role_name(role)
+                    ),
                 );
             }
         }
@@ -283,7 +286,11 @@ impl PdoSettings {
                         "\"{}\" is an {}, not allowed in the {}",
                         role_name(e.role),
                         if outputs { "input" } else { "output" },
-                        if outputs { "RxPDO (outputs)" } else { "TxPDO (inputs)" }
+                        if outputs {
+                            "RxPDO (outputs)"
+                        } else {
+                            "TxPDO (inputs)"
+                        }
                     ),
                 );
             }
@@ -396,7 +403,8 @@ mod tests {
 
     #[test]
     fn each_bad_mapping_is_refused_naming_its_key() {
-        let cases: [(&str, fn(&mut EthercatSettings)); 10] = [
+        type Spoil = fn(&mut EthercatSettings);
+        let cases: [(&str, Spoil); 10] = [
             ("bus.ethercat.rx_pdo.entries[1].scale", |s| {
                 s.rx_pdo.entries[1].scale = None
             }),

@@ -62,8 +62,7 @@ const PDI_BYTES: usize = 1024;
 /// Frames in flight at once.
 const MAX_FRAMES: usize = 16;
 
-static PDU_STORAGE: PduStorage<MAX_FRAMES, { PduStorage::element_size(1100) }> =
-    PduStorage::new();
+static PDU_STORAGE: PduStorage<MAX_FRAMES, { PduStorage::element_size(1100) }> = PduStorage::new();
 
 type OpGroup = SubDeviceGroup<MAX_SUBDEVICES, PDI_BYTES, ethercrab::DefaultLock, Op>;
 
@@ -403,7 +402,8 @@ impl EthercatBus {
         let mut expected_wkc = 0u16;
         for sd in group.iter(md) {
             let io = sd.io_raw();
-            expected_wkc += u16::from(!io.inputs().is_empty()) + 2 * u16::from(!io.outputs().is_empty());
+            expected_wkc +=
+                u16::from(!io.inputs().is_empty()) + 2 * u16::from(!io.outputs().is_empty());
         }
         {
             let sd = group
@@ -411,8 +411,18 @@ impl EthercatBus {
                 .map_err(|e| anyhow!("bus.ethercat.position = {position}: {e}"))?;
             let io = sd.io_raw();
             for (key, what, got, want) in [
-                ("bus.ethercat.tx_pdo.entries", "input", io.inputs().len(), map.in_bytes),
-                ("bus.ethercat.rx_pdo.entries", "output", io.outputs().len(), map.out_bytes),
+                (
+                    "bus.ethercat.tx_pdo.entries",
+                    "input",
+                    io.inputs().len(),
+                    map.in_bytes,
+                ),
+                (
+                    "bus.ethercat.rx_pdo.entries",
+                    "output",
+                    io.outputs().len(),
+                    map.out_bytes,
+                ),
             ] {
                 if got != want {
                     bail!("{key}: the mapping is {want} {what} bytes, the drive's process image {got}: the mapping does not fit this drive");
@@ -485,7 +495,11 @@ impl EthercatBus {
         let deadline = Instant::now() + self.pdu_timeout;
         let (md, group, pump) = (self.md, &self.group, &mut self.pump);
         let response = match pump.drive(group.tx_rx(md), deadline) {
-            Err(l) => return Err(BusFault::FrameLost { os_error: l.os_error }),
+            Err(l) => {
+                return Err(BusFault::FrameLost {
+                    os_error: l.os_error,
+                })
+            }
             Ok(Err(e)) => {
                 self.last_master_error = Some(e);
                 return Err(BusFault::FrameLost {
@@ -549,9 +563,15 @@ where
         let soon = Instant::now() + Duration::from_secs(2);
         let (index, sub) = (e.index, e.subindex);
         let read = match e.bits {
-            8 => pump.drive(sd.sdo_read::<u8>(index, sub), soon).map(|r| r.map(drop)),
-            16 => pump.drive(sd.sdo_read::<u16>(index, sub), soon).map(|r| r.map(drop)),
-            _ => pump.drive(sd.sdo_read::<u32>(index, sub), soon).map(|r| r.map(drop)),
+            8 => pump
+                .drive(sd.sdo_read::<u8>(index, sub), soon)
+                .map(|r| r.map(drop)),
+            16 => pump
+                .drive(sd.sdo_read::<u16>(index, sub), soon)
+                .map(|r| r.map(drop)),
+            _ => pump
+                .drive(sd.sdo_read::<u32>(index, sub), soon)
+                .map(|r| r.map(drop)),
         };
         match read {
             Ok(Ok(())) => {}

@@ -144,7 +144,7 @@ impl RawSocket {
                     Err(e)
                 };
             }
-            if from.sll_pkttype == libc::PACKET_OUTGOING as u8 {
+            if from.sll_pkttype == libc::PACKET_OUTGOING {
                 continue; // our own frame, seen on the way out
             }
             return Ok(Some(n as usize));
