@@ -137,6 +137,11 @@ impl Cia402 {
         }
     }
 
+    /// Cycles of quick stop before disable voltage.
+    pub fn quick_stop_cycles(&self) -> u32 {
+        self.quick_stop_cycles
+    }
+
     /// The current phase.
     pub fn phase(&self) -> Phase {
         self.phase

@@ -123,8 +123,9 @@ impl Process for DriverProcess {
                     bail!("bus.backend = \"ethercat\" needs a [bus.ethercat] table");
                 };
                 let bus = EthercatBus::open(settings, cfg.run.rate_hz)?;
-                // The command must come within the cycle it answers.
-                deadline = deadline.min(Duration::from_secs_f64(1.0 / cfg.run.rate_hz));
+                // The command must come within the cycle it answers, early
+                // enough that the next cycle starts on time: half a period.
+                deadline = deadline.min(Duration::from_secs_f64(0.5 / cfg.run.rate_hz));
                 info!(
                     "sensor-driver: {} bus on {}, {:?}, command deadline {:?}, safe state {:?}",
                     bus.name(),
@@ -195,7 +196,14 @@ impl Process for DriverProcess {
         }
     }
 
-    fn finish(self) -> Result<()> {
+    fn finish(mut self) -> Result<()> {
+        if let Bus::Ethercat(bus) = &mut self.bus {
+            let sw = bus.power_down();
+            info!(
+                "sensor-driver: EtherCAT drive powered down at exit: statusword {sw:#06x} ({:?})",
+                crate::cia402::DriveState::from_statusword(sw)
+            );
+        }
         report_round_trip(&self.round_trip, self.round_trip_report.as_deref())?;
         info!("sensor-driver: stopped");
         Ok(())

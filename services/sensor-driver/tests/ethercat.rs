@@ -665,3 +665,112 @@ fn an_interface_that_is_down_is_refused() {
     let text = format!("{e:#}");
     assert!(text.contains("bus.ethercat.interface"), "{text}");
 }
+
+/// The shipped run file with its relative paths made absolute, `edit`ed,
+/// written to a scratch directory.
+fn run_file(tag: &str, edit: impl Fn(String) -> String) -> PathBuf {
+    let configs = exo_config::configs_dir();
+    let text = std::fs::read_to_string(configs.join("ethercat-kickcat.toml")).unwrap();
+    let text = text
+        .replace(
+            "plant_model = \"plants/",
+            &format!("plant_model = \"{}/plants/", configs.display()),
+        )
+        .replace(
+            "subject_file = \"subjects/",
+            &format!("subject_file = \"{}/subjects/", configs.display()),
+        )
+        .replace(
+            "experiments_file = \"",
+            &format!("experiments_file = \"{}/", configs.display()),
+        )
+        .replace("instance = \"exoecat\"", &format!("instance = \"ecat{tag}\""));
+    let dir = std::env::temp_dir().join(format!("exo-ethercat-{tag}-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let path = dir.join("run.toml");
+    std::fs::write(&path, edit(text)).unwrap();
+    path
+}
+
+#[test]
+fn the_driver_process_refuses_another_drive_and_brings_this_one_up_and_down() {
+    let Some(_net) = netns("the_driver_process_refuses_another_drive_and_brings_this_one_up_and_down")
+    else {
+        return;
+    };
+    std::thread::sleep(Duration::from_millis(300));
+    let driver = env!("CARGO_BIN_EXE_exo-sensor-driver");
+    // Another product code: refused at start, naming the key, exit 1.
+    let wrong = run_file("wrong", |t| {
+        t.replace("product_code = 0x03b11002", "product_code = 0x00000032")
+    });
+    let out = Command::new(driver)
+        .arg("--config")
+        .arg(&wrong)
+        .output()
+        .unwrap();
+    let text = String::from_utf8_lossy(&out.stderr).to_string() + &String::from_utf8_lossy(&out.stdout);
+    assert_eq!(out.status.code(), Some(1), "{text}");
+    assert!(text.contains("bus.ethercat.product_code"), "{text}");
+    assert!(!text.contains("Operation Enabled"), "{text}");
+    // The right file: up to OP, Operation Enabled (at the safe torque,
+    // no controller runs), then SIGTERM: quick stop, disable, exit 0.
+    let right = run_file("right", |t| {
+        // The tests' rate (the deadlines at least one period).
+        t.replace("rate_hz = 1000.0", &format!("rate_hz = {RATE_HZ:?}"))
+            .replace("command_deadline_ms = 1.0", "command_deadline_ms = 10.0")
+            .replace("sample_deadline_ms = 5.0", "sample_deadline_ms = 10.0")
+            .replace("bus_deadline_ms = 5.0", "bus_deadline_ms = 10.0")
+            .replace("drive_watchdog_ms = 10.0", "drive_watchdog_ms = 20.0")
+            .replace("velocity_cutoff_hz = 50.0", "velocity_cutoff_hz = 20.0")
+    });
+    let mut child = Command::new(driver)
+        .arg("--config")
+        .arg(&right)
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let stderr = child.stderr.take().unwrap();
+    let lines = std::thread::spawn(move || {
+        use std::io::BufRead;
+        let mut seen = Vec::new();
+        for line in std::io::BufReader::new(stderr).lines().map_while(Result::ok) {
+            seen.push(line);
+        }
+        seen
+    });
+    let stdout = child.stdout.take().unwrap();
+    let out_lines = std::thread::spawn(move || {
+        use std::io::BufRead;
+        std::io::BufReader::new(stdout)
+            .lines()
+            .map_while(Result::ok)
+            .collect::<Vec<_>>()
+    });
+    // Give it time to come up (settling of its ports takes 0.5-0.7 s).
+    std::thread::sleep(Duration::from_secs(4));
+    // SAFETY: signalling our own child.
+    unsafe { libc_kill(child.id() as i32, 15) };
+    let status = child.wait().unwrap();
+    let mut log = lines.join().unwrap();
+    log.extend(out_lines.join().unwrap());
+    let log = log.join("\n");
+    if log.contains("CycleMissed") || log.contains("FrameLost { os_error: 0 }") {
+        panic!("{TIMING_FAULT} in the driver process:\n{log}");
+    }
+    assert_eq!(status.code(), Some(0), "{log}");
+    assert!(log.contains("EtherCAT drive in OP"), "{log}");
+    assert!(log.contains("Operation Enabled (statusword 0x0037)"), "{log}");
+    assert!(
+        log.contains("powered down at exit: statusword 0x0040 (SwitchOnDisabled)"),
+        "{log}"
+    );
+    let _ = std::fs::remove_dir_all(wrong.parent().unwrap());
+    let _ = std::fs::remove_dir_all(right.parent().unwrap());
+}
+
+extern "C" {
+    #[link_name = "kill"]
+    fn libc_kill(pid: i32, sig: i32) -> i32;
+}

@@ -290,6 +290,7 @@ pub struct EthercatBus {
     saw_disable: bool,
     counters: EthercatCounters,
     last_master_error: Option<ethercrab::error::Error>,
+    announced_enabled: bool,
 }
 
 impl EthercatBus {
@@ -461,6 +462,7 @@ impl EthercatBus {
             saw_disable: false,
             counters: EthercatCounters::default(),
             last_master_error: None,
+            announced_enabled: false,
         })
     }
 
@@ -488,6 +490,26 @@ impl EthercatBus {
     /// The fault the backend is latched on (powered down), if any.
     pub fn latched(&self) -> Option<BusFault> {
         self.latched
+    }
+
+    /// Powers the drive down at the end of a run (quick stop, then disable
+    /// voltage), cycling on until the drive reports it is off or the
+    /// quick-stop time and a few cycles more have passed; the statusword
+    /// it ended with.
+    pub fn power_down(&mut self) -> u16 {
+        self.cia.power_down();
+        let cycles = self.cia.quick_stop_cycles() + 10;
+        for _ in 0..cycles {
+            if self.read(Duration::ZERO).is_err() {
+                break;
+            }
+            let off = self.cia.phase() == Phase::Off
+                && !cia402::DriveState::from_statusword(self.readings.statusword).is_powered();
+            if off {
+                break;
+            }
+        }
+        self.readings.statusword
     }
 
     /// One LRW of the process image, bounded by the PDU time-out.
@@ -736,6 +758,14 @@ impl HardwareBus for EthercatBus {
             status |= bus_status::DRIVE_FAULT;
         }
         self.readings.controlword = controlword;
+        let enabled = self.cia.phase() == Phase::Enabled;
+        if enabled && !self.announced_enabled {
+            info!(
+                "sensor-driver: EtherCAT drive in Operation Enabled (statusword {:#06x}), cyclic synchronous torque",
+                self.readings.statusword
+            );
+        }
+        self.announced_enabled = enabled;
         {
             let sd = self
                 .group
