@@ -684,7 +684,10 @@ fn run_file(tag: &str, edit: impl Fn(String) -> String) -> PathBuf {
             "experiments_file = \"",
             &format!("experiments_file = \"{}/", configs.display()),
         )
-        .replace("instance = \"exoecat\"", &format!("instance = \"ecat{tag}\""));
+        .replace(
+            "instance = \"exoecat\"",
+            &format!("instance = \"ecat{tag}\""),
+        );
     let dir = std::env::temp_dir().join(format!("exo-ethercat-{tag}-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     let path = dir.join("run.toml");
@@ -694,7 +697,8 @@ fn run_file(tag: &str, edit: impl Fn(String) -> String) -> PathBuf {
 
 #[test]
 fn the_driver_process_refuses_another_drive_and_brings_this_one_up_and_down() {
-    let Some(_net) = netns("the_driver_process_refuses_another_drive_and_brings_this_one_up_and_down")
+    let Some(_net) =
+        netns("the_driver_process_refuses_another_drive_and_brings_this_one_up_and_down")
     else {
         return;
     };
@@ -709,7 +713,8 @@ fn the_driver_process_refuses_another_drive_and_brings_this_one_up_and_down() {
         .arg(&wrong)
         .output()
         .unwrap();
-    let text = String::from_utf8_lossy(&out.stderr).to_string() + &String::from_utf8_lossy(&out.stdout);
+    let text =
+        String::from_utf8_lossy(&out.stderr).to_string() + &String::from_utf8_lossy(&out.stdout);
     assert_eq!(out.status.code(), Some(1), "{text}");
     assert!(text.contains("bus.ethercat.product_code"), "{text}");
     assert!(!text.contains("Operation Enabled"), "{text}");
@@ -735,7 +740,10 @@ fn the_driver_process_refuses_another_drive_and_brings_this_one_up_and_down() {
     let lines = std::thread::spawn(move || {
         use std::io::BufRead;
         let mut seen = Vec::new();
-        for line in std::io::BufReader::new(stderr).lines().map_while(Result::ok) {
+        for line in std::io::BufReader::new(stderr)
+            .lines()
+            .map_while(Result::ok)
+        {
             seen.push(line);
         }
         seen
@@ -761,7 +769,10 @@ fn the_driver_process_refuses_another_drive_and_brings_this_one_up_and_down() {
     }
     assert_eq!(status.code(), Some(0), "{log}");
     assert!(log.contains("EtherCAT drive in OP"), "{log}");
-    assert!(log.contains("Operation Enabled (statusword 0x0037)"), "{log}");
+    assert!(
+        log.contains("Operation Enabled (statusword 0x0037)"),
+        "{log}"
+    );
     assert!(
         log.contains("powered down at exit: statusword 0x0040 (SwitchOnDisabled)"),
         "{log}"
