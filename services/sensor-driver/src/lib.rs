@@ -7,10 +7,11 @@
 //! within the deadline, the safe-state torque, latched until reset.
 //!
 //! The bus is the [`HardwareBus`] trait. The simulator's bus (iceoryx2
-//! channels to `plant-sim`) is implemented in the process (`backends.rs`); an EtherCAT (e.g.
-//! `ethercrab`), CAN (`socketcan`) or UDP backend implements the same trait
-//! and is chosen by configuration: nothing in the controller, identifier or
-//! recorder changes.
+//! channels to `plant-sim`) is implemented in `backends.rs`; a CiA 402
+//! drive on EtherCAT (`ethercrab`) in [`ethercat`], with the drive profile's
+//! state machine in [`cia402`]; a CAN (`socketcan`) or UDP backend would
+//! implement the same trait. The backend is chosen by configuration:
+//! nothing in the controller, identifier or recorder changes.
 
 pub mod backends;
 pub mod calibration;

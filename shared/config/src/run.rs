@@ -462,8 +462,9 @@ pub struct SafetySettings {
     /// The drive's watchdog (as an EtherCAT drive's sync-manager watchdog):
     /// in real time, with no motor command for this long (ms) the drive
     /// applies zero torque and reports `DRIVE_FAULT` until it is re-enabled.
-    /// The simulated drive (plant-sim) implements it; a hardware backend
-    /// configures its drive's watchdog from it. Range (0, 1000], and at
+    /// The simulated drive (plant-sim) implements it; the EtherCAT backend
+    /// does not write a drive's watchdog (set it in the drive,
+    /// docs/hardware.md) and detects a silent bus itself. Range (0, 1000], and at
     /// least one control period.
     #[serde(default = "default_drive_watchdog_ms")]
     pub drive_watchdog_ms: f64,
