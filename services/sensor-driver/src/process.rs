@@ -198,6 +198,28 @@ impl Process for DriverProcess {
 
     fn finish(mut self) -> Result<()> {
         if let Bus::Ethercat(bus) = &mut self.bus {
+            let c = bus.counters();
+            let (exchange, lateness) = bus.timing();
+            for (what, r) in [
+                ("exchange (LRW out → inputs back)", exchange),
+                ("wake-up lateness", lateness),
+            ] {
+                if let Some(r) = r {
+                    let l = r.latency;
+                    info!(
+                        "sensor-driver: EtherCAT {what} over {} cycles: p50 {} µs, p99 {} µs, p99.9 {} µs, max {} µs",
+                        l.count,
+                        fmt_us(l.p50_ns),
+                        fmt_us(l.p99_ns),
+                        fmt_us(l.p999_ns),
+                        fmt_us(l.max_ns)
+                    );
+                }
+            }
+            info!(
+                "sensor-driver: EtherCAT {} cycles, {} frames lost, {} working-counter errors, {} cycles missed",
+                c.cycles, c.frames_lost, c.wkc_errors, c.cycles_missed
+            );
             let sw = bus.power_down();
             info!(
                 "sensor-driver: EtherCAT drive powered down at exit: statusword {sw:#06x} ({:?})",

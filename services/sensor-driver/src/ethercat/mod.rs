@@ -52,7 +52,10 @@ use exo_service_kit::{monotonic_ns, sleep_until_ns};
 use tracing::{error, info, warn};
 
 use crate::cia402::{self, Cia402, Departure, Phase};
-use crate::{BusFault, HardwareBus, RawFrame};
+use crate::{BusFault, HardwareBus, RawFrame, RoundTrip, RoundTripReport};
+
+/// Seconds of cycles left out of the timing statistics (bring-up, caches).
+const TIMING_WARMUP_S: f64 = 1.0;
 use socket::RawSocket;
 
 /// Devices on one bus this master handles.
@@ -291,6 +294,8 @@ pub struct EthercatBus {
     counters: EthercatCounters,
     last_master_error: Option<ethercrab::error::Error>,
     announced_enabled: bool,
+    exchange_time: RoundTrip,
+    wake_lateness: RoundTrip,
 }
 
 impl EthercatBus {
@@ -463,6 +468,8 @@ impl EthercatBus {
             counters: EthercatCounters::default(),
             last_master_error: None,
             announced_enabled: false,
+            exchange_time: RoundTrip::new(TIMING_WARMUP_S),
+            wake_lateness: RoundTrip::new(TIMING_WARMUP_S),
         })
     }
 
@@ -480,6 +487,14 @@ impl EthercatBus {
     /// of its own, a frame it could not place), if any.
     pub fn last_master_error(&self) -> Option<ethercrab::error::Error> {
         self.last_master_error
+    }
+
+    /// Percentiles of the exchange (cycle start → the drive's inputs back:
+    /// the LRW's round trip through the master, the wire and the drive)
+    /// and of the cycle's wake-up lateness (deadline → cycle start), after
+    /// the first second.
+    pub fn timing(&self) -> (Option<RoundTripReport>, Option<RoundTripReport>) {
+        (self.exchange_time.report(), self.wake_lateness.report())
     }
 
     /// The CiA 402 phase the master is in.
@@ -705,7 +720,12 @@ impl HardwareBus for EthercatBus {
                 late_us: (late_ns / 1000).min(u64::from(u32::MAX)) as u32,
             });
         }
+        let scheduled_ns = start - late_ns;
         let exchanged = self.exchange();
+        if exchanged.is_ok() {
+            self.exchange_time.record(start, monotonic_ns());
+        }
+        self.wake_lateness.record(scheduled_ns, start);
         match exchanged {
             Err(BusFault::FrameLost { .. }) => self.counters.frames_lost += 1,
             Err(BusFault::WorkingCounter { .. } | BusFault::DeviceVanished) => {
