@@ -151,7 +151,9 @@ impl Cia402 {
     /// request, and only then) a drive in Fault is reset on the way;
     /// without, a drive in Fault is a departure and stays off.
     pub fn enable(&mut self, reset_fault: bool) {
-        if matches!(self.phase, Phase::Off) {
+        // Also during a quick stop: the operator's reset may come before
+        // the disable voltage that ends it.
+        if matches!(self.phase, Phase::Off | Phase::QuickStop { .. }) {
             self.phase = Phase::Enabling;
             self.fault_reset_asked = reset_fault;
         }
@@ -406,7 +408,28 @@ mod tests {
                 cw::DISABLE_VOLTAGE
             ]
         );
+        // Enabled again during a quick stop (an operator's reset within
+        // quick_stop_ms): walked up, not left off.
+        m.enable(true);
+        s = DriveState::SwitchOnDisabled;
+        for _ in 0..4 {
+            s = drive_next(s, m.step(statusword(s)).0);
+        }
+        assert_eq!(m.phase(), Phase::Enabled);
+        m.power_down();
+        assert_eq!(
+            m.step(statusword(DriveState::OperationEnabled)).0,
+            cw::QUICK_STOP
+        );
+        m.enable(true);
+        assert_eq!(m.phase(), Phase::Enabling);
+        assert_eq!(
+            m.step(statusword(DriveState::OperationEnabled)).0,
+            cw::ENABLE_OPERATION
+        );
+        assert_eq!(m.phase(), Phase::Enabled);
         // One that does is disabled as soon as it reports it.
+        let mut m = Cia402::new(3);
         m.enable(true);
         s = DriveState::SwitchOnDisabled;
         for _ in 0..4 {
