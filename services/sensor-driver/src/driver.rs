@@ -73,6 +73,60 @@ pub enum SafetyEvent {
         /// The last frame received.
         last_frame_seq: u64,
     },
+    /// The hardware bus found a fault of its own (EtherCAT: frame,
+    /// working counter, cycle, drive state); the drive is powered down.
+    Bus {
+        /// The frame it was found in.
+        frame_seq: u64,
+        /// What it was.
+        fault: BusFault,
+    },
+}
+
+/// A fault a hardware bus finds itself ([`HardwareBus::take_fault`](crate::HardwareBus::take_fault)).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum BusFault {
+    /// The cycle's frame could not be sent (`os_error`, e.g. ENETDOWN on
+    /// a link taken down) or did not come back within the PDU time-out
+    /// (`os_error` 0).
+    FrameLost {
+        /// The OS error of the failed send, 0 for a time-out.
+        os_error: i32,
+    },
+    /// The frame came back with a working counter short of the expected
+    /// one: some device did not process it.
+    WorkingCounter {
+        /// Expected working counter.
+        expected: u16,
+        /// The one received.
+        received: u16,
+    },
+    /// The frame came back unprocessed (working counter 0): the device is gone.
+    DeviceVanished,
+    /// The cycle started more than one period late.
+    CycleMissed {
+        /// How late (µs).
+        late_us: u32,
+    },
+    /// The drive's EtherCAT (AL) state is no longer OP.
+    AlState {
+        /// The AL state it reports (1 INIT, 2 PRE-OP, 4 SAFE-OP).
+        state: u8,
+    },
+    /// The drive reports Fault (CiA 402).
+    DriveFault {
+        /// Its statusword.
+        statusword: u16,
+        /// Its error code (0x603F), 0 when not mapped.
+        error_code: u16,
+    },
+    /// The drive left Operation Enabled on its own (CiA 402).
+    UnexpectedState {
+        /// Its statusword.
+        statusword: u16,
+    },
+    /// A non-finite torque reached the backend (never sent).
+    NonFiniteTorque,
 }
 
 /// What to write to the bus for the current frame.
@@ -214,6 +268,13 @@ impl Driver {
             status: status::BUS_FAULT | status::STALE | status::SAFE_STATE,
             ..self.last_good
         }
+    }
+
+    /// The bus found a fault of its own in the current frame: latches the
+    /// safe state (call before [`Driver::on_frame`] so the frame's sample
+    /// carries `SAFE_STATE`).
+    pub fn on_bus_fault(&mut self, frame_seq: u64, fault: BusFault) {
+        self.latch(SafetyEvent::Bus { frame_seq, fault });
     }
 
     /// The deadline for the current frame passed without a fresh command:

@@ -7,21 +7,24 @@
 //! within the deadline, the safe-state torque, latched until reset.
 //!
 //! The bus is the [`HardwareBus`] trait. The simulator's bus (iceoryx2
-//! channels to `plant-sim`) is implemented in the process (`backends.rs`); an EtherCAT (e.g.
-//! `ethercrab`), CAN (`socketcan`) or UDP backend implements the same trait
-//! and is chosen by configuration: nothing in the controller, identifier or
-//! recorder changes.
+//! channels to `plant-sim`) is implemented in `backends.rs`; a CiA 402
+//! drive on EtherCAT (`ethercrab`) in [`ethercat`], with the drive profile's
+//! state machine in [`cia402`]; a CAN (`socketcan`) or UDP backend would
+//! implement the same trait. The backend is chosen by configuration:
+//! nothing in the controller, identifier or recorder changes.
 
 pub mod backends;
 pub mod calibration;
+pub mod cia402;
 pub mod driver;
+pub mod ethercat;
 pub mod node;
 pub mod process;
 pub mod round_trip;
 
 pub use calibration::{Calibration, VelocityFilter};
 pub use driver::{
-    status, CalibratedSample, CommandSource, Driver, DriverOutput, RawFrame, SafetyEvent,
+    status, BusFault, CalibratedSample, CommandSource, Driver, DriverOutput, RawFrame, SafetyEvent,
 };
 pub use node::DriverNode;
 pub use round_trip::{RoundTrip, RoundTripReport};
@@ -48,4 +51,11 @@ pub trait HardwareBus {
         tau_motor_nm: f64,
         enable: bool,
     ) -> Result<(), Self::Error>;
+    /// A fault the bus found in the cycle just read (a hardware bus's own
+    /// supervision: lost frames, working counter, drive state), named once
+    /// when it latches; the driver then latches its safe state in the same
+    /// cycle. Default: the bus finds none of its own.
+    fn take_fault(&mut self) -> Option<BusFault> {
+        None
+    }
 }

@@ -136,6 +136,12 @@ impl DriverNode {
         message(&s, 0)
     }
 
+    /// The bus found a fault of its own in frame `frame_seq` (before
+    /// [`DriverNode::on_frame`] of that frame): latches the safe state.
+    pub fn on_bus_fault(&mut self, frame_seq: u64, fault: crate::BusFault) {
+        self.driver.on_bus_fault(frame_seq, fault);
+    }
+
     /// The torque for the current frame when the safe state is latched: no
     /// need to wait for the controller.
     pub fn latched_output(&mut self) -> Option<DriverOutput> {

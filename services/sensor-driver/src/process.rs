@@ -35,6 +35,7 @@ use exo_service_kit::{monotonic_ns, RealtimeProcess, ServiceArgs, StopFlag};
 use tracing::{error, info};
 
 use crate::backends::SimulatorBus;
+use crate::ethercat::EthercatBus;
 use crate::{DriverNode, HardwareBus, RoundTrip};
 
 const RESEND_AFTER: Duration = Duration::from_millis(200);
@@ -72,8 +73,10 @@ struct Ports {
 
 /// What the bus is.
 enum Bus {
-    /// The plant simulator's, served in closed loop.
-    Simulator(SimulatorBus),
+    /// The plant simulator's, served in closed loop (boxed: its ports are large).
+    Simulator(Box<SimulatorBus>),
+    /// A CiA 402 drive on EtherCAT.
+    Ethercat(Box<EthercatBus>),
 }
 
 /// The sensor-driver process.
@@ -81,12 +84,7 @@ pub struct DriverProcess {
     node: DriverNode,
     ports: Ports,
     bus: Bus,
-    deadline: Duration,
-    bus_deadline: Duration,
-    lockstep: bool,
-    armed: bool,
-    last_frame_at: Instant,
-    silence_flagged: bool,
+    timing: Timing,
     round_trip: RoundTrip,
     round_trip_report: Option<PathBuf>,
 }
@@ -118,7 +116,26 @@ impl Process for DriverProcess {
             protocol_in: ipc.inbox(PROTOCOL, 64)?,
             operator_in: ipc.inbox(OPERATOR, 16)?,
         };
+        let mut deadline = deadline;
         let bus = match cfg.bus.backend {
+            BusBackend::Ethercat => {
+                let Some(settings) = &cfg.bus.ethercat else {
+                    bail!("bus.backend = \"ethercat\" needs a [bus.ethercat] table");
+                };
+                let bus = EthercatBus::open(settings, cfg.run.rate_hz)?;
+                // The command must come within the cycle it answers, early
+                // enough that the next cycle starts on time: half a period.
+                deadline = deadline.min(Duration::from_secs_f64(0.5 / cfg.run.rate_hz));
+                info!(
+                    "sensor-driver: {} bus on {}, {:?}, command deadline {:?}, safe state {:?}",
+                    bus.name(),
+                    settings.interface,
+                    cfg.run.timing,
+                    deadline,
+                    cfg.safety.safe_state
+                );
+                Bus::Ethercat(Box::new(bus))
+            }
             BusBackend::Simulator => {
                 let bus = SimulatorBus::open(ipc, cfg.lockstep_spin())?;
                 info!(
@@ -128,19 +145,21 @@ impl Process for DriverProcess {
                     deadline,
                     cfg.safety.safe_state
                 );
-                Bus::Simulator(bus)
+                Bus::Simulator(Box::new(bus))
             }
         };
         Ok(DriverProcess {
             node: DriverNode::new(cfg),
             ports,
             bus,
-            deadline,
-            bus_deadline: Duration::from_secs_f64(cfg.safety.bus_deadline_ms / 1000.0),
-            lockstep,
-            armed: false,
-            last_frame_at: Instant::now(),
-            silence_flagged: false,
+            timing: Timing {
+                deadline,
+                bus_deadline: Duration::from_secs_f64(cfg.safety.bus_deadline_ms / 1000.0),
+                lockstep,
+                armed: false,
+                last_frame_at: Instant::now(),
+                silence_flagged: false,
+            },
             round_trip: RoundTrip::new(args.round_trip_warmup_s),
             round_trip_report: args.round_trip_report.clone(),
         })
@@ -150,46 +169,112 @@ impl Process for DriverProcess {
         let p = &self.ports;
         let mut out: Vec<&dyn Connect> =
             vec![&p.sample_out, &p.command_in, &p.protocol_in, &p.operator_in];
-        let Bus::Simulator(bus) = &self.bus;
-        out.extend(bus.ports());
+        if let Bus::Simulator(bus) = &self.bus {
+            out.extend(bus.ports());
+        }
         out
     }
 
     fn step(&mut self, stop: &StopFlag) -> Result<Flow> {
-        self.serve_one(stop)
+        let DriverProcess {
+            node,
+            ports,
+            bus,
+            round_trip,
+            timing,
+            ..
+        } = self;
+        let mut cycle = Cycle {
+            node,
+            ports,
+            round_trip,
+            timing,
+        };
+        match bus {
+            Bus::Simulator(bus) => cycle.serve_one(bus.as_mut(), stop),
+            Bus::Ethercat(bus) => cycle.serve_one(bus.as_mut(), stop),
+        }
     }
 
-    fn finish(self) -> Result<()> {
+    fn finish(mut self) -> Result<()> {
+        if let Bus::Ethercat(bus) = &mut self.bus {
+            let c = bus.counters();
+            let (exchange, lateness) = bus.timing();
+            for (what, r) in [
+                ("exchange (LRW out → inputs back)", exchange),
+                ("wake-up lateness", lateness),
+            ] {
+                if let Some(r) = r {
+                    let l = r.latency;
+                    info!(
+                        "sensor-driver: EtherCAT {what} over {} cycles: p50 {} µs, p99 {} µs, p99.9 {} µs, max {} µs",
+                        l.count,
+                        fmt_us(l.p50_ns),
+                        fmt_us(l.p99_ns),
+                        fmt_us(l.p999_ns),
+                        fmt_us(l.max_ns)
+                    );
+                }
+            }
+            info!(
+                "sensor-driver: EtherCAT {} cycles, {} frames lost, {} working-counter errors, {} cycles missed",
+                c.cycles, c.frames_lost, c.wkc_errors, c.cycles_missed
+            );
+            let sw = bus.power_down();
+            info!(
+                "sensor-driver: EtherCAT drive powered down at exit: statusword {sw:#06x} ({:?})",
+                crate::cia402::DriveState::from_statusword(sw)
+            );
+        }
         report_round_trip(&self.round_trip, self.round_trip_report.as_deref())?;
         info!("sensor-driver: stopped");
         Ok(())
     }
 }
 
-impl DriverProcess {
-    /// One cycle over the simulator's bus: read a frame, publish the
-    /// sample, wait (bounded) for the controller's command, write the
-    /// torque back.
-    fn serve_one(&mut self, stop: &StopFlag) -> Result<Flow> {
-        let Bus::Simulator(bus) = &mut self.bus;
-        let (node, ports) = (&mut self.node, &self.ports);
+/// The driver's deadlines and bus watch.
+struct Timing {
+    deadline: Duration,
+    bus_deadline: Duration,
+    lockstep: bool,
+    armed: bool,
+    last_frame_at: Instant,
+    silence_flagged: bool,
+}
+
+/// What one cycle works on, whatever the bus.
+struct Cycle<'a> {
+    node: &'a mut DriverNode,
+    ports: &'a Ports,
+    round_trip: &'a mut RoundTrip,
+    timing: &'a mut Timing,
+}
+
+impl Cycle<'_> {
+    /// One cycle over any bus: read a frame, publish the sample, wait
+    /// (bounded) for the controller's command, write the torque back. A
+    /// fault the bus found itself latches the safe state before the
+    /// frame's sample is made, so that sample already carries it.
+    fn serve_one<B: HardwareBus>(&mut self, bus: &mut B, stop: &StopFlag) -> Result<Flow> {
+        let (node, ports) = (&mut *self.node, self.ports);
         // In real time, once the stream runs, a silent bus is the driver's
         // to detect: it does not wait for the next frame. Once the silence
         // is flagged there is nothing to time until the next frame: a zero
         // wait here would spin (and, in SCHED_FIFO on the plant's CPU,
         // starve the very plant it waits for).
-        let watch_bus = self.armed && !self.lockstep;
-        let wait = if watch_bus && !self.silence_flagged {
-            self.bus_deadline
-                .saturating_sub(self.last_frame_at.elapsed())
+        let watch_bus = self.timing.armed && !self.timing.lockstep;
+        let wait = if watch_bus && !self.timing.silence_flagged {
+            self.timing
+                .bus_deadline
+                .saturating_sub(self.timing.last_frame_at.elapsed())
                 .min(Duration::from_millis(100))
         } else {
             Duration::from_millis(100)
         };
         let Some(frame) = bus.read(wait)? else {
             if watch_bus
-                && !self.silence_flagged
-                && self.last_frame_at.elapsed() >= self.bus_deadline
+                && !self.timing.silence_flagged
+                && self.timing.last_frame_at.elapsed() >= self.timing.bus_deadline
             {
                 let sample = node.on_bus_silent(monotonic_ns());
                 ports.sample_out.send(sample)?;
@@ -201,12 +286,15 @@ impl DriverProcess {
                     out.tau_motor_nm,
                     node.motor_enable(),
                 )?;
-                self.silence_flagged = true;
+                self.timing.silence_flagged = true;
             }
             return Ok(Flow::Continue);
         };
-        self.last_frame_at = Instant::now();
-        self.silence_flagged = false;
+        self.timing.last_frame_at = Instant::now();
+        self.timing.silence_flagged = false;
+        if let Some(fault) = bus.take_fault() {
+            node.on_bus_fault(frame.seq, fault);
+        }
         while let Some(p) = ports.protocol_in.try_recv()? {
             node.on_protocol(&p);
         }
@@ -214,7 +302,7 @@ impl DriverProcess {
             node.on_operator(&op);
         }
         let sample = node.on_frame(&frame, 0);
-        let was_armed = self.armed;
+        let was_armed = self.timing.armed;
         let sent_ns = monotonic_ns();
         ports.sample_out.send(sample)?;
         let started = Instant::now();
@@ -226,13 +314,14 @@ impl DriverProcess {
                 break o;
             }
             let remaining = self
+                .timing
                 .deadline
                 .saturating_sub(started.elapsed())
                 .min(Duration::from_millis(20));
             if let Some(cmd) = ports.command_in.recv_timeout(remaining)? {
                 if cmd.sensor_seq == frame.seq {
                     let received_ns = monotonic_ns();
-                    self.armed = true;
+                    self.timing.armed = true;
                     if let Some(o) = node.answer(&cmd) {
                         if was_armed && node.driver().latched().is_none() {
                             self.round_trip.record(sent_ns, received_ns);
@@ -245,7 +334,7 @@ impl DriverProcess {
             if stop.requested() {
                 break node.safe_output();
             }
-            if !self.armed {
+            if !self.timing.armed {
                 if last_send.elapsed() > RESEND_AFTER {
                     ports.sample_out.send(sample)?;
                     last_send = Instant::now();
@@ -253,13 +342,13 @@ impl DriverProcess {
                 if started.elapsed() > STARTUP_PATIENCE {
                     bail!("no command from the controller within {STARTUP_PATIENCE:?} of start");
                 }
-                if !self.lockstep && started.elapsed() >= self.deadline {
+                if !self.timing.lockstep && started.elapsed() >= self.timing.deadline {
                     // Not armed yet: hold the safe torque without latching.
                     break node.safe_output();
                 }
                 continue;
             }
-            if started.elapsed() >= self.deadline {
+            if started.elapsed() >= self.timing.deadline {
                 break node.on_deadline();
             }
         };

@@ -486,11 +486,15 @@ pub const MAX_EXPERIMENT: u32 = 9;
 /// 0–10, `exo_messages::protocol::MAX_PERIOD`).
 pub const MAX_PERIOD: u32 = 10;
 
+mod ethercat;
 mod experiments;
 mod run;
 mod subject;
 pub mod toml_paths;
 
+pub use ethercat::{
+    role_name, EthercatSettings, PdoEntry, PdoRole, PdoSettings, MAX_PDO_BYTES, MAX_PDO_ENTRIES,
+};
 pub use experiments::{ExperimentSpec, ExperimentTable, ProtocolTiming, EXPERIMENT_RANGES};
 pub use run::{
     BusBackend, BusSettings, ControllerSettings, LimitSettings, PlayerSettings, ProtocolMode,

@@ -86,6 +86,17 @@ pub const RUN_RANGES: Ranges = &[
     ("rig.sea_stiffness_nm_per_rad", Range::above(0.0, 1e6)),
     ("rig.sea_counts_per_rev", Range::closed(1.0, 1e12)),
     ("rig.velocity_cutoff_hz", Range::above(0.0, 50_000.0)),
+    ("bus.ethercat.position", Range::closed(0.0, 255.0)),
+    ("bus.ethercat.pdu_timeout_ms", Range::above(0.0, 1000.0)),
+    ("bus.ethercat.quick_stop_ms", Range::closed(0.0, 1000.0)),
+    (
+        "bus.ethercat.rx_pdo.entries[*].scale",
+        Range::closed(-1e9, 1e9),
+    ),
+    (
+        "bus.ethercat.tx_pdo.entries[*].scale",
+        Range::closed(-1e9, 1e9),
+    ),
 ];
 
 /// How simulated time advances.
@@ -179,6 +190,8 @@ pub enum BusBackend {
     /// The plant simulator's bus: iceoryx2 channels to `exo-plant-sim`.
     #[default]
     Simulator,
+    /// A CiA 402 servo drive on EtherCAT (`[bus.ethercat]`), in real time only.
+    Ethercat,
 }
 
 /// `[bus]`: the sensor driver's hardware bus. Swapping the simulator for
@@ -189,6 +202,9 @@ pub enum BusBackend {
 pub struct BusSettings {
     /// The backend.
     pub backend: BusBackend,
+    /// The EtherCAT drive, with `backend = "ethercat"`.
+    #[serde(default)]
+    pub ethercat: Option<crate::EthercatSettings>,
 }
 
 /// `[player]`: a recording played back onto the run's channels by
@@ -446,8 +462,9 @@ pub struct SafetySettings {
     /// The drive's watchdog (as an EtherCAT drive's sync-manager watchdog):
     /// in real time, with no motor command for this long (ms) the drive
     /// applies zero torque and reports `DRIVE_FAULT` until it is re-enabled.
-    /// The simulated drive (plant-sim) implements it; a hardware backend
-    /// configures its drive's watchdog from it. Range (0, 1000], and at
+    /// The simulated drive (plant-sim) implements it; the EtherCAT backend
+    /// does not write a drive's watchdog (set it in the drive,
+    /// docs/hardware.md) and detects a silent bus itself. Range (0, 1000], and at
     /// least one control period.
     #[serde(default = "default_drive_watchdog_ms")]
     pub drive_watchdog_ms: f64,
@@ -811,6 +828,28 @@ impl RunConfig {
         }
     }
 
+    /// `[bus]`: the EtherCAT backend needs its table and the wall clock.
+    fn check_bus(&self, c: &Check<'_>, rate_ok: bool) {
+        match (self.bus.backend, &self.bus.ethercat) {
+            (BusBackend::Ethercat, None) => c.note(
+                "bus.ethercat",
+                "bus.backend = \"ethercat\" needs a [bus.ethercat] table (interface, identity, PDO mapping)",
+            ),
+            (BusBackend::Ethercat, Some(e)) => {
+                if self.run.timing != TimingMode::Realtime {
+                    c.note(
+                        "run.timing",
+                        "bus.backend = \"ethercat\" drives hardware on the wall clock: run.timing must be \"realtime\"",
+                    );
+                }
+                if rate_ok {
+                    e.check(c, self.run.rate_hz);
+                }
+            }
+            (BusBackend::Simulator, _) => {}
+        }
+    }
+
     /// Validates the values of the run file itself, naming every key at fault.
     pub fn validate(&self, file: &Path) -> Result<()> {
         let c = Check::with_ranges(file, RUN_RANGES);
@@ -975,6 +1014,7 @@ impl RunConfig {
             "safety.lockstep_timeout_ms",
             self.safety.lockstep_timeout_ms,
         );
+        self.check_bus(c, rate_ok);
         let r = &self.rig;
         c.key("rig.arm_inertia_kg_m2", r.arm_inertia_kg_m2);
         c.key("rig.arm_mass_kg", r.arm_mass_kg);

@@ -143,7 +143,7 @@ fn the_bus_backend_is_configuration_and_an_unknown_one_names_the_choices() {
     let cfg = RunConfig::from_file(&configs_dir().join("default.toml")).unwrap();
     assert_eq!(cfg.bus.backend, BusBackend::Simulator, "the default bus");
     let d = temp_dir("bus");
-    let text = base.replace("[safety]\n", "[bus]\nbackend = \"ethercat\"\n\n[safety]\n");
+    let text = base.replace("[safety]\n", "[bus]\nbackend = \"canopen\"\n\n[safety]\n");
     let err = RunConfig::from_file(&write(&d, "run.toml", &text))
         .unwrap_err()
         .to_string();
@@ -151,4 +151,22 @@ fn the_bus_backend_is_configuration_and_an_unknown_one_names_the_choices() {
         err.contains("run.toml") && err.contains("ethercat") && err.contains("simulator"),
         "{err}"
     );
+    // EtherCAT needs its table, and the wall clock.
+    let text = base.replace("[safety]\n", "[bus]\nbackend = \"ethercat\"\n\n[safety]\n");
+    let err = RunConfig::from_file(&write(&d, "run.toml", &text))
+        .unwrap_err()
+        .to_string();
+    assert!(err.contains("bus.ethercat"), "{err}");
+    let cfg = RunConfig::from_file(&configs_dir().join("ethercat-kickcat.toml")).unwrap();
+    assert_eq!(cfg.bus.backend, BusBackend::Ethercat);
+    let e = cfg.bus.ethercat.as_ref().unwrap();
+    assert_eq!((e.vendor_id, e.product_code), (0x29c, 0x03b1_1002));
+    let mut lockstep = cfg.clone();
+    lockstep.run.timing = TimingMode::Lockstep;
+    let err = lockstep
+        .validate(Path::new("run.toml"))
+        .unwrap_err()
+        .to_string();
+    assert!(err.contains("run.timing"), "{err}");
+    let _ = std::fs::remove_dir_all(&d);
 }

@@ -1,0 +1,81 @@
+#!/usr/bin/env bash
+# The control cycle at 1 kHz through the real EtherCAT master (the sensor
+# driver's ethercrab backend) and KickCAT's emulated CiA 402 drive, beside
+# the same processes on the simulator's bus, one after the other in one run:
+# the driver's round trip (sample published -> the controller's command
+# received, `--round-trip-report`) p50/p99/p99.9/max, and the EtherCAT
+# counters. BENCHMARKS.md, "EtherCAT".
+#
+# Usage: tools/scripts/bench_ethercat.sh [SECONDS=20]   (from the workspace root)
+# Needs: unshare -rn (user namespaces), ip, and chrt -f where permitted.
+# The emulated motor's torque scale is 0 (a drive that holds still): the
+# benchmark is of timing, and a free KickCAT motor under the protocol's
+# torques runs away past the controller's angle limits within a second.
+set -euo pipefail
+secs=${1:-20}
+root=$(pwd)
+target=${CARGO_TARGET_DIR:-$root/target}
+profile=${PROFILE:-release}
+flag=--release; [ "$profile" = dev ] && flag=
+cargo build $flag -p exo-sensor-driver -p exo-controller -p exo-plant-sim >/dev/null
+bin=$target/$([ "$profile" = dev ] && echo debug || echo release)
+kc=$target/kickcat
+../shared/vendor/kickcat/build.sh "$kc" >/dev/null
+# A still motor: our slave config beside the vendored one (same ESI).
+cat > "$kc/slave_configs/ecat402-drive-still.json" <<'JSON'
+{ "esi": "ecat402-drive.xml", "ds402_motor": true, "motor_torque_scale": 0.0 }
+JSON
+out=$(mktemp -d)
+trap 'rm -rf "$out"' EXIT
+sed -e "s|plant_model = \"|plant_model = \"$root/configs/|" \
+    -e "s|subject_file = \"|subject_file = \"$root/configs/|" \
+    -e "s|experiments_file = \"|experiments_file = \"$root/configs/|" \
+    -e "s|output_dir = \"out/runs\"|output_dir = \"$out/runs\"|" \
+    configs/ethercat-kickcat.toml > "$out/ecat.toml"
+cat >> "$out/ecat.toml" <<'TOML'
+
+[realtime]
+plant_sim_cpu = 1
+sensor_driver_cpu = 1
+controller_cpu = 1
+sched_fifo_priority = 80
+lock_memory = true
+TOML
+sed -e 's|backend = "ethercat"|backend = "simulator"|' -e 's|plant_sim = false|plant_sim = true|' \
+    -e 's|instance = "exoecat"|instance = "exoecatsim"|' "$out/ecat.toml" > "$out/sim.toml"
+fifo=; chrt -f 40 true 2>/dev/null && fifo="chrt -f 40"
+
+run() { # run NAME CONFIG WITH_PLANT
+  local name=$1 cfg=$2 plant=$3 pids=()
+  [ "$plant" = 1 ] && { "$bin/exo-plant-sim" --config "$cfg" 2>"$out/$name-plant.log" & pids+=($!); }
+  "$bin/exo-controller" --config "$cfg" 2>"$out/$name-controller.log" & pids+=($!)
+  sleep 2 # the controller's ports up before the cycle starts (iceoryx2 builds a connection on first use)
+  "$bin/exo-sensor-driver" --config "$cfg" --round-trip-report "$out/$name.json" --round-trip-warmup-s 0.5 2>"$out/$name-driver.log" & local drv=$!
+  sleep "$secs"
+  kill -TERM "$drv" "${pids[@]}" 2>/dev/null || true
+  wait "$drv" || true; wait "${pids[@]}" 2>/dev/null || true
+  printf '%-22s ' "$name"
+  python3 - "$out/$name.json" <<'PY'
+import json, sys
+r = json.load(open(sys.argv[1]))
+if not r: print("no round trip recorded"); sys.exit()
+l = r; us = lambda k: l[k] / 1000
+print(f"n={l['count']:6d}  p50 {us('p50_ns'):7.1f} us  p99 {us('p99_ns'):7.1f} us  p99.9 {us('p999_ns'):7.1f} us  max {us('max_ns'):8.1f} us")
+PY
+  grep -h "safe state latched\|EtherCAT fault\|EtherCAT exchange\|EtherCAT wake-up\|EtherCAT [0-9]* cycles" "$out/$name-driver.log" | head -6 | sed 's/^ *[A-Z]* sensor-driver: /    /' || true
+}
+
+export -f run 2>/dev/null || true
+echo "machine: $(nproc) CPUs, $(uname -r), load $(cut -d' ' -f1-3 /proc/loadavg); $secs s per row, 1 kHz, $profile build"
+$fifo unshare -rn bash -c "
+  set -e
+  for c in 'ecm0 type veth peer name ecm0b' 'ecs0 type veth peer name ecs0b' 'br0 type bridge'; do ip link add \$c; done
+  ip link set ecm0b master br0; ip link set ecs0b master br0
+  for l in lo br0 ecm0b ecs0b ecm0 ecs0; do ip link set \$l up; done
+  cd '$kc'; ./network_simulator -i ecs0 -s slave_configs/ecat402-drive-still.json >/dev/null 2>&1 & sim=\$!
+  sleep 1; cd '$root'
+  $(declare -f run); out='$out' bin='$bin' secs='$secs'
+  run ethercat-kickcat '$out/ecat.toml' 0
+  kill \$sim
+  run simulator-bus '$out/sim.toml' 1
+"
