@@ -11,6 +11,15 @@ use exo_config::{configs_dir, ConfigError, RigSettings, RunConfig};
 /// A scratch copy of `configs/` with `default.toml` edited by `edits`,
 /// loaded.
 fn load_edited(tag: &str, edits: &[(&str, &str)]) -> (Result<RunConfig, ConfigError>, PathBuf) {
+    load_edited_in(tag, "default.toml", edits)
+}
+
+/// The same with `file` (relative to `configs/`) edited.
+fn load_edited_in(
+    tag: &str,
+    file: &str,
+    edits: &[(&str, &str)],
+) -> (Result<RunConfig, ConfigError>, PathBuf) {
     let dir = std::env::temp_dir().join(format!("exo-config-edges-{tag}-{}", std::process::id()));
     let _ = std::fs::remove_dir_all(&dir);
     for sub in ["plants", "subjects"] {
@@ -24,14 +33,14 @@ fn load_edited(tag: &str, edits: &[(&str, &str)]) -> (Result<RunConfig, ConfigEr
     ] {
         std::fs::copy(configs_dir().join(f), dir.join(f)).unwrap();
     }
-    let run = dir.join("default.toml");
-    let mut text = std::fs::read_to_string(&run).unwrap();
+    let edited = dir.join(file);
+    let mut text = std::fs::read_to_string(&edited).unwrap();
     for (from, to) in edits {
-        assert!(text.contains(from), "{from:?} not in default.toml");
+        assert!(text.contains(from), "{from:?} not in {file}");
         text = text.replacen(from, to, 1);
     }
-    std::fs::write(&run, text).unwrap();
-    (RunConfig::from_file(&run), dir)
+    std::fs::write(&edited, text).unwrap();
+    (RunConfig::from_file(&dir.join("default.toml")), dir)
 }
 
 fn refused_naming(tag: &str, edits: &[(&str, &str)], key: &str) {
@@ -152,5 +161,57 @@ fn a_protocol_longer_than_a_day_is_refused() {
     accepted(
         "day-ok",
         &[all[0], all[1], ("rest_s = 1.0", "rest_s = 900.0")],
+    );
+}
+
+/// `amplitude_boost_from_period` may be `periods + 1` (never boosted), the
+/// top of its range when `periods` is at its maximum; `periods + 2` is
+/// refused naming the key.
+#[test]
+fn the_amplitude_boost_may_start_one_past_the_last_period_not_two() {
+    let max = exo_config::MAX_PERIOD;
+    let periods = ("periods = 10".to_string(), format!("periods = {max}"));
+    for (boost, ok) in [(max + 1, true), (max + 2, false)] {
+        let to = format!("amplitude_boost_from_period = {boost}");
+        let (r, dir) = load_edited_in(
+            &format!("boost{boost}"),
+            "experiments.toml",
+            &[
+                (&periods.0, &periods.1),
+                ("amplitude_boost_from_period = 8", &to),
+            ],
+        );
+        let _ = std::fs::remove_dir_all(dir);
+        match (r, ok) {
+            (Ok(c), true) => assert_eq!(
+                c.experiments.map(|t| t.amplitude_boost_from_period),
+                Some(boost)
+            ),
+            (Err(e), false) => {
+                assert!(e.to_string().contains("amplitude_boost_from_period"), "{e}")
+            }
+            (r, _) => panic!("boost from {boost} with {max} periods: {:?}", r.err()),
+        }
+    }
+}
+
+/// A voluntary protocol's bias may be negative (range [−100, 100] Nm), not
+/// below −100.
+#[test]
+fn a_voluntary_bias_may_be_negative_within_its_range() {
+    let table = |bias: f64| {
+        format!(
+            "[voluntary]\namplitude_rad = 0.3\nomega_rad_s = 2.0\nduration_s = 10.0\ngrip_kg = 14.0\nbias_nm = {bias:?}\nexperiment = 1\n\n[controller]\n"
+        )
+    };
+    let mode = ("mode = \"identification\"", "mode = \"voluntary\"");
+    let t = table(-4.0);
+    let c = accepted("vol-neg", &[mode, ("[controller]\n", &t)]);
+    assert_eq!(c.voluntary.map(|v| v.bias_nm), Some(-4.0));
+    let t = table(-100.5);
+    refused_naming(
+        "vol-low",
+        &[mode, ("[controller]\n", &t)],
+        "voluntary.bias_nm",
     );
 }
