@@ -156,7 +156,9 @@ fn a_protocol_longer_than_a_day_is_refused() {
         &[all[0], all[1], ("rest_s = 1.0", "rest_s = 3600.0")],
     );
     let _ = std::fs::remove_dir_all(dir);
-    let err = r.err().expect("a 90-hour protocol accepted");
+    let Err(err) = r else {
+        panic!("a 90-hour protocol accepted")
+    };
     assert!(err.to_string().contains("more than a day"), "{err}");
     accepted(
         "day-ok",
