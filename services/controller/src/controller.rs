@@ -1168,6 +1168,36 @@ mod tests {
         assert!((t.tau_amplification_nm + 0.3).abs() < 1e-12, "{t:?}");
     }
 
+    /// The command is gravity compensation + amplification + bias +
+    /// excitation, each as published, while neither limit binds; with
+    /// gravity and amplification both non-zero (a product or a difference of
+    /// two of them would pass a test where one is 0). Issue 23: the
+    /// cargo-mutants sample left `τ_g + τ_a` → `τ_g · τ_a` alive.
+    #[test]
+    fn the_command_is_the_sum_of_its_published_parts() {
+        let mut c = cfg();
+        c.protocol.experiments = vec![3];
+        let mut k = Controller::from_config(&c).unwrap();
+        let (step, max) = (k.limits.torque_step_nm, k.limits.torque_nm);
+        let mut checked = 0;
+        let mut previous = 0.0;
+        for seq in 0..2000 {
+            let t = k.tick(&sample(seq, 0.5, 0.1));
+            // α = 4 in experiment 3: τ_a = −3 τ_c; gravity of the rig at 0.5 rad.
+            assert!((t.tau_amplification_nm + 0.3).abs() < 1e-12, "{t:?}");
+            assert!(t.tau_gravity_nm.abs() > 0.1, "{t:?}");
+            let sum =
+                t.tau_gravity_nm + t.tau_amplification_nm + t.tau_bias_nm + t.tau_excitation_nm;
+            let within = (sum - previous).abs() < step && sum.abs() < max;
+            if within {
+                assert!((t.tau_d_nm - sum).abs() < 1e-12, "seq {seq}: {t:?}");
+                checked += 1;
+            }
+            previous = t.tau_d_nm;
+        }
+        assert!(checked > 1000, "only {checked} ticks within the limits");
+    }
+
     #[test]
     fn adopting_f_respects_bounds() {
         let mut k = Controller::from_config(&cfg()).unwrap();

@@ -414,6 +414,15 @@ mod tests {
             assert!(b >= prev - 1e-12 && (b - prev).abs() < 0.02);
             prev = b;
         }
+        // The bias ramps out over the ramp-out (15–20 s) as the excitation
+        // does: a raised cosine of the time since the ramp-out began.
+        let full = p.at(12.0).tau_bias_nm;
+        assert!(full > 0.0);
+        for tau in [0.3, 1.7, 2.5, 4.2] {
+            let fade = 0.5 + 0.5 * (std::f64::consts::PI * tau / 5.0).cos();
+            let b = p.at(15.0 + tau).tau_bias_nm;
+            assert!((b - full * fade).abs() < 1e-12, "at 15 + {tau} s: {b}");
+        }
     }
 
     #[test]

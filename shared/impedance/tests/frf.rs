@@ -312,6 +312,40 @@ fn naive_dft(x: &[Complex64]) -> Vec<Complex64> {
         .collect()
 }
 
+/// A frequency that is not finite and positive is refused naming
+/// `omega_rad_s` (not left to fail later for another reason, or to pass):
+/// the streaming correlator and the block form alike (issue 23: the
+/// cargo-mutants sample left `check_omega → Ok(0.0)` alive).
+#[test]
+fn a_bad_frequency_is_refused_by_name() {
+    let r = record(5.0, 2.0, 0.0, 0.0, 1);
+    for bad in [0.0, -1.0, -0.0, f64::NAN, f64::INFINITY, f64::NEG_INFINITY] {
+        let named = |e: exo_impedance::error::ScienceError| {
+            matches!(
+                e,
+                exo_impedance::error::ScienceError::OutOfRange {
+                    name: "omega_rad_s",
+                    ..
+                }
+            )
+        };
+        let e = SineCorrelator::<1>::new(bad, 0.0, true).err();
+        assert!(e.is_some_and(named), "SineCorrelator::new({bad})");
+        let e = sine_amplitude(&r.t, &r.tau, bad, true).err();
+        assert!(e.is_some_and(named), "sine_amplitude at {bad}");
+    }
+    assert!(SineCorrelator::<1>::new(5.0, 0.0, true).is_ok());
+}
+
+/// The shortest Welch segment allowed is 16 samples (7 bins); 8 is refused.
+#[test]
+fn the_shortest_welch_segment_is_sixteen() {
+    let x: Vec<f64> = (0..64).map(|k| (0.9 * k as f64).sin()).collect();
+    let bins = welch_h1(&x, &x, 100.0, 16).unwrap();
+    assert_eq!(bins.len(), 7);
+    assert!(welch_h1(&x, &x, 100.0, 8).is_err());
+}
+
 #[test]
 fn fft_matches_a_naive_dft() {
     let mut n = Noise::new(7);

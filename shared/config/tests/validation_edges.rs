@@ -1,0 +1,219 @@
+//! Edges of the run file's validation that the numeric walk
+//! (`bad_values.rs`) does not reach: checks across keys, text keys, a
+//! missing table, the bound of a closed range, and the gravity torque the
+//! controller and the driver's safe state use (issue 23: each was a
+//! surviving mutant of the cargo-mutants sample of exo-config).
+
+use std::path::PathBuf;
+
+use exo_config::{configs_dir, ConfigError, RigSettings, RunConfig};
+
+/// A scratch copy of `configs/` with `default.toml` edited by `edits`,
+/// loaded.
+fn load_edited(tag: &str, edits: &[(&str, &str)]) -> (Result<RunConfig, ConfigError>, PathBuf) {
+    load_edited_in(tag, "default.toml", edits)
+}
+
+/// The same with `file` (relative to `configs/`) edited.
+fn load_edited_in(
+    tag: &str,
+    file: &str,
+    edits: &[(&str, &str)],
+) -> (Result<RunConfig, ConfigError>, PathBuf) {
+    let dir = std::env::temp_dir().join(format!("exo-config-edges-{tag}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    for sub in ["plants", "subjects"] {
+        std::fs::create_dir_all(dir.join(sub)).unwrap();
+    }
+    for f in [
+        "default.toml",
+        "experiments.toml",
+        "subjects/B.toml",
+        "plants/default.toml",
+    ] {
+        std::fs::copy(configs_dir().join(f), dir.join(f)).unwrap();
+    }
+    let edited = dir.join(file);
+    let mut text = std::fs::read_to_string(&edited).unwrap();
+    for (from, to) in edits {
+        assert!(text.contains(from), "{from:?} not in {file}");
+        text = text.replacen(from, to, 1);
+    }
+    std::fs::write(&edited, text).unwrap();
+    (RunConfig::from_file(&dir.join("default.toml")), dir)
+}
+
+fn refused_naming(tag: &str, edits: &[(&str, &str)], key: &str) {
+    let (r, dir) = load_edited(tag, edits);
+    let err = r.err().unwrap_or_else(|| panic!("{edits:?} accepted"));
+    assert!(
+        err.each().iter().any(|e| e.to_string().contains(key)),
+        "{edits:?}: {err}"
+    );
+    let _ = std::fs::remove_dir_all(dir);
+}
+
+fn accepted(tag: &str, edits: &[(&str, &str)]) -> RunConfig {
+    let (r, dir) = load_edited(tag, edits);
+    let _ = std::fs::remove_dir_all(dir);
+    r.unwrap_or_else(|e| panic!("{edits:?} refused: {e}"))
+}
+
+#[test]
+fn f_bounds_out_of_order_are_refused_naming_the_upper_bound() {
+    refused_naming(
+        "fb",
+        &[("f_bounds = [0.0, 0.9]", "f_bounds = [0.8, 0.2]")],
+        "controller.f_bounds[1]",
+    );
+    accepted(
+        "fb-ok",
+        &[("f_bounds = [0.0, 0.9]", "f_bounds = [0.3, 0.3]")],
+    );
+}
+
+#[test]
+fn an_instance_name_outside_letters_digits_dash_underscore_is_refused() {
+    for (i, bad) in ["\"\"", "\"two words\"", "\"a/b\""].iter().enumerate() {
+        refused_naming(
+            &format!("inst{i}"),
+            &[("instance = \"exo\"", &format!("instance = {bad}"))],
+            "run.instance",
+        );
+    }
+    let long = format!("instance = \"{}\"", "x".repeat(65));
+    refused_naming(
+        "inst-long",
+        &[("instance = \"exo\"", &long)],
+        "run.instance",
+    );
+    let c = accepted(
+        "inst-ok",
+        &[("instance = \"exo\"", "instance = \"lab_2-b\"")],
+    );
+    assert_eq!(c.run.instance, "lab_2-b");
+}
+
+#[test]
+fn a_voluntary_protocol_needs_its_table() {
+    refused_naming(
+        "vol",
+        &[("mode = \"identification\"", "mode = \"voluntary\"")],
+        "voluntary",
+    );
+}
+
+#[test]
+fn the_last_period_of_the_table_is_a_valid_period_the_next_is_not() {
+    accepted("p10", &[("periods = [1, 4, 7]", "periods = [1, 10]")]);
+    refused_naming(
+        "p11",
+        &[("periods = [1, 4, 7]", "periods = [1, 11]")],
+        "protocol.periods[1]",
+    );
+}
+
+/// `g (m_a l_a + m_L l_L) sin θ` with the numbers written out here.
+#[test]
+fn the_gravity_torque_is_the_arm_and_load_moments_times_g_sin_theta() {
+    let c = accepted("grav", &[]);
+    let rig = RigSettings {
+        arm_mass_kg: 2.0,
+        arm_com_m: 0.3,
+        load_lever_arm_m: 0.45,
+        ..c.rig
+    };
+    // 9.80665 · (2 · 0.3 + 1.5 · 0.45) · sin 0.7
+    let expected = 9.80665 * (0.6 + 0.675) * 0.644_217_687_237_691;
+    assert!((rig.gravity_torque_nm(0.7, 1.5) - expected).abs() < 1e-12);
+    assert_eq!(rig.gravity_torque_nm(0.0, 1.5), 0.0);
+}
+
+/// Without `f_bounds` the documented default [0, 0.9] holds.
+#[test]
+fn f_bounds_default_to_zero_and_nine_tenths() {
+    let c = accepted("fb-default", &[("f_bounds = [0.0, 0.9]", "")]);
+    assert_eq!(c.controller.f_bounds, [0.0, 0.9]);
+}
+
+/// A protocol of more than a day (86 400 s) is refused: nine experiments ×
+/// ten periods × (20 s + rest) is 325 800 s with an hour's rest, 82 800 s
+/// with 900 s.
+#[test]
+fn a_protocol_longer_than_a_day_is_refused() {
+    let all = [
+        (
+            "experiments = [1, 7]",
+            "experiments = [1, 2, 3, 4, 5, 6, 7, 8, 9]",
+        ),
+        (
+            "periods = [1, 4, 7]",
+            "periods = [1, 2, 3, 4, 5, 6, 7, 8, 9, 10]",
+        ),
+    ];
+    let (r, dir) = load_edited(
+        "day",
+        &[all[0], all[1], ("rest_s = 1.0", "rest_s = 3600.0")],
+    );
+    let _ = std::fs::remove_dir_all(dir);
+    let Err(err) = r else {
+        panic!("a 90-hour protocol accepted")
+    };
+    assert!(err.to_string().contains("more than a day"), "{err}");
+    accepted(
+        "day-ok",
+        &[all[0], all[1], ("rest_s = 1.0", "rest_s = 900.0")],
+    );
+}
+
+/// `amplitude_boost_from_period` may be `periods + 1` (never boosted), the
+/// top of its range when `periods` is at its maximum; `periods + 2` is
+/// refused naming the key.
+#[test]
+fn the_amplitude_boost_may_start_one_past_the_last_period_not_two() {
+    let max = exo_config::MAX_PERIOD;
+    let periods = ("periods = 10".to_string(), format!("periods = {max}"));
+    for (boost, ok) in [(max + 1, true), (max + 2, false)] {
+        let to = format!("amplitude_boost_from_period = {boost}");
+        let (r, dir) = load_edited_in(
+            &format!("boost{boost}"),
+            "experiments.toml",
+            &[
+                (&periods.0, &periods.1),
+                ("amplitude_boost_from_period = 8", &to),
+            ],
+        );
+        let _ = std::fs::remove_dir_all(dir);
+        match (r, ok) {
+            (Ok(c), true) => assert_eq!(
+                c.experiments.map(|t| t.amplitude_boost_from_period),
+                Some(boost)
+            ),
+            (Err(e), false) => {
+                assert!(e.to_string().contains("amplitude_boost_from_period"), "{e}")
+            }
+            (r, _) => panic!("boost from {boost} with {max} periods: {:?}", r.err()),
+        }
+    }
+}
+
+/// A voluntary protocol's bias may be negative (range [−100, 100] Nm), not
+/// below −100.
+#[test]
+fn a_voluntary_bias_may_be_negative_within_its_range() {
+    let table = |bias: f64| {
+        format!(
+            "[voluntary]\namplitude_rad = 0.3\nomega_rad_s = 2.0\nduration_s = 10.0\ngrip_kg = 14.0\nbias_nm = {bias:?}\nexperiment = 1\n\n[controller]\n"
+        )
+    };
+    let mode = ("mode = \"identification\"", "mode = \"voluntary\"");
+    let t = table(-4.0);
+    let c = accepted("vol-neg", &[mode, ("[controller]\n", &t)]);
+    assert_eq!(c.voluntary.map(|v| v.bias_nm), Some(-4.0));
+    let t = table(-100.5);
+    refused_naming(
+        "vol-low",
+        &[mode, ("[controller]\n", &t)],
+        "voluntary.bias_nm",
+    );
+}
