@@ -29,7 +29,12 @@ fn another_host_receives_every_sample_over_zenoh() {
     let mut export = exo.spawn("exo-tunnel", &[]);
     let mut import = other.spawn(
         "exo-tunnel",
-        &["--import-from", &endpoint, "--remote-instance", &exo.instance],
+        &[
+            "--import-from",
+            &endpoint,
+            "--remote-instance",
+            &exo.instance,
+        ],
     );
     let there_samples = other.collect(SENSOR);
     let there_commands = other.collect(COMMAND);
@@ -93,5 +98,8 @@ fn another_host_receives_every_sample_over_zenoh() {
     assert!(there_commands == here_commands, "the commands differ");
     let log = exo.log("exo-tunnel");
     assert!(log.contains(&endpoint), "{log}");
-    assert!(!log.contains("other hosts can subscribe"), "loopback: {log}");
+    assert!(
+        !log.contains("other hosts can subscribe"),
+        "loopback: {log}"
+    );
 }

@@ -209,7 +209,10 @@ mod tests {
             port: None,
         };
         let e = Listen::of(Some(&bad)).unwrap_err().to_string();
-        assert!(e.contains("\"localhost:80\"") && e.contains("[live] address"), "{e}");
+        assert!(
+            e.contains("\"localhost:80\"") && e.contains("[live] address"),
+            "{e}"
+        );
     }
 
     #[test]

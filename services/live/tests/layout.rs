@@ -9,7 +9,10 @@ use std::collections::BTreeSet;
 use serde_json::Value;
 
 fn layout() -> Value {
-    let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../../configs/foxglove/exo.json");
+    let path = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../../configs/foxglove/exo.json"
+    );
     serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap()
 }
 

@@ -91,8 +91,12 @@ fn receiver(
     done: Arc<AtomicBool>,
 ) -> std::thread::JoinHandle<(Histogram<u64>, u64)> {
     std::thread::spawn(move || {
-        let ipc = Ipc::open(&format!("bench_{tag}_{}", std::process::id()), &instance, None)
-            .unwrap();
+        let ipc = Ipc::open(
+            &format!("bench_{tag}_{}", std::process::id()),
+            &instance,
+            None,
+        )
+        .unwrap();
         let inbox = ipc.inbox(SENSOR, 8192).unwrap();
         let mut h = Histogram::<u64>::new_with_bounds(1, 60_000_000, 3).unwrap();
         let mut n = 0;
@@ -103,7 +107,8 @@ fn receiver(
             while let Some(s) = inbox.try_recv().unwrap() {
                 let now = monotonic_ns();
                 if s.seq > 0 {
-                    h.record(((now.saturating_sub(s.stamp_ns)) / 1000).max(1)).unwrap();
+                    h.record(((now.saturating_sub(s.stamp_ns)) / 1000).max(1))
+                        .unwrap();
                     n += 1;
                 }
                 got = true;
@@ -183,7 +188,11 @@ fn main() {
             if marks.try_recv().unwrap().is_some() {
                 break;
             }
-            assert!(t.elapsed() < Duration::from_secs(60), "no link; see {}", dir.display());
+            assert!(
+                t.elapsed() < Duration::from_secs(60),
+                "no link; see {}",
+                dir.display()
+            );
         }
     }
     println!(
@@ -213,7 +222,14 @@ fn main() {
         let (hl, nl) = local.join().unwrap();
         let (hr, nr) = remote.join().unwrap();
         row("local (iceoryx2)", rate, &hl, nl, n, secs);
-        row("tunnel (iceoryx2 → Zenoh TCP loopback → iceoryx2)", rate, &hr, nr, n, secs);
+        row(
+            "tunnel (iceoryx2 → Zenoh TCP loopback → iceoryx2)",
+            rate,
+            &hr,
+            nr,
+            n,
+            secs,
+        );
     }
     stop(export);
     stop(import);

@@ -58,8 +58,9 @@ pub fn zenoh_config(
     file: Option<&Path>,
 ) -> Result<zenoh::Config> {
     let mut c = match file {
-        Some(f) => zenoh::Config::from_file(f)
-            .map_err(|e| anyhow::anyhow!("{}: {e}", f.display()))?,
+        Some(f) => {
+            zenoh::Config::from_file(f).map_err(|e| anyhow::anyhow!("{}: {e}", f.display()))?
+        }
         None => zenoh::Config::default(),
     };
     let set = |c: &mut zenoh::Config, k: &str, v: &str| {

@@ -154,9 +154,8 @@ enum Side {
     /// A remote instance's keys onto this computer's channels.
     Import {
         remote: String,
-        subscriber: zenoh::pubsub::Subscriber<
-            zenoh::handlers::FifoChannelHandler<zenoh::sample::Sample>,
-        >,
+        subscriber:
+            zenoh::pubsub::Subscriber<zenoh::handlers::FifoChannelHandler<zenoh::sample::Sample>>,
         ports: Vec<Box<dyn Port>>,
         /// Refused samples per key (a count, and the first reason).
         refused: BTreeMap<String, (u64, String)>,

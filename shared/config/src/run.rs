@@ -939,13 +939,18 @@ impl RunConfig {
         }
         if let Some(l) = self.tunnel.as_ref().and_then(|t| t.listen.as_ref()) {
             if l.is_empty() {
-                c.note("tunnel.listen", "name at least one endpoint, e.g. \"tcp/127.0.0.1:7447\"");
+                c.note(
+                    "tunnel.listen",
+                    "name at least one endpoint, e.g. \"tcp/127.0.0.1:7447\"",
+                );
             }
             for (i, e) in l.iter().enumerate() {
                 if !e.contains('/') {
                     c.note(
                         &format!("tunnel.listen[{i}]"),
-                        format!("must be a Zenoh endpoint such as \"tcp/127.0.0.1:7447\", got {e:?}"),
+                        format!(
+                            "must be a Zenoh endpoint such as \"tcp/127.0.0.1:7447\", got {e:?}"
+                        ),
                     );
                 }
             }

@@ -522,6 +522,14 @@ mod tests {
         // that is not also its own subscriber.
         for c in &CHANNELS {
             assert!(!c.subscribers.contains(&c.publisher), "{}", c.topic);
+            // The watchers read every channel (issue 17).
+            for w in [
+                ProcessName::Recorder,
+                ProcessName::Live,
+                ProcessName::Tunnel,
+            ] {
+                assert!(c.subscribers.contains(&w), "{} lacks {w}", c.topic);
+            }
         }
     }
 }

@@ -25,7 +25,9 @@ pub enum Role {
     /// A watcher (the live view, the tunnel): restarted like
     /// [`Role::Restartable`], and once its restarts are spent (a port in
     /// use, an address that cannot be bound), the run goes on without it.
-    /// The real-time path does not wait for it to start.
+    /// The real-time path does not wait for it to start. Its stops are
+    /// warnings, not faults of the run: it touches neither control nor
+    /// the recording.
     Optional,
 }
 
@@ -383,11 +385,6 @@ pub fn supervise_checked(
                             format!(" after {} restarts", r.restarts)
                         }
                     );
-                    restarts.push(format!(
-                        "the {name} stopped ({}) {:.1} s into the run; the run went on without it",
-                        describe(status),
-                        started.elapsed().as_secs_f64(),
-                    ));
                     gone.push(i);
                 }
                 Role::Restartable | Role::Optional if r.restarts < MAX_RESTARTS => {
@@ -405,12 +402,16 @@ pub fn supervise_checked(
                             "control goes on (a restart can cost the real-time path deadlines while its ports connect)"
                         }
                     );
-                    restarts.push(format!(
-                        "the {name} stopped ({}) {:.1} s into the run and was restarted ({}/{MAX_RESTARTS})",
-                        describe(status),
-                        started.elapsed().as_secs_f64(),
-                        r.restarts
-                    ));
+                    // A watcher's restart is no fault of the run: it
+                    // touches neither control nor the recording.
+                    if r.spec.role == Role::Restartable {
+                        restarts.push(format!(
+                            "the {name} stopped ({}) {:.1} s into the run and was restarted ({}/{MAX_RESTARTS})",
+                            describe(status),
+                            started.elapsed().as_secs_f64(),
+                            r.restarts
+                        ));
+                    }
                     match restart(r, logs, clock) {
                         Ok(None) => {}
                         Ok(Some(warning)) => {
