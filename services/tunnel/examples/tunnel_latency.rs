@@ -10,9 +10,10 @@
 //! iceoryx2), side by side in the same run. Percentiles from HDR
 //! histograms (µs); lost = published − received.
 //!
-//! `cargo bench -p exo-tunnel --bench tunnel_latency` (needs the binaries:
-//! `cargo build --release -p exo-tunnel` first; EXO_BENCH_SECONDS sets each
-//! rate's duration, default 10).
+//! `cargo build -p exo-tunnel --bins --examples && cargo run -p exo-tunnel
+//! --example tunnel_latency` (dev profile: Zenoh, iceoryx2 and every other
+//! dependency at opt-level 3, exo's crates at 1; EXO_BENCH_SECONDS sets
+//! each rate's duration, default 10).
 
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Stdio};
@@ -42,7 +43,7 @@ fn binary(name: &str) -> PathBuf {
             return p;
         }
     }
-    panic!("{name} not built: cargo build --release -p exo-tunnel");
+    panic!("{name} not built: cargo build -p exo-tunnel --bins");
 }
 
 /// A run file for `instance` with the tunnel listening on `endpoint`.
