@@ -89,6 +89,7 @@ fn stop(mut c: Child) {
 fn receiver(
     instance: String,
     tag: &'static str,
+    from_seq: u64,
     done: Arc<AtomicBool>,
 ) -> std::thread::JoinHandle<(Histogram<u64>, u64)> {
     std::thread::spawn(move || {
@@ -107,7 +108,9 @@ fn receiver(
             let mut got = false;
             while let Some(s) = inbox.try_recv().unwrap() {
                 let now = monotonic_ns();
-                if s.seq > 0 {
+                // Only this rate's samples (not the last one before, which
+                // a new subscriber receives on connecting).
+                if s.seq > from_seq {
                     h.record(((now.saturating_sub(s.stamp_ns)) / 1000).max(1))
                         .unwrap();
                     n += 1;
@@ -136,7 +139,7 @@ fn row(path: &str, rate: f64, h: &Histogram<u64>, n: u64, sent: u64, secs: f64) 
         h.max(),
         n,
         n as f64 / secs,
-        sent - n
+        sent.saturating_sub(n)
     );
 }
 
@@ -203,8 +206,8 @@ fn main() {
     let mut seq = 0u64;
     for rate in [1000.0, 10_000.0] {
         let done = Arc::new(AtomicBool::new(false));
-        let local = receiver(a.clone(), "local", Arc::clone(&done));
-        let remote = receiver(b.clone(), "remote", Arc::clone(&done));
+        let local = receiver(a.clone(), "local", seq, Arc::clone(&done));
+        let remote = receiver(b.clone(), "remote", seq, Arc::clone(&done));
         std::thread::sleep(Duration::from_millis(500));
         let n = (rate * secs) as u64;
         let period_ns = (1e9 / rate) as u64;
