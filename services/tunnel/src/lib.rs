@@ -121,8 +121,23 @@ mod tests {
 
     #[test]
     fn the_configuration_is_a_peer_without_scouting() {
-        let c = zenoh_config(&["tcp/127.0.0.1:0".into()], &[], None).unwrap();
-        let s = format!("{c}");
-        assert!(s.contains("tcp/127.0.0.1:0"), "{s}");
+        let c = zenoh_config(
+            &["tcp/127.0.0.1:0".into()],
+            &["tcp/10.0.0.2:7447".into()],
+            None,
+        )
+        .unwrap();
+        assert_eq!(c.get_json("mode").unwrap(), "\"peer\"");
+        assert_eq!(c.get_json("scouting/multicast/enabled").unwrap(), "false");
+        assert!(c
+            .get_json("listen/endpoints")
+            .unwrap()
+            .contains("tcp/127.0.0.1:0"));
+        assert!(c
+            .get_json("connect/endpoints")
+            .unwrap()
+            .contains("tcp/10.0.0.2:7447"));
+        let e = zenoh_config(&[], &[], Some(Path::new("/nonexistent/zenoh.json5"))).unwrap_err();
+        assert!(e.to_string().contains("/nonexistent/zenoh.json5"), "{e}");
     }
 }
