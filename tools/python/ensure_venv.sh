@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # Makes (once) the Python environment the cross-checks and the Python
-# baseline use: target/py-venv with mcap, mcap-ros2-support and numpy from
+# baseline and the live-view client use: target/py-venv with mcap,
+# mcap-ros2-support, numpy and websockets from
 # PyPI. Idempotent; prints the venv's python. Used by the tests, so `cargo
 # test` needs no manual set-up beyond network access to PyPI (or a wheel
 # mirror configured for pip); python3 and its venv module are installed with
@@ -8,7 +9,7 @@
 set -euo pipefail
 root="$(cd "$(dirname "$0")/../.." && pwd)"
 venv="${EXO_PY_VENV:-$root/target/py-venv}"
-stamp="$venv/.exo-ready-2"
+stamp="$venv/.exo-ready-3"
 if [ ! -f "$stamp" ]; then
     mkdir -p "$(dirname "$venv")"
     # Another test may be making it: serialise with a lock file.
@@ -28,7 +29,7 @@ if [ ! -f "$stamp" ]; then
         fi
         rm -rf "$venv"
         python3 -m venv "$venv" >&2
-        "$venv/bin/pip" install --quiet "mcap>=1.1" "mcap-ros2-support>=0.6" "numpy>=1.24" >&2
+        "$venv/bin/pip" install --quiet "mcap>=1.1" "mcap-ros2-support>=0.6" "numpy>=1.24" "websockets>=13" >&2
         touch "$stamp"
     fi
 fi

@@ -222,6 +222,68 @@ pub struct PlayerSettings {
     pub pace_hz: Option<f64>,
 }
 
+/// `[live]`: the live view (`services.live = true`), every channel to
+/// Foxglove over its WebSocket protocol. It listens on loopback unless
+/// another address is asked for here (and logs which).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, Default)]
+#[serde(deny_unknown_fields)]
+pub struct LiveSettings {
+    /// The IP address to listen on (default `127.0.0.1`, this computer
+    /// only). `0.0.0.0` or a network interface's address lets other hosts
+    /// connect: there is no authentication, so only on a trusted network.
+    #[serde(default)]
+    pub address: Option<String>,
+    /// The TCP port (default 8765, Foxglove's; 0 = any free port, logged).
+    #[serde(default)]
+    pub port: Option<u16>,
+}
+
+impl LiveSettings {
+    /// The default address: loopback only.
+    pub const DEFAULT_ADDRESS: &'static str = "127.0.0.1";
+    /// The default port (Foxglove's).
+    pub const DEFAULT_PORT: u16 = 8765;
+
+    /// The address to listen on.
+    pub fn address(&self) -> &str {
+        self.address.as_deref().unwrap_or(Self::DEFAULT_ADDRESS)
+    }
+
+    /// The port to listen on.
+    pub fn port(&self) -> u16 {
+        self.port.unwrap_or(Self::DEFAULT_PORT)
+    }
+}
+
+/// `[tunnel]`: the run's channels to another host over Zenoh
+/// (`services.tunnel = true`; ARCHITECTURE.md). On the exo computer the
+/// tunnel only subscribes and publishes onto Zenoh; nothing from the
+/// network is published onto its channels.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, Default)]
+#[serde(deny_unknown_fields)]
+pub struct TunnelSettings {
+    /// Zenoh endpoints to listen on (default `["tcp/127.0.0.1:7447"]`, this
+    /// computer only). Another host's address must be named here.
+    #[serde(default)]
+    pub listen: Option<Vec<String>>,
+    /// A Zenoh configuration file (JSON5) for what the endpoints do not
+    /// say: TLS, access control (relative to the run file).
+    #[serde(default)]
+    pub zenoh_config: Option<PathBuf>,
+}
+
+impl TunnelSettings {
+    /// The default endpoint: loopback only.
+    pub const DEFAULT_LISTEN: &'static str = "tcp/127.0.0.1:7447";
+
+    /// The endpoints to listen on.
+    pub fn listen(&self) -> Vec<String> {
+        self.listen
+            .clone()
+            .unwrap_or_else(|| vec![Self::DEFAULT_LISTEN.to_string()])
+    }
+}
+
 /// `[services]`: which processes `exo run` starts.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -242,6 +304,14 @@ pub struct ServiceSet {
     /// place of plant, driver and controller.
     #[serde(default)]
     pub player: bool,
+    /// The live view (`[live]`): every channel to Foxglove; only
+    /// subscribes, and the run goes on without it if it fails.
+    #[serde(default)]
+    pub live: bool,
+    /// The tunnel (`[tunnel]`): every channel to another host over Zenoh;
+    /// only subscribes, and the run goes on without it if it fails.
+    #[serde(default)]
+    pub tunnel: bool,
 }
 
 /// What the protocol does.
@@ -549,6 +619,12 @@ pub struct RunConfig {
     /// `[player]` (with `services.player`).
     #[serde(default)]
     pub player: Option<PlayerSettings>,
+    /// `[live]` (with `services.live`; default: loopback, port 8765).
+    #[serde(default)]
+    pub live: Option<LiveSettings>,
+    /// `[tunnel]` (with `services.tunnel`; default: loopback, port 7447).
+    #[serde(default)]
+    pub tunnel: Option<TunnelSettings>,
     /// `[realtime]` (default: nothing asked for).
     #[serde(default)]
     pub realtime: Option<RealtimeSettings>,
@@ -629,6 +705,15 @@ impl RunConfig {
         cfg.protocol.experiments_file = dir.join(&cfg.protocol.experiments_file);
         if let Some(p) = cfg.player.as_mut() {
             p.file = dir.join(&p.file);
+        }
+        if let Some(z) = cfg.tunnel.as_mut().and_then(|t| t.zenoh_config.as_mut()) {
+            *z = dir.join(&*z);
+            if !z.is_file() {
+                c.note(
+                    "tunnel.zenoh_config",
+                    format!("{} does not exist", z.display()),
+                );
+            }
         }
         if cfg.services.player {
             match &cfg.player {
@@ -882,6 +967,32 @@ impl RunConfig {
         }
         if let Some(p) = self.player.as_ref().and_then(|p| p.pace_hz) {
             c.key("player.pace_hz", p);
+        }
+        if let Some(a) = self.live.as_ref().and_then(|l| l.address.as_ref()) {
+            if a.parse::<std::net::IpAddr>().is_err() {
+                c.note(
+                    "live.address",
+                    format!("must be an IP address such as 127.0.0.1 or ::1, got {a:?}"),
+                );
+            }
+        }
+        if let Some(l) = self.tunnel.as_ref().and_then(|t| t.listen.as_ref()) {
+            if l.is_empty() {
+                c.note(
+                    "tunnel.listen",
+                    "name at least one endpoint, e.g. \"tcp/127.0.0.1:7447\"",
+                );
+            }
+            for (i, e) in l.iter().enumerate() {
+                if !e.contains('/') {
+                    c.note(
+                        &format!("tunnel.listen[{i}]"),
+                        format!(
+                            "must be a Zenoh endpoint such as \"tcp/127.0.0.1:7447\", got {e:?}"
+                        ),
+                    );
+                }
+            }
         }
         if let Some(rt) = &self.realtime {
             if let Some(p) = rt.sched_fifo_priority {

@@ -302,3 +302,45 @@ fn cross_checks_name_their_keys() {
         assert!(names(&err, file, key), "{to}: {key} not named in:\n{err}");
     }
 }
+
+/// The watchers' tables: an address that is not an IP address, an endpoint
+/// that is not a Zenoh endpoint, a missing Zenoh configuration file and a
+/// port that does not fit 16 bits are refused naming their keys; good
+/// values load, and the defaults are loopback.
+#[test]
+fn the_live_view_and_tunnel_tables_name_their_keys() {
+    let scratch = Scratch::new("watchers");
+    let run = scratch.run_file();
+    let base = std::fs::read_to_string(&run).unwrap();
+    for (table, key) in [
+        ("[live]\naddress = \"localhost\"\n", "live.address"),
+        ("[live]\nport = 70000\n", "port"),
+        (
+            "[tunnel]\nlisten = [\"127.0.0.1:7447\"]\n",
+            "tunnel.listen[0]",
+        ),
+        ("[tunnel]\nlisten = []\n", "tunnel.listen"),
+        (
+            "[tunnel]\nzenoh_config = \"missing.json5\"\n",
+            "tunnel.zenoh_config",
+        ),
+    ] {
+        std::fs::write(&run, format!("{base}\n{table}")).unwrap();
+        let err = RunConfig::from_file(&run).expect_err(table);
+        assert!(names(&err, &run, key), "{table}: {err}");
+    }
+    std::fs::write(
+        &run,
+        format!("{base}\n[live]\naddress = \"0.0.0.0\"\nport = 0\n[tunnel]\nlisten = [\"tcp/0.0.0.0:7447\"]\n"),
+    )
+    .unwrap();
+    let cfg = RunConfig::from_file(&run).unwrap();
+    assert_eq!(cfg.live.as_ref().unwrap().address(), "0.0.0.0");
+    assert_eq!(cfg.live.as_ref().unwrap().port(), 0);
+    let d = exo_config::LiveSettings::default();
+    assert_eq!((d.address(), d.port()), ("127.0.0.1", 8765));
+    assert_eq!(
+        exo_config::TunnelSettings::default().listen(),
+        vec!["tcp/127.0.0.1:7447".to_string()]
+    );
+}

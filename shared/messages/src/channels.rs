@@ -36,6 +36,12 @@ pub enum ProcessName {
     Recorder,
     /// The player of a recording (stands in for driver and controller).
     Player,
+    /// The live view: every channel to Foxglove over its WebSocket
+    /// protocol (only subscribes).
+    Live,
+    /// The tunnel: channels to and from another host over Zenoh (on the
+    /// exo computer it only subscribes).
+    Tunnel,
     /// The operator console (`exo op`).
     Operator,
 }
@@ -43,13 +49,15 @@ pub enum ProcessName {
 impl ProcessName {
     /// Every process, in start order (the operator console last; it is not
     /// started by the supervisor).
-    pub const ALL: [ProcessName; 7] = [
+    pub const ALL: [ProcessName; 9] = [
         ProcessName::PlantSim,
         ProcessName::SensorDriver,
         ProcessName::Controller,
         ProcessName::Identifier,
         ProcessName::Recorder,
         ProcessName::Player,
+        ProcessName::Live,
+        ProcessName::Tunnel,
         ProcessName::Operator,
     ];
 
@@ -63,6 +71,8 @@ impl ProcessName {
             ProcessName::Identifier => "identifier",
             ProcessName::Recorder => "recorder",
             ProcessName::Player => "player",
+            ProcessName::Live => "live",
+            ProcessName::Tunnel => "tunnel",
             ProcessName::Operator => "operator",
         }
     }
@@ -77,6 +87,8 @@ impl ProcessName {
             ProcessName::Identifier => "exo-identifier",
             ProcessName::Recorder => "exo-recorder",
             ProcessName::Player => "exo-player",
+            ProcessName::Live => "exo-live",
+            ProcessName::Tunnel => "exo-tunnel",
             ProcessName::Operator => "exo",
         }
     }
@@ -91,6 +103,8 @@ impl ProcessName {
             ProcessName::Identifier => "identifier",
             ProcessName::Recorder => "recorder",
             ProcessName::Player => "player",
+            ProcessName::Live => "live",
+            ProcessName::Tunnel => "tunnel",
             ProcessName::Operator => "operator",
         }
     }
@@ -172,6 +186,8 @@ pub const CHANNELS: [ChannelInfo; 8] = [
             ProcessName::Controller,
             ProcessName::Identifier,
             ProcessName::Recorder,
+            ProcessName::Live,
+            ProcessName::Tunnel,
         ],
         has_event: true,
         max_publishers: 1,
@@ -189,6 +205,8 @@ pub const CHANNELS: [ChannelInfo; 8] = [
             ProcessName::SensorDriver,
             ProcessName::Identifier,
             ProcessName::Recorder,
+            ProcessName::Live,
+            ProcessName::Tunnel,
         ],
         has_event: true,
         max_publishers: 1,
@@ -207,6 +225,8 @@ pub const CHANNELS: [ChannelInfo; 8] = [
             ProcessName::SensorDriver,
             ProcessName::Identifier,
             ProcessName::Recorder,
+            ProcessName::Live,
+            ProcessName::Tunnel,
         ],
         has_event: false,
         max_publishers: 4,
@@ -220,7 +240,12 @@ pub const CHANNELS: [ChannelInfo; 8] = [
         topic: "exo/bus/sensor",
         payload: BusSensorFrame::TYPE_NAME,
         publisher: ProcessName::PlantSim,
-        subscribers: &[ProcessName::SensorDriver, ProcessName::Recorder],
+        subscribers: &[
+            ProcessName::SensorDriver,
+            ProcessName::Recorder,
+            ProcessName::Live,
+            ProcessName::Tunnel,
+        ],
         has_event: true,
         max_publishers: 1,
         max_buffer: DEEP,
@@ -233,7 +258,12 @@ pub const CHANNELS: [ChannelInfo; 8] = [
         topic: "exo/bus/motor",
         payload: BusMotorCommand::TYPE_NAME,
         publisher: ProcessName::SensorDriver,
-        subscribers: &[ProcessName::PlantSim, ProcessName::Recorder],
+        subscribers: &[
+            ProcessName::PlantSim,
+            ProcessName::Recorder,
+            ProcessName::Live,
+            ProcessName::Tunnel,
+        ],
         has_event: true,
         max_publishers: 1,
         max_buffer: DEEP,
@@ -246,7 +276,11 @@ pub const CHANNELS: [ChannelInfo; 8] = [
         topic: "exo/identifier/frf",
         payload: FrfPoint::TYPE_NAME,
         publisher: ProcessName::Identifier,
-        subscribers: &[ProcessName::Recorder],
+        subscribers: &[
+            ProcessName::Recorder,
+            ProcessName::Live,
+            ProcessName::Tunnel,
+        ],
         has_event: false,
         max_publishers: 4,
         max_buffer: DEEP,
@@ -259,7 +293,12 @@ pub const CHANNELS: [ChannelInfo; 8] = [
         topic: "exo/identifier/estimate",
         payload: ImpedanceEstimate::TYPE_NAME,
         publisher: ProcessName::Identifier,
-        subscribers: &[ProcessName::Controller, ProcessName::Recorder],
+        subscribers: &[
+            ProcessName::Controller,
+            ProcessName::Recorder,
+            ProcessName::Live,
+            ProcessName::Tunnel,
+        ],
         has_event: false,
         max_publishers: 4,
         max_buffer: DEEP,
@@ -276,6 +315,8 @@ pub const CHANNELS: [ChannelInfo; 8] = [
             ProcessName::Controller,
             ProcessName::SensorDriver,
             ProcessName::Recorder,
+            ProcessName::Live,
+            ProcessName::Tunnel,
         ],
         has_event: false,
         max_publishers: 4,
@@ -481,6 +522,14 @@ mod tests {
         // that is not also its own subscriber.
         for c in &CHANNELS {
             assert!(!c.subscribers.contains(&c.publisher), "{}", c.topic);
+            // The watchers read every channel (issue 17).
+            for w in [
+                ProcessName::Recorder,
+                ProcessName::Live,
+                ProcessName::Tunnel,
+            ] {
+                assert!(c.subscribers.contains(&w), "{} lacks {w}", c.topic);
+            }
         }
     }
 }

@@ -17,9 +17,12 @@ pub fn services_of(
 ) -> Result<Vec<ServiceSpec>> {
     let s = cfg.services;
     let mut out = Vec::new();
-    let table: [(bool, ProcessName, Role); 6] = [
+    let table: [(bool, ProcessName, Role); 8] = [
         (s.recorder, ProcessName::Recorder, Role::Restartable),
         (s.identifier, ProcessName::Identifier, Role::Restartable),
+        // Watchers: the run goes on without them.
+        (s.live, ProcessName::Live, Role::Optional),
+        (s.tunnel, ProcessName::Tunnel, Role::Optional),
         (
             s.plant_sim,
             ProcessName::PlantSim,

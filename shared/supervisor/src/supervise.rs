@@ -22,6 +22,13 @@ pub enum Role {
     /// Off the real-time path (identifier, recorder): restarted on failure,
     /// at most `MAX_RESTARTS` times, never stopping control.
     Restartable,
+    /// A watcher (the live view, the tunnel): restarted like
+    /// [`Role::Restartable`], and once its restarts are spent (a port in
+    /// use, an address that cannot be bound), the run goes on without it.
+    /// The real-time path does not wait for it to start. Its stops are
+    /// warnings, not faults of the run: it touches neither control nor
+    /// the recording.
+    Optional,
 }
 
 /// One service to run.
@@ -316,7 +323,7 @@ pub fn supervise_checked(
     for spec in services {
         // The real-time path starts once the off-path services before it
         // have opened their ports.
-        if spec.role != Role::Restartable {
+        if !matches!(spec.role, Role::Restartable | Role::Optional) {
             wait_ready(&mut pending, &stop);
         }
         if let Some(r) = &spec.ready {
@@ -356,7 +363,8 @@ pub fn supervise_checked(
             let pid = libc::pid_t::try_from(r.child.id()).ok()?;
             r.spec.holds_clock.map(|patience| (pid, patience))
         });
-        for r in running.iter_mut() {
+        let mut gone = Vec::new();
+        for (i, r) in running.iter_mut().enumerate() {
             let status = match r.child.try_wait() {
                 Ok(Some(s)) => s,
                 Ok(None) => continue,
@@ -367,7 +375,19 @@ pub fn supervise_checked(
             let name = r.spec.name;
             match r.spec.role {
                 Role::EndsRun if status.success() => break 'supervise Ok(Ended::By(name)),
-                Role::Restartable if r.restarts < MAX_RESTARTS => {
+                Role::Optional if r.restarts >= MAX_RESTARTS || status.success() => {
+                    eprintln!(
+                        "exo: warning: {name} stopped ({}){}; the run goes on without it",
+                        describe(status),
+                        if status.success() {
+                            String::new()
+                        } else {
+                            format!(" after {} restarts", r.restarts)
+                        }
+                    );
+                    gone.push(i);
+                }
+                Role::Restartable | Role::Optional if r.restarts < MAX_RESTARTS => {
                     r.restarts += 1;
                     // Control goes on, but not for free: the restarted
                     // process's new ports make the real-time path build
@@ -382,12 +402,16 @@ pub fn supervise_checked(
                             "control goes on (a restart can cost the real-time path deadlines while its ports connect)"
                         }
                     );
-                    restarts.push(format!(
-                        "the {name} stopped ({}) {:.1} s into the run and was restarted ({}/{MAX_RESTARTS})",
-                        describe(status),
-                        started.elapsed().as_secs_f64(),
-                        r.restarts
-                    ));
+                    // A watcher's restart is no fault of the run: it
+                    // touches neither control nor the recording.
+                    if r.spec.role == Role::Restartable {
+                        restarts.push(format!(
+                            "the {name} stopped ({}) {:.1} s into the run and was restarted ({}/{MAX_RESTARTS})",
+                            describe(status),
+                            started.elapsed().as_secs_f64(),
+                            r.restarts
+                        ));
+                    }
                     match restart(r, logs, clock) {
                         Ok(None) => {}
                         Ok(Some(warning)) => {
@@ -411,6 +435,9 @@ pub fn supervise_checked(
                 }
             }
         }
+        for i in gone.into_iter().rev() {
+            running.remove(i);
+        }
         if let Err(e) = on_tick() {
             // Quiet runs kept the services' logs back: give the error the
             // real-time path's last lines, which say why.
@@ -418,7 +445,7 @@ pub fn supervise_checked(
                 Logs::Quiet => {
                     let tails: String = running
                         .iter()
-                        .filter(|r| r.spec.role != Role::Restartable)
+                        .filter(|r| !matches!(r.spec.role, Role::Restartable | Role::Optional))
                         .map(|r| format!("\n{}{}", r.spec.name, r.last_lines()))
                         .collect();
                     anyhow::anyhow!("{e:#}\nthe real-time path's logs:{tails}")

@@ -94,6 +94,8 @@ pub fn bench_config(
         identifier: false,
         recorder: false,
         player: false,
+        live: false,
+        tunnel: false,
     };
     let subject = cfg.subject();
     let experiments: Vec<u32> = cfg

@@ -1,0 +1,143 @@
+//! # exo-tunnel (logic)
+//!
+//! The run's channels to another host over Zenoh, so that a second computer
+//! (an operator station, a computer running the identifier or a diagnosis)
+//! subscribes to the exo computer's channels. iceoryx2's own tunnel
+//! (`iceoryx2-tunnel`) exists only for iceoryx2 0.8, not our 0.10, so
+//! this uses Zenoh directly.
+//!
+//! Two directions, one binary:
+//!
+//! - **export** (on the exo computer, `services.tunnel = true`): subscribes
+//!   to every channel and puts each sample, CDR-encoded as in a recording
+//!   (`exo_recording::schema`, portable across machines), on the Zenoh key
+//!   [`key`] (`<instance>/<channel>`, e.g. `exo/sensor`). It only
+//!   subscribes to iceoryx2 and only publishes to Zenoh: nothing from the
+//!   network reaches the exo computer's channels, so the actuator command
+//!   path cannot be driven from another host. Zenoh drops what a slow link
+//!   cannot carry (congestion control "drop"), never blocking the export.
+//! - **import** (on the other computer, `exo-tunnel --import-from
+//!   tcp/HOST:7447 --remote-instance exo`): subscribes to the remote
+//!   instance's keys and publishes every sample onto that computer's own
+//!   channels of its run file's instance, where its identifier, recorder or
+//!   live view read them as if the run were local. Samples that do not
+//!   decode, carry NaN/inf or come on a key of no channel are counted and
+//!   named in the log, never published.
+//!
+//! The export listens on loopback (`tcp/127.0.0.1:7447`) unless `[tunnel]
+//! listen` names another endpoint (logged); multicast scouting is off, so
+//! the exo computer announces nothing on the network. Access beyond that is
+//! Zenoh's: TLS with client certificates (`[tunnel] zenoh_config`).
+
+pub mod process;
+
+use std::path::Path;
+
+use anyhow::{Context, Result};
+use exo_messages::channels::{Channel, CHANNELS};
+
+/// The Zenoh key of `channel` of `instance`, e.g. `exo/sensor`.
+pub fn key(instance: &str, channel: Channel) -> String {
+    channel.service_name(instance)
+}
+
+/// The channel a Zenoh key of `instance` names, if any.
+pub fn channel_of_key(instance: &str, key: &str) -> Option<Channel> {
+    let suffix = key.strip_prefix(instance)?.strip_prefix('/')?;
+    CHANNELS
+        .iter()
+        .map(|c| c.channel)
+        .find(|c| c.suffix() == suffix)
+}
+
+/// A Zenoh peer configuration: `file` (JSON5) if given, then the
+/// endpoints to listen on and to connect to, multicast scouting off.
+pub fn zenoh_config(
+    listen: &[String],
+    connect: &[String],
+    file: Option<&Path>,
+) -> Result<zenoh::Config> {
+    let mut c = match file {
+        Some(f) => {
+            zenoh::Config::from_file(f).map_err(|e| anyhow::anyhow!("{}: {e}", f.display()))?
+        }
+        None => zenoh::Config::default(),
+    };
+    let set = |c: &mut zenoh::Config, k: &str, v: &str| {
+        c.insert_json5(k, v)
+            .map_err(|e| anyhow::anyhow!("Zenoh configuration {k} = {v}: {e}"))
+    };
+    set(&mut c, "mode", "\"peer\"")?;
+    set(
+        &mut c,
+        "listen/endpoints",
+        &serde_json::to_string(listen).context("endpoints")?,
+    )?;
+    set(
+        &mut c,
+        "connect/endpoints",
+        &serde_json::to_string(connect).context("endpoints")?,
+    )?;
+    set(&mut c, "scouting/multicast/enabled", "false")?;
+    Ok(c)
+}
+
+/// Whether a Zenoh endpoint (`tcp/127.0.0.1:7447`) is on loopback only.
+pub fn is_loopback_endpoint(endpoint: &str) -> bool {
+    let Some((_, addr)) = endpoint.split_once('/') else {
+        return false;
+    };
+    let addr = addr.split('#').next().unwrap_or(addr);
+    addr.parse::<std::net::SocketAddr>()
+        .is_ok_and(|a| a.ip().is_loopback())
+        || addr.starts_with("localhost:")
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn keys_name_the_instance_and_the_channel_and_back() {
+        assert_eq!(key("exo", Channel::Sensor), "exo/sensor");
+        assert_eq!(key("run7", Channel::BusMotor), "run7/bus/motor");
+        for c in &CHANNELS {
+            assert_eq!(channel_of_key("r", &key("r", c.channel)), Some(c.channel));
+        }
+        assert_eq!(channel_of_key("r", "r/nothing"), None);
+        assert_eq!(channel_of_key("r", "other/sensor"), None);
+        assert_eq!(channel_of_key("r", "rr/sensor"), None);
+    }
+
+    #[test]
+    fn loopback_endpoints_are_told_from_others() {
+        assert!(is_loopback_endpoint("tcp/127.0.0.1:7447"));
+        assert!(is_loopback_endpoint("tcp/[::1]:7447"));
+        assert!(is_loopback_endpoint("tcp/localhost:7447"));
+        assert!(!is_loopback_endpoint("tcp/0.0.0.0:7447"));
+        assert!(!is_loopback_endpoint("tcp/192.168.1.5:7447"));
+        assert!(!is_loopback_endpoint("garbage"));
+    }
+
+    #[test]
+    fn the_configuration_is_a_peer_without_scouting() {
+        let c = zenoh_config(
+            &["tcp/127.0.0.1:0".into()],
+            &["tcp/10.0.0.2:7447".into()],
+            None,
+        )
+        .unwrap();
+        assert_eq!(c.get_json("mode").unwrap(), "\"peer\"");
+        assert_eq!(c.get_json("scouting/multicast/enabled").unwrap(), "false");
+        assert!(c
+            .get_json("listen/endpoints")
+            .unwrap()
+            .contains("tcp/127.0.0.1:0"));
+        assert!(c
+            .get_json("connect/endpoints")
+            .unwrap()
+            .contains("tcp/10.0.0.2:7447"));
+        let e = zenoh_config(&[], &[], Some(Path::new("/nonexistent/zenoh.json5"))).unwrap_err();
+        assert!(e.to_string().contains("/nonexistent/zenoh.json5"), "{e}");
+    }
+}

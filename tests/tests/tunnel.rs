@@ -1,0 +1,105 @@
+//! Channels to another host over Zenoh (`exo-tunnel`), both ends on this
+//! machine over loopback: the exo computer's instance runs the control
+//! path and exports; the "other computer" is a second instance whose
+//! tunnel imports, and whose channels then carry the first one's samples
+//! and commands, every one, bit for bit, in order (lockstep).
+
+use std::time::{Duration, Instant};
+
+use exo_messages::channels::{COMMAND, IDENTIFIER_FRF, SENSOR};
+use exo_messages::FrfPoint;
+use exo_tests::*;
+
+fn free_port() -> u16 {
+    std::net::TcpListener::bind("127.0.0.1:0")
+        .unwrap()
+        .local_addr()
+        .unwrap()
+        .port()
+}
+
+#[test]
+fn another_host_receives_every_sample_over_zenoh() {
+    let port = free_port();
+    let endpoint = format!("tcp/127.0.0.1:{port}");
+    let exo = Scenario::new("tunexo", &[("periods = [1, 4, 7]", "periods = [1]")]);
+    exo.append(&format!("\n[tunnel]\nlisten = [\"{endpoint}\"]\n"));
+    let other = Scenario::new("tunother", &[]);
+
+    let mut export = exo.spawn("exo-tunnel", &[]);
+    let mut import = other.spawn(
+        "exo-tunnel",
+        &[
+            "--import-from",
+            &endpoint,
+            "--remote-instance",
+            &exo.instance,
+        ],
+    );
+    let there_samples = other.collect(SENSOR);
+    let there_commands = other.collect(COMMAND);
+    let here_samples = exo.collect(SENSOR);
+    let here_commands = exo.collect(COMMAND);
+
+    // The link is up once a marker published on the exo computer arrives
+    // on the other one (nothing on the exo side reads identifier points
+    // while its identifier is off).
+    let markers = other.collect(IDENTIFIER_FRF);
+    {
+        let ipc = exo_service_kit::ipc::Ipc::open(
+            &format!("tunnel_marker_{}", std::process::id()),
+            &exo.instance,
+            None,
+        )
+        .unwrap();
+        let out = ipc.outbox(IDENTIFIER_FRF).unwrap();
+        let t = Instant::now();
+        let mut seq = 0;
+        while markers.snapshot().is_empty() {
+            assert!(
+                t.elapsed() < Duration::from_secs(60),
+                "the tunnel did not connect: export {} import {}",
+                exo.log("exo-tunnel"),
+                other.log("exo-tunnel")
+            );
+            seq += 1;
+            out.send(FrfPoint {
+                seq,
+                ..Default::default()
+            })
+            .unwrap();
+            std::thread::sleep(Duration::from_millis(50));
+        }
+    }
+    assert!(markers.finish().iter().all(|m| m.seq >= 1));
+
+    let mut plant = exo.spawn("exo-plant-sim", &[]);
+    let mut driver = exo.spawn("exo-sensor-driver", &[]);
+    let mut controller = exo.spawn("exo-controller", &[]);
+    let status = wait_exit(&mut controller, Duration::from_secs(600), "controller");
+    assert!(status.success(), "{}", exo.log("exo-controller"));
+    terminate(&mut driver);
+    terminate(&mut plant);
+    let here_samples = here_samples.finish();
+    let here_commands = here_commands.finish();
+    assert!(here_samples.len() > 5000);
+    there_samples.wait_for(Duration::from_secs(120), "every sample there", |s| {
+        s.len() >= here_samples.len()
+    });
+    there_commands.wait_for(Duration::from_secs(120), "every command there", |s| {
+        s.len() >= here_commands.len()
+    });
+    terminate(&mut export);
+    terminate(&mut import);
+    let there_samples = there_samples.finish();
+    let there_commands = there_commands.finish();
+    assert_eq!(there_samples.len(), here_samples.len());
+    assert!(there_samples == here_samples, "the samples differ");
+    assert!(there_commands == here_commands, "the commands differ");
+    let log = exo.log("exo-tunnel");
+    assert!(log.contains(&endpoint), "{log}");
+    assert!(
+        !log.contains("other hosts can subscribe"),
+        "loopback: {log}"
+    );
+}
