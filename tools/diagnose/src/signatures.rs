@@ -8,9 +8,16 @@
 //!
 //! 1. least squares of the samples on a mean, a linear trend and the
 //!    fundamental, 2nd and 3rd harmonics (cosine and sine each);
-//! 2. the residual's spectrum at the block's DFT frequencies `2πk/T`
-//!    (`X_k = (2/n) Σ r e^{−jω_k t}`), leaving out the bins within one of
-//!    the first five harmonics and the two lowest bins (the trend);
+//! 2. the residual's Hann-windowed spectrum at the block's DFT frequencies
+//!    `2πk/T` (`X_k = (2/Σw) Σ w r e^{−jω_k t}`), leaving out the first
+//!    five harmonics' bins and the two lowest bins (the trend); the window keeps a strong transient from leaking over the
+//!    band, and its equivalent noise bandwidth converts a bin's power to
+//!    that of a harmonic's estimate;
+//! 2b. the strongest non-harmonic bin, when above ten times that floor, is
+//!    **fitted** as a decaying sinusoid at its frequency (decay rate from its
+//!    amplitude in the window's two halves) together with step 1's terms,
+//!    and the floor and the harmonics are measured again without it: the
+//!    arm's ringing separated from the noise;
 //! 3. the noise power per bin is the **median** of `|X_k|²` over those bins
 //!    divided by `ln 2` (white noise makes `|X_k|²` exponential, whose
 //!    median is `ln 2` times its mean). A ringing occupies a few bins, so
@@ -86,68 +93,129 @@ pub fn window_harmonics(t: &[f64], y: &[f64], w: f64) -> Option<(WindowSpectrum,
     let dt = tau[n - 1] / (n - 1) as f64;
     let span = n as f64 * dt;
     let cycles = (span * w / std::f64::consts::TAU).round().max(1.0) as usize;
-    // Mean, trend, and cos/sin of the first three harmonics.
-    let p = 8;
-    let x = DMatrix::from_fn(n, p, |i, j| {
-        let s = tau[i];
-        match j {
-            0 => 1.0,
-            1 => s / span - 0.5,
-            _ => {
-                let h = ((j - 2) / 2 + 1) as f64;
-                if j % 2 == 0 {
-                    (h * w * s).cos()
-                } else {
-                    (h * w * s).sin()
+    let yv = DVector::from_column_slice(&y[..n]);
+    // Mean, trend, cos/sin of the first three harmonics, and (second pass)
+    // a decaying sinusoid `e^{−λt}` at the ringing's frequency.
+    let fit = |ringing: Option<(f64, f64)>| {
+        let p = if ringing.is_some() { 10 } else { 8 };
+        let x = DMatrix::from_fn(n, p, |i, j| {
+            let s = tau[i];
+            match (j, ringing) {
+                (0, _) => 1.0,
+                (1, _) => s / span - 0.5,
+                (8, Some((wr, l))) => (-l * s).exp() * (wr * s).cos(),
+                (9, Some((wr, l))) => (-l * s).exp() * (wr * s).sin(),
+                _ => {
+                    let h = ((j - 2) / 2 + 1) as f64;
+                    if j % 2 == 0 {
+                        (h * w * s).cos()
+                    } else {
+                        (h * w * s).sin()
+                    }
+                }
+            }
+        });
+        let beta = (x.transpose() * &x).try_inverse()? * (x.transpose() * &yv);
+        let r: Vec<f64> = (&yv - &x * &beta).iter().copied().collect();
+        Some((beta, r))
+    };
+    // The residual's Hann-windowed spectrum (sidelobes falling as 1/Δω³,
+    // so a strong transient does not leak over the band): bins 2 … up to
+    // 6 ω, without the first five harmonics' bins and `skip`.
+    let hann: Vec<f64> = (0..n)
+        .map(|i| {
+            (std::f64::consts::PI * (i as f64 + 0.5) / n as f64)
+                .sin()
+                .powi(2)
+        })
+        .collect();
+    let sum_w: f64 = hann.iter().sum();
+    // Equivalent noise bandwidth in bins: a bin's noise power over that
+    // of an unwindowed projection (whose variance the harmonics share).
+    let enbw = n as f64 * hann.iter().map(|v| v * v).sum::<f64>() / (sum_w * sum_w);
+    let kmax = (n / 2).saturating_sub(1).min((6 * cycles).max(40));
+    // Only the harmonics' own bins: with few cycles in the window the
+    // harmonics are a few bins apart, and the least squares removed the
+    // first three anyway.
+    let harmonic_bin = |k: usize| (1..=5).any(|h| k == h * cycles);
+    let spectrum = |r: &[f64], skip: Option<usize>| -> Vec<(usize, f64)> {
+        (2..=kmax)
+            .filter(|&k| !harmonic_bin(k) && skip.is_none_or(|q| (k as i64 - q as i64).abs() > 2))
+            .map(|k| {
+                let wk = std::f64::consts::TAU * k as f64 / span;
+                let mut acc = Complex64::new(0.0, 0.0);
+                for i in 0..n {
+                    acc += (hann[i] * r[i]) * Complex64::from_polar(1.0, -wk * tau[i]);
+                }
+                (k, (acc * (2.0 / sum_w)).norm_sqr())
+            })
+            .collect()
+    };
+    let floor = |pw: &[(usize, f64)]| {
+        let mut v: Vec<f64> = pw.iter().map(|p| p.1).collect();
+        v.sort_by(f64::total_cmp);
+        median(v) / std::f64::consts::LN_2 / enbw
+    };
+    let (beta0, r0) = fit(None)?;
+    let mut power = spectrum(&r0, None);
+    if power.len() < 8 {
+        return None;
+    }
+    let floor0 = floor(&power);
+    power.sort_by(|a, b| b.1.total_cmp(&a.1));
+    // The strongest non-harmonic bin, its decay from the first half of the
+    // window to the second (unwindowed projections of the residual).
+    let peak0 = power.first().map(|&(k, pw)| {
+        let wk = std::f64::consts::TAU * k as f64 / span;
+        let half = n / 2;
+        let a1 = project(&tau[..half], &r0[..half], wk).norm();
+        let a2 = project(&tau[half..], &r0[half..], wk).norm();
+        (k, wk, pw, a2 / a1.max(1e-300))
+    });
+    // A peak well above the floor is fitted as a decaying sinusoid (its
+    // rate from the halves' ratio) and taken out before the floor and the
+    // harmonics are measured: the ringing separated from the noise.
+    let ringing = peak0.filter(|p| p.2 / enbw > 10.0 * floor0);
+    let (beta, noise_power, bins) = match ringing.and_then(|(k, wk, _, ratio)| {
+        // Its frequency and decay rate refined on a small grid about the
+        // bin and the halves' estimate (least residual).
+        let lambda0 = (-ratio.clamp(1e-3, 1.0).ln() / (0.5 * span)).max(0.2 / span);
+        let dw = std::f64::consts::TAU / span;
+        let mut best: Option<(f64, DVector<f64>, Vec<f64>)> = None;
+        for i in -4..=4 {
+            for l in [0.0, 0.5, 0.75, 1.0, 1.5, 2.0, 3.0] {
+                let Some((b, r)) = fit(Some((wk + 0.125 * i as f64 * dw, l * lambda0))) else {
+                    continue;
+                };
+                let rss: f64 = r.iter().map(|v| v * v).sum();
+                if best.as_ref().is_none_or(|x| rss < x.0) {
+                    best = Some((rss, b, r));
                 }
             }
         }
-    });
-    let yv = DVector::from_column_slice(&y[..n]);
-    let beta = (x.transpose() * &x).try_inverse()? * (x.transpose() * &yv);
-    let r: Vec<f64> = (&yv - &x * &beta).iter().copied().collect();
+        let (_, b, r) = best?;
+        let pw = spectrum(&r, Some(k));
+        (pw.len() >= 8).then(|| (b, floor(&pw), pw.len()))
+    }) {
+        Some(x) => x,
+        None => (beta0, floor0, power.len()),
+    };
+    if !(noise_power.is_finite() && noise_power > 0.0) {
+        return None;
+    }
     let amp = |h: usize| beta[2 + 2 * h].hypot(beta[3 + 2 * h]);
     // a cos + b sin = Re((a − j b) e^{jωt}).
     let phasor = |h: usize| Complex64::new(beta[2 + 2 * h], -beta[3 + 2 * h]);
     let phasors = [phasor(0), phasor(1), phasor(2)];
-    let fundamental = amp(0);
-    let harmonics = [amp(1), amp(2)];
-    let kmax = (n / 2).saturating_sub(1).min((6 * cycles).max(40));
-    let harmonic_bin = |k: usize| (1..=5).any(|h| (k as i64 - (h * cycles) as i64).abs() <= 1);
-    let mut power: Vec<(usize, f64)> = (2..=kmax)
-        .filter(|&k| !harmonic_bin(k))
-        .map(|k| {
-            let wk = std::f64::consts::TAU * k as f64 / span;
-            (k, project(&tau, &r, wk).norm_sqr())
-        })
-        .collect();
-    if power.len() < 8 {
-        return None;
-    }
-    let bins = power.len();
-    let mut sorted: Vec<f64> = power.iter().map(|p| p.1).collect();
-    sorted.sort_by(f64::total_cmp);
-    let median = if bins % 2 == 1 {
-        sorted[bins / 2]
-    } else {
-        0.5 * (sorted[bins / 2 - 1] + sorted[bins / 2])
-    };
-    let noise_power = median / std::f64::consts::LN_2;
-    if !(noise_power.is_finite() && noise_power > 0.0) {
-        return None;
-    }
-    power.sort_by(|a, b| b.1.total_cmp(&a.1));
-    let peak = power.first().map(|&(k, pw)| {
-        let wk = std::f64::consts::TAU * k as f64 / span;
-        let half = n / 2;
-        let a1 = project(&tau[..half], &r[..half], wk).norm();
-        let a2 = project(&tau[half..], &r[half..], wk).norm();
-        (wk, pw.sqrt(), pw / noise_power, a2 / a1.max(1e-300))
+    let peak = peak0.map(|(_, wk, pw, ratio)| {
+        // Amplitude of a steady sinusoid at the bin (the window's gain
+        // taken out), power over the floor in the same units.
+        (wk, pw.sqrt(), pw / (noise_power * enbw), ratio)
     });
     Some((
         WindowSpectrum {
-            fundamental,
-            harmonics,
+            fundamental: amp(0),
+            harmonics: [amp(1), amp(2)],
             noise_power,
             bins,
             peak,
