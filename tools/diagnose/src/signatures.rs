@@ -13,22 +13,22 @@
 //!    five harmonics' bins and the two lowest bins (the trend); the window keeps a strong transient from leaking over the
 //!    band, and its equivalent noise bandwidth converts a bin's power to
 //!    that of a harmonic's estimate;
-//! 2b. the strongest non-harmonic bin, when above ten times that floor, is
+//! 3. the strongest non-harmonic bin, when above ten times that floor, is
 //!    **fitted** as a decaying sinusoid at its frequency (decay rate from its
 //!    amplitude in the window's two halves) together with step 1's terms,
 //!    and the floor and the harmonics are measured again without it: the
 //!    arm's ringing separated from the noise;
-//! 3. the noise power per bin is the **median** of `|X_k|²` over those bins
+//! 4. the noise power per bin is the **median** of `|X_k|²` over those bins
 //!    divided by `ln 2` (white noise makes `|X_k|²` exponential, whose
 //!    median is `ln 2` times its mean). A ringing occupies a few bins, so
 //!    the median is not lifted by it as a mean would be (the test this
 //!    replaces took the level at 2.5 ω as the floor, where the ringing of
 //!    the arm at its natural frequency often is);
-//! 4. a harmonic's `|A_h|²` over that noise power is `Exp(1)` under noise
+//! 5. a harmonic's `|A_h|²` over that noise power is `Exp(1)` under noise
 //!    alone (its sine and cosine are orthogonal to the others over whole
 //!    cycles, so their estimates have the bins' variance); summed over an
 //!    experiment's `n` windows, twice the sum is `χ²(2n)`: the p-value;
-//! 5. the strongest bin that is no harmonic is the window's non-harmonic
+//! 6. the strongest bin that is no harmonic is the window's non-harmonic
 //!    content; beyond `−ln(α/bins)` times the noise power it is reported
 //!    with its frequency and its amplitude in the first and in the second
 //!    half of the window: a ratio below 0.8 is a transient that decays (the
