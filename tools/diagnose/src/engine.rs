@@ -1367,6 +1367,21 @@ impl StepContext<'_> {
     }
 }
 
+/// "explains N % of the misfit left at its step", or, when what was left
+/// was already below the noise's expectation (`RSS₀ ≤ n − p₀`, share not
+/// defined), says so.
+fn share_words(share: f64) -> String {
+    if share.is_finite() {
+        format!(
+            "explains {:.0} % of the misfit left at its step",
+            100.0 * share
+        )
+    } else {
+        "the misfit left at its step was already below the noise's expectation (no share defined)"
+            .into()
+    }
+}
+
 /// Runs the whole diagnosis of `d` against the plant model `nominal`.
 pub fn diagnose(
     d: &Dataset,
@@ -1460,11 +1475,11 @@ pub fn diagnose(
                 .filter(|t| t.shows_in().iter().any(|tf| d.supported.contains(tf)))
                 .collect()
         };
-        // The catalogue first. When none of its terms is accepted, or the
-        // one accepted would explain less than half of the misfit (a
-        // partial answer), the library of generic forms, with the same
+        // The catalogue, then the library of generic forms with the same
         // criteria (Holm over the forms tried); a form accepted there is
-        // taken when it explains more of the misfit than the catalogue's.
+        // taken when it leaves less misfit than the catalogue's term (a
+        // small catalogue term must not stand in for a form that explains
+        // far more: a weak stretch reflex for a polynomial spring).
         let tried = eligible(&s.candidates);
         let mut rows = ctx.evaluate(&tried);
         let mut pick = ctx.select(&mut rows);
@@ -1477,39 +1492,27 @@ pub fn diagnose(
                 candidates: rows.iter().map(|r| r.0.clone()).collect(),
             });
         }
-        let share = |rows: &[Row], i: usize| {
-            let x = rows[i].0.explained_share;
-            if x.is_nan() {
-                0.0
-            } else {
-                x
-            }
-        };
-        let whole = pick.is_some_and(|i| share(&rows, i) >= 0.5);
-        let forms = if whole {
-            Vec::new()
-        } else {
-            eligible(&s.forms)
-        };
+        let forms = eligible(&s.forms);
         if !forms.is_empty() {
             let mut form_rows = ctx.evaluate(&forms);
             let form_pick = ctx.select(&mut form_rows);
             let better =
-                form_pick.filter(|&j| pick.is_none_or(|i| share(&form_rows, j) > share(&rows, i)));
+                form_pick.filter(|&j| pick.is_none_or(|i| form_rows[j].1.rss < rows[i].1.rss));
             if let Some(j) = form_pick.filter(|_| better.is_none()) {
                 form_rows[j].0.chosen = false;
-                form_rows[j].0.rejected_because.push(
-                    "the catalogue's term accepted at this step explains more of the misfit".into(),
-                );
+                form_rows[j]
+                    .0
+                    .rejected_because
+                    .push("the catalogue's term accepted at this step leaves less misfit".into());
             }
             if better.is_some() {
                 if let (Some(i), true) = (pick, searched) {
                     let c = &mut steps[catalogue_step].candidates[i];
                     c.chosen = false;
                     c.rejected_because.push(format!(
-                        "a generic form explains more of the misfit ({:.0} % against {:.0} %)",
-                        100.0 * share(&form_rows, better.unwrap_or(0)),
-                        100.0 * share(&rows, i)
+                        "a generic form leaves less misfit (RSS {:.1} against {:.1})",
+                        form_rows[better.unwrap_or(0)].1.rss,
+                        rows[i].1.rss
                     ));
                 }
                 rows = form_rows.clone();
@@ -1552,27 +1555,27 @@ pub fn diagnose(
             );
             let sentence = if t.generic() {
                 format!(
-                    "{}: {}, {description}; explains {:.0} % of the misfit left at its step{}; {stats}",
+                    "{}: {}, {description}; {}{}; {stats}",
                     if partial {
                         "partly explained by a form outside the catalogue"
                     } else {
                         "discovered outside the catalogue"
                     },
                     t.words(),
-                    100.0 * c.explained_share,
+                    share_words(c.explained_share),
                     if partial { ", most of it remains" } else { "" }
                 )
             } else if partial {
                 format!(
-                    "partly explained by {}, {description}: it explains {:.0} % of the misfit left at its step; most of it remains ({stats})",
+                    "partly explained by {}, {description}: it {}; most of it remains ({stats})",
                     t.words(),
-                    100.0 * c.explained_share
+                    share_words(c.explained_share)
                 )
             } else {
                 format!(
-                    "left out: {}, {description}; explains {:.0} % of the misfit left at its step; {stats}",
+                    "left out: {}, {description}; {}; {stats}",
                     t.words(),
-                    100.0 * c.explained_share
+                    share_words(c.explained_share)
                 )
             };
             Found {
