@@ -260,6 +260,21 @@ fn t_p(value: f64, se: f64, dof: f64) -> f64 {
     StudentsT::new(0.0, 1.0, dof).map_or(f64::NAN, |t| 2.0 * t.sf((value / se).abs()))
 }
 
+/// The last coefficient of the weighted regression of part `k` (0 in
+/// phase, 1 in quadrature) of the rows' residual on the columns of `x`.
+fn last_coefficient(rs: &[Row], x: &DMatrix<f64>, k: usize) -> Option<Estimate> {
+    let y: Vec<f64> = rs.iter().map(|r| r.rel[k]).collect();
+    let sd: Vec<f64> = rs.iter().map(|r| r.sd[k]).collect();
+    wls(x, &y, &sd).map(|(b, se, _, dof)| {
+        let j = b.len() - 1;
+        Estimate {
+            value: b[j],
+            std_error: se[j],
+            p_value: t_p(b[j], se[j], dof),
+        }
+    })
+}
+
 /// Smooth trend columns in `ln ω` for the observations of `sel`.
 fn trend(rows: &[Row], sel: &dyn Fn(&Row) -> bool) -> Vec<Vec<f64>> {
     let xs: Vec<f64> = rows
@@ -365,18 +380,7 @@ pub fn characterise(d: &Dataset, phys: &Physics, level: f64) -> Vec<Remains> {
             }
             cols.push(rs.iter().map(|r| f64::from(u8::from(high(r)))).collect());
             let x = matrix(&cols);
-            let fit_part = |k: usize| {
-                let y: Vec<f64> = rs.iter().map(|r| r.rel[k]).collect();
-                let sd: Vec<f64> = rs.iter().map(|r| r.sd[k]).collect();
-                wls(&x, &y, &sd).map(|(b, se, _, dof)| {
-                    let j = b.len() - 1;
-                    Estimate {
-                        value: b[j],
-                        std_error: se[j],
-                        p_value: t_p(b[j], se[j], dof),
-                    }
-                })
-            };
+            let fit_part = |k: usize| last_coefficient(&rs, &x, k);
             let ip = fit_part(0);
             let q = if tf.is_dynamic() { fit_part(1) } else { None };
             ip.map(|in_phase| {
@@ -423,18 +427,7 @@ pub fn characterise(d: &Dataset, phys: &Physics, level: f64) -> Vec<Remains> {
             }
             cols.push(rs.iter().map(|r| (th(r) / 0.1).powi(2)).collect());
             let x = matrix(&cols);
-            let fit_part = |k: usize| {
-                let y: Vec<f64> = rs.iter().map(|r| r.rel[k]).collect();
-                let sd: Vec<f64> = rs.iter().map(|r| r.sd[k]).collect();
-                wls(&x, &y, &sd).map(|(b, se, _, dof)| {
-                    let j = b.len() - 1;
-                    Estimate {
-                        value: b[j],
-                        std_error: se[j],
-                        p_value: t_p(b[j], se[j], dof),
-                    }
-                })
-            };
+            let fit_part = |k: usize| last_coefficient(&rs, &x, k);
             fit_part(0).map(|in_phase| {
                 let q = fit_part(1);
                 let lo = rs.iter().map(th).fold(f64::INFINITY, f64::min);
@@ -811,18 +804,7 @@ fn over_time(
     let mut cols = base;
     cols.push(minutes);
     let x = matrix(&cols);
-    let fit_part = |k: usize| {
-        let y: Vec<f64> = rs.iter().map(|r| r.rel[k]).collect();
-        let sd: Vec<f64> = rs.iter().map(|r| r.sd[k]).collect();
-        wls(&x, &y, &sd).map(|(b, se, _, dof)| {
-            let j = b.len() - 1;
-            Estimate {
-                value: b[j],
-                std_error: se[j],
-                p_value: t_p(b[j], se[j], dof),
-            }
-        })
-    };
+    let fit_part = |k: usize| last_coefficient(rs, &x, k);
     let ip = fit_part(0);
     let q = if tf.is_dynamic() { fit_part(1) } else { None };
     let significant =
