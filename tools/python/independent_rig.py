@@ -270,7 +270,7 @@ def min_jerk(x):
     return x**3 * (10.0 - 15.0 * x + 6.0 * x**2)
 
 
-def simulate(specs, pre_window_s=PRE_WINDOW_S, k_cubic=0.0, k_exo_spring=0.0):
+def simulate(specs, pre_window_s=PRE_WINDOW_S, k_cubic=0.0, k_exo_spring=0.0, k_drift=0.0):
     """Simulates the periods side by side (vectorised over periods), RK4 with
     the controller's torque held over each 2 ms tick, from rest at the start
     of the ramp-in to the end of the analysis window. Returns the recorded
@@ -281,12 +281,19 @@ def simulate(specs, pre_window_s=PRE_WINDOW_S, k_cubic=0.0, k_exo_spring=0.0):
     k_exo_spring (Nm/rad): a spring in the exoskeleton joint centred at the
     period's posture goal, -k (theta - theta_goal) on the arm (a cable or
     harness; no term of exo's catalogue): it stiffens S_h-e by k without
-    changing the static balance at the goal posture."""
+    changing the static balance at the goal posture.
+    k_drift (1/min): the human's stiffness drifting within each experiment,
+    K(t) = K (1 + k_drift t / 60), t (s) from the start of the experiment's
+    first analysis window (period k's window starts k T_PERIOD after it);
+    the static spring k0 carries the change, so the loss H stays."""
     rec0 = T_ANALYSIS - ticks(pre_window_s)
     n_rec = N_SIM - rec0
     col = lambda key: np.array([s[key] for s in specs], dtype=float)
     alpha, load, m_h = col("alpha"), col("load_kg"), col("m_h")
     k, b, km, inv_tau = col("k0"), col("b0"), col("km"), 1.0 / col("tau_m")
+    # The static stiffness at every tick: k0 + k_drift K t / 60.
+    t_exp = ((col("period") - 1.0) * T_PERIOD)[:, None] * DT + (np.arange(N_SIM) - T_ANALYSIS)[None, :] * DT
+    k_t = k[:, None] + (k_drift / 60.0) * col("k")[:, None] * t_exp
     omega, amp, bias = col("omega"), col("amplitude"), col("bias_nm")
     th_rest, th_goal = col("theta_rest"), col("theta_goal")
     P = len(specs)
@@ -304,8 +311,8 @@ def simulate(specs, pre_window_s=PRE_WINDOW_S, k_cubic=0.0, k_exo_spring=0.0):
     plan = th_rest[:, None] + (th_goal - th_rest)[:, None] * min_jerk(t_mid / RAMP_IN_S)[None, :]
     bias_mid = bias[:, None] * smooth_ramp(t_mid / RAMP_IN_S)[None, :]
     dg = (g_comp - g_true)[:, None] * np.sin(plan)
-    th_p = plan - (bias_mid + dg) / (alpha * k)[:, None]  # k: the static stiffness k0
-    u = k[:, None] * th_p
+    th_p = plan - (bias_mid + dg) / (alpha[:, None] * k_t)  # k_t: the static stiffness k0
+    u = k_t * th_p
     for i, s in enumerate(specs):
         u[i, s["twitch_tick"]:s["twitch_tick"] + TWITCH_TICKS] += s["twitch_nm"]
     n_enc = np.stack([s["noise_enc"] for s in specs])
@@ -331,8 +338,9 @@ def simulate(specs, pre_window_s=PRE_WINDOW_S, k_cubic=0.0, k_exo_spring=0.0):
     for n in range(N_SIM):
         t = n * DT
         un = u[:, n]
+        kn = k_t[:, n]
         # --- sensors at tick n
-        f_h = b * om + k * th + km * (th - q) - un  # the human's passive torque less the voluntary
+        f_h = b * om + kn * th + km * (th - q) - un  # the human's passive torque less the voluntary
         if k_cubic:
             f_h = f_h + k_cubic * (th - th_p[:, n]) ** 3
         acc = (ts - g_true * np.sin(th) - k_exo_spring * (th - th_goal) - f_h) * inv_m
@@ -366,7 +374,7 @@ def simulate(specs, pre_window_s=PRE_WINDOW_S, k_cubic=0.0, k_exo_spring=0.0):
         def f(th_, om_, ts_, dts_, q_):
             cubic = k_cubic * (th_ - thp) ** 3 if k_cubic else 0.0
             spring = k_exo_spring * (th_ - th_goal)
-            return (om_, (ts_ - g_true * np.sin(th_) - spring - b * om_ - k * th_ - km * (th_ - q_) - cubic + un)
+            return (om_, (ts_ - g_true * np.sin(th_) - spring - b * om_ - kn * th_ - km * (th_ - q_) - cubic + un)
                     * inv_m,
                     dts_, w2 * (tau_d - ts_) - z2 * dts_, (th_ - q_) * inv_tau)
         k1 = f(th, om, ts, dts, q)
@@ -776,6 +784,9 @@ def main(argv=None):
                     help="stiffening spring of the human joint: K3 (theta - theta_p)^3, Nm/rad^3 (0 = linear)")
     ap.add_argument("--exo-spring", type=float, default=0.0, metavar="K",
                     help="spring in the exoskeleton joint centred at the posture goal, Nm/rad (0 = none)")
+    ap.add_argument("--k-drift", type=float, default=0.0, metavar="RHO",
+                    help="the human's stiffness drifting within each experiment, K (1 + RHO t/60), "
+                         "RHO per minute, t from the experiment's first analysis window (0 = none)")
     ap.add_argument("--batch-periods", type=int, default=400, help="periods simulated side by side")
     a = ap.parse_args(argv)
     experiments = parse_experiments(a.experiments)
@@ -836,11 +847,12 @@ def main(argv=None):
     name = a.subject or f"indep{a.seed}"
     specs = period_specs(a.seed, subj, experiments, a.periods, a.noise_scale, a.twitch, a.damping)
     warn_unstable([(name, specs)])
-    sim = simulate(specs, a.pre_window, a.k3, a.exo_spring)
+    sim = simulate(specs, a.pre_window, a.k3, a.exo_spring, a.k_drift)
     write_recording(a.out, name, a.seed, specs, sim, a.noise_scale, a.writer)
     if a.truth:
         t = subject_truth(name, a.seed, subj, specs)
-        t.update(rig=rig_truth(), k3_nm_per_rad3=a.k3, exo_spring_nm_per_rad=a.exo_spring, noise_scale=a.noise_scale, twitch_sigma_nms=a.twitch, damping=a.damping,
+        t.update(rig=rig_truth(), k3_nm_per_rad3=a.k3, exo_spring_nm_per_rad=a.exo_spring,
+                 k_drift_per_min=a.k_drift, noise_scale=a.noise_scale, twitch_sigma_nms=a.twitch, damping=a.damping,
                  experiments_written=experiments,
                  periods=a.periods)
         with open(a.truth, "w") as f:

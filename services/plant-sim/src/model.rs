@@ -70,6 +70,10 @@ pub const PLANT_RANGES: Ranges = &[
         Range::closed(0.0, 1000.0),
     ),
     ("human.stretch_reflex.delay_s", Range::closed(0.0, 1.0)),
+    (
+        "human.cubic_stiffness_nm_per_rad3",
+        Range::closed(-1e5, 1e5),
+    ),
     ("human.stretch_reflex.cutoff_rad_s", Range::above(0.0, 1e4)),
     (
         "human.rest_angle_rad",
@@ -278,6 +282,13 @@ pub struct Human {
     /// Stretch-reflex pathway (off when the section is absent).
     #[serde(default)]
     pub stretch_reflex: StretchReflex,
+    /// Cubic stiffness `K₃` of the joint (Nm/rad³): the spring is
+    /// `K (θ_h − θ_eq) + K₃ (θ_h − θ_eq)³` about the posture the human
+    /// holds; positive stiffens, negative softens; 0 (the default when the
+    /// key is absent) is a linear spring. `exo diagnose` writes it when it
+    /// discovers a polynomial spring. Range [−1e5, 1e5].
+    #[serde(default)]
+    pub cubic_stiffness_nm_per_rad3: f64,
     /// Posture the subject holds at rest and during a period (rad). Range [−2π, 2π].
     pub rest_angle_rad: f64,
     /// Posture during a period (the paper: about 45°). Range [−2π, 2π].
@@ -646,6 +657,10 @@ impl PlantModel {
             ),
             ("human.stretch_reflex.delay_s".into(), r.delay_s),
             ("human.stretch_reflex.cutoff_rad_s".into(), r.cutoff_rad_s),
+            (
+                "human.cubic_stiffness_nm_per_rad3".into(),
+                h.cubic_stiffness_nm_per_rad3,
+            ),
             ("human.rest_angle_rad".into(), h.rest_angle_rad),
             ("human.active_angle_rad".into(), h.active_angle_rad),
             ("exo.arm_inertia_kg_m2".into(), self.exo.arm_inertia_kg_m2),

@@ -663,7 +663,7 @@ impl Plant {
         self.u[U_THETA_EQ] = self.drive.theta_eq_rad;
         self.u[U_OMEGA_EQ] = self.drive.omega_eq_rad_s;
         self.u[U_TAU_NL] = self.nonlinear_torque();
-        self.u[U_TAU_REFLEX] = self.reflex_torque();
+        self.u[U_TAU_REFLEX] = self.reflex_torque() + self.cubic_spring_torque();
         let (x, u) = (self.x.as_slice(), self.u.as_slice());
         let (cols, next) = (&self.phi_gamma_cols, self.x_next.as_mut_slice());
         // Up to 16 states (rigid cuff with the SEA: 4; compliant: 6; a
@@ -717,6 +717,18 @@ impl Plant {
         } else {
             0.0
         }
+    }
+
+    /// The cubic part of the human's spring on the human joint (Nm):
+    /// `−K₃ (θ_h − θ_eq)³`, held over the step like the reflex; 0 when
+    /// `human.cubic_stiffness_nm_per_rad3` is 0.
+    fn cubic_spring_torque(&self) -> f64 {
+        let k3 = self.model.human.cubic_stiffness_nm_per_rad3;
+        if k3 == 0.0 {
+            return 0.0;
+        }
+        let d = self.x[self.layout.th_h] - self.drive.theta_eq_rad;
+        -k3 * d * d * d
     }
 
     /// Feeds the stretch velocity through the reflex's delay and its two

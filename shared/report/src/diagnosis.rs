@@ -600,32 +600,17 @@ pub fn text(r: &Diagnosis) -> String {
             s.windows
         );
     }
+    // Harmonics against each window's own noise, the ringing kept out of
+    // it (`exo_diagnose::signatures`): the lines of section 5.
     let harm: Vec<String> = r
-        .location
-        .time
+        .remains
         .iter()
-        .filter(|t| t.harmonics[1] > 3.0 * t.floor && t.harmonics[1] > 0.01)
-        .map(|t| {
-            format!(
-                "{} in experiment {} (3rd harmonic {:.1} % of the fundamental, floor {:.1} %)",
-                t.channel,
-                t.experiment,
-                100.0 * t.harmonics[1],
-                100.0 * t.floor
-            )
-        })
+        .flat_map(|rm| rm.words.iter())
+        .filter(|l| l.contains("harmonic of the excitation"))
+        .cloned()
         .collect();
-    if harm.is_empty() {
-        let _ = writeln!(
-            w,
-            "  - time domain: no harmonic of the excitation above the noise floor"
-        );
-    } else {
-        let _ = writeln!(
-            w,
-            "  - time domain: harmonics of the excitation above the noise: {}",
-            harm.join("; ")
-        );
+    for l in &harm {
+        let _ = writeln!(w, "  - time domain: {l}");
     }
     let _ = writeln!(w, "\n2. Parameters of the nominal model, refitted");
     let _ = writeln!(

@@ -118,6 +118,20 @@ pub fn cases() -> Vec<Case> {
             nominal: viscous_tuned,
         },
         Case {
+            name: "stiffening",
+            what: "outside the catalogue: a stiffening human spring, K₃ = 120 Nm/rad³ about the held posture (the library's polynomial spring)",
+            expected: vec![Term::CubicStiffness],
+            truth: |m, _, scale| m.human.cubic_stiffness_nm_per_rad3 = 120.0 * scale,
+            nominal: same,
+        },
+        Case {
+            name: "stiffening-strong",
+            what: "outside the catalogue: a stiffening human spring, K₃ = 400 Nm/rad³ about the held posture",
+            expected: vec![Term::CubicStiffness],
+            truth: |m, _, scale| m.human.cubic_stiffness_nm_per_rad3 = 400.0 * scale,
+            nominal: same,
+        },
+        Case {
             name: "null-seed",
             what: "no missing physics: the nominal model, another noise seed",
             expected: vec![],

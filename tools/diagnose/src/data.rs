@@ -94,6 +94,11 @@ pub struct Condition {
     pub sin_theta_mean: f64,
     /// Control period of the recording (s).
     pub sample_period_s: f64,
+    /// Start of the window (s from the recording's first sensor sample).
+    pub start_s: f64,
+    /// Time from the start of the experiment's first window to this
+    /// window's start (s): its place in time within the experiment.
+    pub elapsed_s: f64,
 }
 
 /// One measured transfer-function value.
@@ -377,6 +382,8 @@ pub fn reduce(recordings: &[Recording], s: &Reduction) -> Dataset {
                 theta_amp_rad: 0.0,
                 sin_theta_mean: theta0.sin(),
                 sample_period_s: dt,
+                start_s: t0.saturating_sub(r.sensor[0].stamp_ns) as f64 * 1e-9,
+                elapsed_s: 0.0,
             };
             let before = d.observations.len();
             if sp.omega > 0.0 {
@@ -411,6 +418,16 @@ pub fn reduce(recordings: &[Recording], s: &Reduction) -> Dataset {
                 d.signals.push(sig);
             }
         }
+    }
+    // Each window's time within its experiment (from the experiment's
+    // first window; a recording's experiments keep their own clocks).
+    let mut first: BTreeMap<u32, f64> = BTreeMap::new();
+    for c in &d.conditions {
+        let f = first.entry(c.experiment).or_insert(c.start_s);
+        *f = f.min(c.start_s);
+    }
+    for c in &mut d.conditions {
+        c.elapsed_s = c.start_s - first[&c.experiment];
     }
     let mut sup: Vec<Tf> = d.observations.iter().map(|o| o.tf).collect();
     sup.sort_unstable();

@@ -45,6 +45,9 @@ pub struct Settings {
     pub nominal_subject: Option<BTreeMap<u32, (f64, f64)>>,
     /// Candidate terms allowed (default: the whole catalogue).
     pub candidates: Vec<Term>,
+    /// Generic forms tried when no catalogue term is accepted (default:
+    /// the whole library, [`Term::FORMS`]).
+    pub forms: Vec<Term>,
 }
 
 impl Default for Settings {
@@ -54,6 +57,7 @@ impl Default for Settings {
             max_terms: 4,
             nominal_subject: None,
             candidates: Term::ALL.to_vec(),
+            forms: Term::FORMS.to_vec(),
         }
     }
 }
@@ -223,6 +227,13 @@ pub struct Candidate {
     /// Its parameters fitted separately at each excitation amplitude
     /// (checked only for a candidate every other criterion accepts).
     pub amplitude_check: Option<AmplitudeCheck>,
+    /// Whether the change within a window that it predicts (a drift does)
+    /// is in the data; `None` when it predicts none.
+    pub within_window_check: Option<WindowCheck>,
+    /// Whether the 3rd harmonic of `τ_c` it predicts (a polynomial spring
+    /// does, [`crate::signatures::cubic_harmonic_check`]) is in the data, by
+    /// the same rule; `None` when it predicts none.
+    pub harmonic_check: Option<WindowCheck>,
     /// Its F-test is significant after Holm's correction.
     pub significant: bool,
     /// Why it was not accepted (empty when accepted).
@@ -262,6 +273,76 @@ pub struct TfCheck {
     pub contradicts: bool,
 }
 
+/// What a candidate predicts within the windows (the change from the first
+/// half of each window to its second, [`crate::remains::within_window_rates`])
+/// against what the data show there: with `m` the whitened predicted rate
+/// of change (candidate less current model) and `y` the measured one,
+/// `β = y·m/|m|²` is the fraction of the predicted change the data follow,
+/// its standard error `1/|m|` scaled by the scatter about `β m`.
+#[derive(Debug, Clone, Serialize)]
+pub struct WindowCheck {
+    /// Windows split in halves.
+    pub windows: usize,
+    /// `|m|²`.
+    pub moved: f64,
+    /// `β`.
+    pub confirmed: f64,
+    /// Its standard error.
+    pub confirmed_se: f64,
+    /// Contradicted by the same rule as a transfer function: `|m|² ≥ 1`
+    /// and `β < ½ − z·se`.
+    pub contradicts: bool,
+}
+
+/// The check of [`WindowCheck`] for the change from `before` to `after`;
+/// `None` when `after` predicts no change within a window.
+fn window_check(d: &Dataset, before: &Physics, after: &Physics, z: f64) -> Option<WindowCheck> {
+    let (mut ym, mut mm, mut rows) = (0.0, 0.0, Vec::new());
+    for tf in [Tf::Sh, Tf::She] {
+        if !d.supported.contains(&tf) {
+            continue;
+        }
+        for r in crate::remains::within_window_rates(d, tf) {
+            let o = &r.observation;
+            let c = d.conditions[o.window];
+            let mut later = c;
+            later.elapsed_s += r.dt_s;
+            let rate = |p: &Physics| {
+                (p.predict_tf(tf, o.omega_rad_s, &later, o.gravity_comp)
+                    - p.predict_tf(tf, o.omega_rad_s, &c, o.gravity_comp))
+                    * o.value.conj()
+                    / o.value.norm_sqr()
+                    * (100.0 / r.dt_s)
+            };
+            let m = rate(after) - rate(before);
+            for (k, mk) in [m.re, m.im].into_iter().enumerate() {
+                let (y, mw) = (r.rate[k] / r.sd, mk / r.sd);
+                ym += y * mw;
+                mm += mw * mw;
+                rows.push((y, mw));
+            }
+        }
+    }
+    if mm.is_nan() || mm <= 1e-12 {
+        return None;
+    }
+    let beta = ym / mm;
+    let dof = (rows.len() as f64 - 1.0).max(1.0);
+    let scatter = rows
+        .iter()
+        .map(|(y, m)| (y - beta * m).powi(2))
+        .sum::<f64>()
+        / dof;
+    let se = (scatter.max(1.0) / mm).sqrt();
+    Some(WindowCheck {
+        windows: rows.len() / 2,
+        moved: mm,
+        confirmed: beta,
+        confirmed_se: se,
+        contradicts: mm >= 1.0 && beta < 0.5 - z * se,
+    })
+}
+
 /// A candidate's parameters fitted separately at two excitation amplitudes.
 /// Every catalogue term's parameters are amplitude-independent (friction's
 /// describing function carries the amplitude), so a parameter that differs
@@ -289,6 +370,9 @@ pub struct AmplitudeCheck {
 pub struct Step {
     /// Step number (1-based).
     pub step: usize,
+    /// The candidates are the library's generic forms (tried at a step
+    /// where no catalogue term was accepted), not catalogue terms.
+    pub forms: bool,
     /// Every candidate's statistics, best first.
     pub candidates: Vec<Candidate>,
 }
@@ -317,6 +401,8 @@ pub struct Found {
     /// It explains less than half of the misfit and structure remains after
     /// it: a part of the answer, not the answer.
     pub partial: bool,
+    /// A generic form outside the catalogue (discovered physics).
+    pub discovered: bool,
     /// The sentence.
     pub sentence: String,
 }
@@ -363,7 +449,9 @@ impl Diagnosis {
     }
 }
 
-fn band_of(w: f64) -> &'static str {
+/// The frequency band of ω (rad/s) the location and the characterisation of
+/// what remains summarise by.
+pub(crate) fn band_of(w: f64) -> &'static str {
     if w < 4.0 {
         "low (< 4 rad/s)"
     } else if w < 10.0 {
@@ -717,6 +805,22 @@ fn statistical_reasons(c: &Candidate, level: f64) -> Vec<String> {
     if !c.identified {
         why.push("its parameters are not determined".into());
     }
+    if let Some(w) = c.within_window_check.as_ref().filter(|w| w.contradicts) {
+        why.push(format!(
+            "the change within a window it predicts is not in the data: the second half of each of {} windows against its first follows {:.0} ± {:.0} % of the change it predicts",
+            w.windows,
+            100.0 * w.confirmed,
+            100.0 * w.confirmed_se
+        ));
+    }
+    if let Some(w) = c.harmonic_check.as_ref().filter(|w| w.contradicts) {
+        why.push(format!(
+            "the 3rd harmonic of τ_c it predicts is not in the data: over {} windows the data show {:.0} ± {:.0} % of the harmonic it predicts",
+            w.windows,
+            100.0 * w.confirmed,
+            100.0 * w.confirmed_se
+        ));
+    }
     for t in c.tf_checks.iter().filter(|t| t.contradicts) {
         why.push(if t.rss_after > t.rss_before {
             format!(
@@ -832,6 +936,7 @@ fn ranges(p: &[u32]) -> String {
 /// Fits the candidate model (`fitted`, free parameters `free`) on each
 /// amplitude group alone and compares the candidate's own parameters
 /// (`added`) between the groups.
+#[allow(clippy::too_many_arguments)]
 fn amplitude_check(
     d: &Dataset,
     fitted: &Fitted,
@@ -839,6 +944,7 @@ fn amplitude_check(
     free: &[Param],
     added: &[Param],
     must_confirm: bool,
+    shows_in_balance: bool,
     level: f64,
 ) -> AmplitudeCheck {
     let mut fits = Vec::new();
@@ -861,6 +967,71 @@ fn amplitude_check(
             })
             .collect();
         fits.push(fit(d, &fitted.physics, &f, &sel));
+    }
+    // A group where the candidate changes the frequency responses by less
+    // than the forward model's own accuracy (RMS over the group, relative
+    // to each value) cannot test it: its parameter there is set by the
+    // model's systematic error, not by the term (a polynomial spring at
+    // the high-frequency periods, whose angle amplitude is small). A term
+    // that shows in the static balance, and one whose amplitude scaling
+    // must be confirmed (Coulomb friction), are always compared.
+    let effect_pct: Vec<f64> = (0..2u8)
+        .map(|grp| {
+            let mut absent = fitted.physics.clone();
+            for &q in added {
+                absent.set(q, q.absent());
+            }
+            let rel: Vec<f64> = d
+                .observations
+                .iter()
+                .filter(|o| o.tf.is_dynamic() && g.group[o.window] == Some(grp))
+                .map(|o| {
+                    let c = &d.conditions[o.window];
+                    ((fitted.physics.predict(o, c) - absent.predict(o, c)).norm()
+                        / o.value.norm().max(1e-12))
+                    .powi(2)
+                })
+                .collect();
+            100.0 * (rel.iter().sum::<f64>() / rel.len().max(1) as f64).sqrt()
+        })
+        .collect();
+    let testable = must_confirm
+        || shows_in_balance
+        || effect_pct
+            .iter()
+            .all(|e| *e >= 100.0 * crate::fit::MODEL_ACCURACY);
+    if !testable {
+        let each: Vec<String> = (0..2)
+            .map(|i| {
+                format!(
+                    "{:.2} % at {:.1} Nm (periods {})",
+                    effect_pct[i], g.amplitudes[i], g.periods[i]
+                )
+            })
+            .collect();
+        return AmplitudeCheck {
+            amplitudes_nm: g.amplitudes,
+            periods: g.periods.clone(),
+            params: added
+                .iter()
+                .map(|&q| {
+                    (
+                        q.label(),
+                        [fits[0].physics.get(q), fits[1].physics.get(q)],
+                        [
+                            fits[0].std_error(q).unwrap_or(f64::NAN),
+                            fits[1].std_error(q).unwrap_or(f64::NAN),
+                        ],
+                    )
+                })
+                .collect(),
+            inconsistent: false,
+            words: format!(
+                "not compared between amplitudes: its effect on the frequency responses ({}) is within the forward model's accuracy ({:.1} %) in one group, which therefore cannot test it",
+                each.join(", "),
+                100.0 * crate::fit::MODEL_ACCURACY
+            ),
+        };
     }
     let z = normal_quantile(1.0 - level / (2.0 * added.len().max(1) as f64));
     // Materiality: the forward model's own systematic error (0.5 %, and
@@ -953,8 +1124,10 @@ fn not_named(steps: &[Step]) -> Vec<String> {
     let Some(last) = steps.last() else {
         return Vec::new();
     };
-    last.candidates
+    steps
         .iter()
+        .filter(|s| s.step == last.step)
+        .flat_map(|s| s.candidates.iter())
         .filter(|c| !c.chosen && c.significant && !c.rejected_because.is_empty())
         .take(3)
         .map(|c| {
@@ -975,7 +1148,7 @@ fn not_named(steps: &[Step]) -> Vec<String> {
 pub fn nominal_free(p: &Physics, experiments: &[u32], supported: &[Tf]) -> Vec<Param> {
     let mut free: Vec<Param> = experiments.iter().map(|&e| Param::K(e)).collect();
     free.push(Param::Mh);
-    for t in Term::ALL {
+    for t in Term::ALL.into_iter().chain(Term::FORMS) {
         if t.in_nominal(p) && t.shows_in().iter().any(|tf| supported.contains(tf)) {
             free.extend(t.params(experiments));
         }
@@ -1019,6 +1192,194 @@ fn summary_of(cells: &[Cell], what: &str) -> Vec<String> {
         .collect();
     out.sort_by(|a, b| b.0.total_cmp(&a.0));
     out.into_iter().map(|(_, s)| s).collect()
+}
+
+/// One row of a step: the candidate's statistics, its fit, its starting
+/// model and its free parameters.
+type Row = (Candidate, Fitted, Physics, Vec<Param>);
+
+/// What every candidate of one step is fitted and judged against.
+struct StepContext<'a> {
+    d: &'a Dataset,
+    current: &'a Fitted,
+    current_start: &'a Physics,
+    current_ho: f64,
+    experiments: &'a [u32],
+    z_tf: f64,
+    amp_groups: Option<&'a AmpGroups>,
+    level: f64,
+}
+
+impl StepContext<'_> {
+    /// Fits each term of `tried` with the current model.
+    fn evaluate(&self, tried: &[Term]) -> Vec<Row> {
+        let (d, current, current_start, current_ho, experiments, z_tf) = (
+            self.d,
+            self.current,
+            self.current_start,
+            self.current_ho,
+            self.experiments,
+            self.z_tf,
+        );
+        let mut rows: Vec<Row> = Vec::new();
+        for &t in tried {
+            let mut free = current.free.clone();
+            let added = t.params(experiments);
+            free.extend(added.iter().copied());
+            // The best of the term's starting points.
+            let mut best: Option<(Fitted, usize)> = None;
+            for i in 0.. {
+                let mut start = current.physics.clone();
+                if !t.start_variant(i, &mut start) {
+                    break;
+                }
+                let f = fit(d, &start, &free, &|_, _| true);
+                if best.as_ref().is_none_or(|(b, _)| f.rss < b.rss) {
+                    best = Some((f, i));
+                }
+            }
+            let Some((f1, variant)) = best else { continue };
+            let dp = added.len() as f64;
+            let dof = f1.n as f64 - f1.p() as f64;
+            let f_stat = if dof > 0.0 && f1.rss > 0.0 {
+                ((current.rss - f1.rss) / dp) / (f1.rss / dof)
+            } else {
+                f64::NAN
+            };
+            let p_value = if f_stat.is_finite() && f_stat > 0.0 {
+                f_survival(f_stat, dp, dof).unwrap_or(1.0)
+            } else {
+                1.0
+            };
+            let mut cstart = current_start.clone();
+            t.start_variant(variant, &mut cstart);
+            let ho = heldout(d, &cstart, &free).values().sum::<f64>();
+            let se = |q: Param| f1.std_error(q);
+            let beyond_noise = current.rss - (current.n as f64 - current.p() as f64);
+            let explained_share = if beyond_noise > 0.0 {
+                ((current.rss - f1.rss) / beyond_noise).clamp(0.0, 1.0)
+            } else {
+                f64::NAN
+            };
+            rows.push((
+                Candidate {
+                    term: t,
+                    words: t.words(),
+                    added_parameters: added.len(),
+                    f: f_stat,
+                    f_critical: f64::NAN,
+                    p_value,
+                    p_holm: f64::NAN,
+                    delta_aic: f1.aic() - current.aic(),
+                    heldout_change: (ho - current_ho) / current_ho.max(1e-300),
+                    description: t.describe(&f1.physics, &se),
+                    identified: t.identified(&f1.physics, &se, experiments),
+                    tf_checks: tf_checks(d, &current.physics, &f1.physics, z_tf),
+                    within_window_check: window_check(d, &current.physics, &f1.physics, z_tf),
+                    harmonic_check: crate::signatures::cubic_harmonic_check(
+                        d,
+                        &current.physics,
+                        &f1.physics,
+                    )
+                    .map(|(moved, confirmed, confirmed_se, windows)| WindowCheck {
+                        windows,
+                        moved,
+                        confirmed,
+                        confirmed_se,
+                        contradicts: moved >= 1.0 && confirmed < 0.5 - z_tf * confirmed_se,
+                    }),
+                    explained_share,
+                    amplitude_check: None,
+                    significant: false,
+                    rejected_because: Vec::new(),
+                    chosen: false,
+                },
+                f1,
+                cstart,
+                free,
+            ));
+        }
+        rows
+    }
+
+    /// Holm's correction over `rows`, the reasons against each, and the
+    /// most significant candidate every criterion accepts (its index).
+    fn select(&self, rows: &mut [Row]) -> Option<usize> {
+        let (d, experiments) = (self.d, self.experiments);
+        let level = self.level;
+        // Holm over the candidates of this step.
+        rows.sort_by(|a, b| {
+            a.0.p_value
+                .total_cmp(&b.0.p_value)
+                .then(a.1.rss.total_cmp(&b.1.rss))
+        });
+        let m = rows.len();
+        let mut running: f64 = 0.0;
+        for (i, r) in rows.iter_mut().enumerate() {
+            let adj = ((m - i) as f64 * r.0.p_value).min(1.0);
+            running = running.max(adj);
+            r.0.p_holm = running;
+            let level_i = level / (m - i) as f64;
+            let dof = r.1.n as f64 - r.1.p() as f64;
+            r.0.f_critical = exo_impedance::ftest::f_critical(
+                r.0.added_parameters as f64,
+                dof.max(1.0),
+                level_i,
+            )
+            .unwrap_or(f64::NAN);
+        }
+        // The most significant candidate that Holm's test, Akaike's
+        // criterion and the held-out error all accept, whose parameters are
+        // determined, that no supported transfer function contradicts, and
+        // whose parameters agree between the excitation amplitudes.
+        let mut pick = None;
+        for (i, r) in rows.iter_mut().enumerate() {
+            r.0.significant = r.0.p_holm < level;
+            let mut why = statistical_reasons(&r.0, level);
+            if why.is_empty() && pick.is_none() {
+                if let Some(groups) = self.amp_groups {
+                    let added = r.0.term.params(experiments);
+                    let check = amplitude_check(
+                        d,
+                        &r.1,
+                        groups,
+                        &r.3,
+                        &added,
+                        r.0.term.amplitude_dependent(),
+                        r.0.term.shows_in().contains(&Tf::Balance),
+                        level,
+                    );
+                    if check.inconsistent {
+                        why.push(check.words.clone());
+                    }
+                    r.0.amplitude_check = Some(check);
+                }
+                if why.is_empty() {
+                    pick = Some(i);
+                }
+            }
+            r.0.rejected_because = why;
+        }
+        if let Some(i) = pick {
+            rows[i].0.chosen = true;
+        }
+        pick
+    }
+}
+
+/// "explains N % of the misfit left at its step", or, when what was left
+/// was already below the noise's expectation (`RSS₀ ≤ n − p₀`, share not
+/// defined), says so.
+fn share_words(share: f64) -> String {
+    if share.is_finite() {
+        format!(
+            "explains {:.0} % of the misfit left at its step",
+            100.0 * share
+        )
+    } else {
+        "the misfit left at its step was already below the noise's expectation (no share defined)"
+            .into()
+    }
 }
 
 /// Runs the whole diagnosis of `d` against the plant model `nominal`.
@@ -1080,6 +1441,7 @@ pub fn diagnose(
     let mut current_ho = refit_score.heldout_rss;
     let mut in_model: Vec<Term> = Term::ALL
         .iter()
+        .chain(Term::FORMS.iter())
         .copied()
         .filter(|t| t.in_nominal(&p0))
         .collect();
@@ -1096,145 +1458,76 @@ pub fn diagnose(
         if lack_p >= s.level {
             break;
         }
-        let tried: Vec<Term> = s
-            .candidates
-            .iter()
-            .copied()
-            .filter(|t| !in_model.contains(t))
-            .filter(|t| t.shows_in().iter().any(|tf| d.supported.contains(tf)))
-            .collect();
-        if tried.is_empty() {
+        let ctx = StepContext {
+            d,
+            current: &current,
+            current_start: &current_start,
+            current_ho,
+            experiments: &experiments,
+            z_tf,
+            amp_groups: amp_groups.as_ref(),
+            level: s.level,
+        };
+        let eligible = |pool: &[Term]| -> Vec<Term> {
+            pool.iter()
+                .copied()
+                .filter(|t| !in_model.contains(t))
+                .filter(|t| t.shows_in().iter().any(|tf| d.supported.contains(tf)))
+                .collect()
+        };
+        // The catalogue, then the library of generic forms with the same
+        // criteria (Holm over the forms tried); a form accepted there is
+        // taken when it leaves less misfit than the catalogue's term (a
+        // small catalogue term must not stand in for a form that explains
+        // far more: a weak stretch reflex for a polynomial spring).
+        let tried = eligible(&s.candidates);
+        let mut rows = ctx.evaluate(&tried);
+        let mut pick = ctx.select(&mut rows);
+        let searched = !tried.is_empty();
+        let catalogue_step = steps.len();
+        if searched {
+            steps.push(Step {
+                step,
+                forms: false,
+                candidates: rows.iter().map(|r| r.0.clone()).collect(),
+            });
+        }
+        let forms = eligible(&s.forms);
+        if !forms.is_empty() {
+            let mut form_rows = ctx.evaluate(&forms);
+            let form_pick = ctx.select(&mut form_rows);
+            let better =
+                form_pick.filter(|&j| pick.is_none_or(|i| form_rows[j].1.rss < rows[i].1.rss));
+            if let Some(j) = form_pick.filter(|_| better.is_none()) {
+                form_rows[j].0.chosen = false;
+                form_rows[j]
+                    .0
+                    .rejected_because
+                    .push("the catalogue's term accepted at this step leaves less misfit".into());
+            }
+            if better.is_some() {
+                if let (Some(i), true) = (pick, searched) {
+                    let c = &mut steps[catalogue_step].candidates[i];
+                    c.chosen = false;
+                    c.rejected_because.push(format!(
+                        "a generic form leaves less misfit (RSS {:.1} against {:.1})",
+                        form_rows[better.unwrap_or(0)].1.rss,
+                        rows[i].1.rss
+                    ));
+                }
+                rows = form_rows.clone();
+                pick = better;
+            }
+            steps.push(Step {
+                step,
+                forms: true,
+                candidates: form_rows.iter().map(|r| r.0.clone()).collect(),
+            });
+        } else if !searched {
             break;
         }
-        let mut rows: Vec<(Candidate, Fitted, Physics, Vec<Param>)> = Vec::new();
-        for &t in &tried {
-            let mut free = current.free.clone();
-            let added = t.params(&experiments);
-            free.extend(added.iter().copied());
-            // The best of the term's starting points.
-            let mut best: Option<(Fitted, usize)> = None;
-            for i in 0.. {
-                let mut start = current.physics.clone();
-                if !t.start_variant(i, &mut start) {
-                    break;
-                }
-                let f = fit(d, &start, &free, &|_, _| true);
-                if best.as_ref().is_none_or(|(b, _)| f.rss < b.rss) {
-                    best = Some((f, i));
-                }
-            }
-            let Some((f1, variant)) = best else { continue };
-            let dp = added.len() as f64;
-            let dof = f1.n as f64 - f1.p() as f64;
-            let f_stat = if dof > 0.0 && f1.rss > 0.0 {
-                ((current.rss - f1.rss) / dp) / (f1.rss / dof)
-            } else {
-                f64::NAN
-            };
-            let p_value = if f_stat.is_finite() && f_stat > 0.0 {
-                f_survival(f_stat, dp, dof).unwrap_or(1.0)
-            } else {
-                1.0
-            };
-            let mut cstart = current_start.clone();
-            t.start_variant(variant, &mut cstart);
-            let ho = heldout(d, &cstart, &free).values().sum::<f64>();
-            let se = |q: Param| f1.std_error(q);
-            let beyond_noise = current.rss - (current.n as f64 - current.p() as f64);
-            let explained_share = if beyond_noise > 0.0 {
-                ((current.rss - f1.rss) / beyond_noise).clamp(0.0, 1.0)
-            } else {
-                f64::NAN
-            };
-            rows.push((
-                Candidate {
-                    term: t,
-                    words: t.words(),
-                    added_parameters: added.len(),
-                    f: f_stat,
-                    f_critical: f64::NAN,
-                    p_value,
-                    p_holm: f64::NAN,
-                    delta_aic: f1.aic() - current.aic(),
-                    heldout_change: (ho - current_ho) / current_ho.max(1e-300),
-                    description: t.describe(&f1.physics, &se),
-                    identified: t.identified(&f1.physics, &se, &experiments),
-                    tf_checks: tf_checks(d, &current.physics, &f1.physics, z_tf),
-                    explained_share,
-                    amplitude_check: None,
-                    significant: false,
-                    rejected_because: Vec::new(),
-                    chosen: false,
-                },
-                f1,
-                cstart,
-                free,
-            ));
-        }
-        // Holm over the candidates of this step.
-        rows.sort_by(|a, b| {
-            a.0.p_value
-                .total_cmp(&b.0.p_value)
-                .then(a.1.rss.total_cmp(&b.1.rss))
-        });
-        let m = rows.len();
-        let mut running: f64 = 0.0;
-        for (i, r) in rows.iter_mut().enumerate() {
-            let adj = ((m - i) as f64 * r.0.p_value).min(1.0);
-            running = running.max(adj);
-            r.0.p_holm = running;
-            let level_i = s.level / (m - i) as f64;
-            let dof = r.1.n as f64 - r.1.p() as f64;
-            r.0.f_critical = exo_impedance::ftest::f_critical(
-                r.0.added_parameters as f64,
-                dof.max(1.0),
-                level_i,
-            )
-            .unwrap_or(f64::NAN);
-        }
-        // The most significant candidate that Holm's test, Akaike's
-        // criterion and the held-out error all accept, whose parameters are
-        // determined, that no supported transfer function contradicts, and
-        // whose parameters agree between the excitation amplitudes.
-        let mut pick = None;
-        for (i, r) in rows.iter_mut().enumerate() {
-            r.0.significant = r.0.p_holm < s.level;
-            let mut why = statistical_reasons(&r.0, s.level);
-            if why.is_empty() && pick.is_none() {
-                if let Some(groups) = &amp_groups {
-                    let added = r.0.term.params(&experiments);
-                    let check = amplitude_check(
-                        d,
-                        &r.1,
-                        groups,
-                        &r.3,
-                        &added,
-                        r.0.term.amplitude_dependent(),
-                        s.level,
-                    );
-                    if check.inconsistent {
-                        why.push(check.words.clone());
-                    }
-                    r.0.amplitude_check = Some(check);
-                }
-                if why.is_empty() {
-                    pick = Some(i);
-                }
-            }
-            r.0.rejected_because = why;
-        }
-        let accept = pick.is_some();
-        if let Some(i) = pick {
-            rows[i].0.chosen = true;
-        }
-        steps.push(Step {
-            step,
-            candidates: rows.iter().map(|r| r.0.clone()).collect(),
-        });
-        if !accept {
-            break;
-        }
-        let (cand, f1, cstart, _free) = rows.swap_remove(pick.unwrap_or(0));
+        let Some(pick) = pick else { break };
+        let (cand, f1, cstart, _free) = rows.swap_remove(pick);
         current_ho *= 1.0 + cand.heldout_change;
         in_model.push(cand.term);
         current = f1;
@@ -1260,17 +1553,29 @@ pub fn diagnose(
                 c.p_holm,
                 100.0 * c.heldout_change
             );
-            let sentence = if partial {
+            let sentence = if t.generic() {
                 format!(
-                    "partly explained by {}, {description}: it explains {:.0} % of the misfit left at its step; most of it remains ({stats})",
+                    "{}: {}, {description}; {}{}; {stats}",
+                    if partial {
+                        "partly explained by a form outside the catalogue"
+                    } else {
+                        "discovered outside the catalogue"
+                    },
                     t.words(),
-                    100.0 * c.explained_share
+                    share_words(c.explained_share),
+                    if partial { ", most of it remains" } else { "" }
+                )
+            } else if partial {
+                format!(
+                    "partly explained by {}, {description}: it {}; most of it remains ({stats})",
+                    t.words(),
+                    share_words(c.explained_share)
                 )
             } else {
                 format!(
-                    "left out: {}, {description}; explains {:.0} % of the misfit left at its step; {stats}",
+                    "left out: {}, {description}; {}; {stats}",
                     t.words(),
-                    100.0 * c.explained_share
+                    share_words(c.explained_share)
                 )
             };
             Found {
@@ -1285,6 +1590,7 @@ pub fn diagnose(
                 heldout_change: c.heldout_change,
                 explained_share: c.explained_share,
                 partial,
+                discovered: t.generic(),
             }
         })
         .collect();
@@ -1351,7 +1657,7 @@ pub fn diagnose(
     if found.is_empty() {
         if beyond_noise(refit_score.lack_of_fit_p) {
             verdict.push(format!(
-                "unexplained: structure beyond the measured noise remains after the refit (χ²/dof {:.2}, lack-of-fit p = {:.1e}) and no term of the catalogue explains it without the data contradicting it",
+                "unexplained: structure beyond the measured noise remains after the refit (χ²/dof {:.2}, lack-of-fit p = {:.1e}) and no term of the catalogue nor generic form of the library explains it without the data contradicting it",
                 refit_score.chi2_per_dof, refit_score.lack_of_fit_p
             ));
             verdict.extend(not_named(&steps));

@@ -28,6 +28,7 @@ pub mod engine;
 pub mod fit;
 pub mod model;
 pub mod remains;
+pub mod signatures;
 pub mod synth;
 pub mod terms;
 

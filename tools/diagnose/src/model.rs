@@ -90,6 +90,16 @@ pub enum Param {
     ReflexDelay,
     /// Stretch-reflex low-pass corner `ω_c` (rad/s).
     ReflexCutoff,
+    /// Cubic stiffness `K₃` of the human joint (Nm/rad³), a generic form:
+    /// `τ = K θ + K₃ θ³`, describing function `K + ¾ K₃ A²`.
+    CubicStiffness,
+    /// Cubic damping `B₃` of the human joint (Nm·s³/rad³), a generic form:
+    /// `τ = B₃ θ̇³`, describing function `j ¾ B₃ ω³ A²`.
+    CubicDamping,
+    /// Drift of the human stiffness within an experiment (fraction per
+    /// minute), a generic form: `K(t) = K_e (1 + ρ t)`, `t` from the
+    /// experiment's first window.
+    StiffnessDrift,
 }
 
 impl Param {
@@ -117,6 +127,9 @@ impl Param {
             Param::ReflexGain => "stretch-reflex gain (Nm·s/rad)".into(),
             Param::ReflexDelay => "stretch-reflex delay (s)".into(),
             Param::ReflexCutoff => "stretch-reflex corner (rad/s)".into(),
+            Param::CubicStiffness => "cubic stiffness K₃ (Nm/rad³)".into(),
+            Param::CubicDamping => "cubic damping B₃ (Nm·s³/rad³)".into(),
+            Param::StiffnessDrift => "stiffness drift ρ (1/min)".into(),
         }
     }
 
@@ -140,6 +153,18 @@ impl Param {
             Param::ReflexGain => 1.0,
             Param::ReflexDelay => 0.01,
             Param::ReflexCutoff => 5.0,
+            Param::CubicStiffness => 50.0,
+            Param::CubicDamping => 1.0,
+            Param::StiffnessDrift => 0.01,
+        }
+    }
+
+    /// Its value when the term it belongs to is absent: 1 for a sensor
+    /// gain, 0 otherwise.
+    pub fn absent(self) -> f64 {
+        match self {
+            Param::GainTauC | Param::GainTauS => 1.0,
+            _ => 0.0,
         }
     }
 
@@ -151,7 +176,12 @@ impl Param {
             Param::SeaZeta => 0.01,
             Param::ReflexCutoff => 1.0,
             Param::GainTauC | Param::GainTauS => 0.05,
-            Param::InertiaError | Param::GravityError | Param::TorqueOffset => f64::NEG_INFINITY,
+            Param::InertiaError
+            | Param::GravityError
+            | Param::TorqueOffset
+            | Param::CubicStiffness
+            | Param::CubicDamping
+            | Param::StiffnessDrift => f64::NEG_INFINITY,
             _ => 0.0,
         }
     }
@@ -202,6 +232,12 @@ pub struct Physics {
     pub torque_offset_nm: f64,
     /// Stretch reflex `[G (Nm·s/rad), δ (s), ω_c (rad/s)]`; G = 0 is off.
     pub reflex: [f64; 3],
+    /// Cubic stiffness `K₃` of the human joint (Nm/rad³; 0 = linear spring).
+    pub k3: f64,
+    /// Cubic damping `B₃` of the human joint (Nm·s³/rad³; generic form).
+    pub b3: f64,
+    /// Stiffness drift within an experiment (fraction per minute; generic form).
+    pub k_drift_per_min: f64,
 }
 
 impl Physics {
@@ -276,6 +312,9 @@ impl Physics {
                     r.cutoff_rad_s,
                 ]
             },
+            k3: m.human.cubic_stiffness_nm_per_rad3,
+            b3: 0.0,
+            k_drift_per_min: 0.0,
         }
     }
 
@@ -303,6 +342,9 @@ impl Physics {
             Param::ReflexGain => self.reflex[0],
             Param::ReflexDelay => self.reflex[1],
             Param::ReflexCutoff => self.reflex[2],
+            Param::CubicStiffness => self.k3,
+            Param::CubicDamping => self.b3,
+            Param::StiffnessDrift => self.k_drift_per_min,
         }
     }
 
@@ -341,6 +383,9 @@ impl Physics {
             Param::ReflexGain => self.reflex[0] = v,
             Param::ReflexDelay => self.reflex[1] = v.min(0.5),
             Param::ReflexCutoff => self.reflex[2] = v,
+            Param::CubicStiffness => self.k3 = v,
+            Param::CubicDamping => self.b3 = v,
+            Param::StiffnessDrift => self.k_drift_per_min = v,
         }
     }
 
@@ -423,9 +468,17 @@ impl Physics {
     }
 
     fn s_cuff(&self, w: f64, c: &Condition) -> Complex64 {
-        let k = self.k.get(&c.experiment).copied().unwrap_or(0.0);
+        let k = self.k.get(&c.experiment).copied().unwrap_or(0.0)
+            * (1.0 + self.k_drift_per_min * c.elapsed_s / 60.0);
         let h = self.h.get(&c.experiment).copied().unwrap_or(0.0);
-        let mut z_h = Complex64::new(k - self.m_h * w * w, h + w * self.b_h);
+        // The human's angle amplitude (rigid cuff: the exoskeleton's; with
+        // a compliant cuff the exoskeleton's stands in for it).
+        let a_h = c.theta_amp_rad / self.gain[0];
+        let a2 = a_h * a_h;
+        let mut z_h = Complex64::new(
+            k + 0.75 * self.k3 * a2 - self.m_h * w * w,
+            h + w * self.b_h + 0.75 * self.b3 * w * w * w * a2,
+        );
         let [g, delay, wc] = self.reflex;
         if g > 0.0 {
             let lp = Complex64::new(1.0, w / wc);
@@ -470,6 +523,7 @@ impl Physics {
         r.gain_nm_s_per_rad = self.reflex[0];
         r.delay_s = self.reflex[1];
         r.cutoff_rad_s = self.reflex[2];
+        m.human.cubic_stiffness_nm_per_rad3 = self.k3;
         m.joint_friction.coulomb.enabled = self.coulomb_nm > 0.0;
         m.joint_friction.coulomb.torque_nm = self.coulomb_nm;
         m.joint_friction.viscous.enabled = self.b_f > 0.0;

@@ -22,10 +22,29 @@
 //!   is absorbed by them: there it shows in the fitted `K_h` against the
 //!   bias, not in the residual.
 //!
-//! Drift within an experiment is not characterised: the protocol's
-//! periods sweep frequency upwards, so time and frequency are confounded,
-//! and a 5 s window holds too few cycles at the lowest frequencies to be
-//! split in halves.
+//! - **frequency band** (< 4, 4–10, ≥ 10 rad/s): the χ² per component
+//!   and the weighted mean residual in each band, so a user sees where
+//!   the misfit sits;
+//! - **time within a window**: each single-sine window with at least four
+//!   whole cycles is split into two halves of equal whole cycles, the
+//!   transfer function measured in each (the same correlation as the
+//!   window's), and the change second − first relative to the window's
+//!   value is divided by the time between the halves' centres: a weighted
+//!   mean rate (% per second) with its standard error (fatigue, warm-up,
+//!   a drifting sensor within seconds);
+//! - **time within an experiment** (across periods): a regression on the
+//!   window's start time with the same per-experiment trend in frequency
+//!   as the amplitude test. The protocol's periods sweep ω upwards, so in
+//!   a frequency response the start time is (nearly) a function of `ln ω`:
+//!   when the part of the time column the trend does not explain is below
+//!   5 % of its spread, the words say that drift and frequency cannot be
+//!   told apart from the residual alone and what would tell them (a
+//!   repeated frequency late in the experiment, or the drift form of the
+//!   library, whose `K_h(t)` the model's `−M_h ω²` does not mimic). The
+//!   static balance has no frequency dependence: its drift is a slope in
+//!   Nm per minute beside an offset per experiment;
+//! - **harmonics and non-harmonic content** against each window's own
+//!   noise with the ringing kept out of it ([`crate::signatures`]).
 
 use std::collections::BTreeMap;
 
@@ -36,6 +55,7 @@ use statrs::distribution::{ContinuousCDF, FisherSnedecor, StudentsT};
 use crate::data::{Dataset, Observation, Tf};
 use crate::fit::sigma_floor;
 use crate::model::Physics;
+use crate::signatures::HarmonicContent;
 
 /// One regression coefficient with its standard error and p-value.
 #[derive(Debug, Clone, Copy, Serialize)]
@@ -102,11 +122,63 @@ pub struct Remains {
     pub angle_amplitude: Option<AngleAmplitudeDependence>,
     /// Dependence on the operating point, with two experiments or more.
     pub operating_point: Option<OperatingPointDependence>,
+    /// The residual per frequency band.
+    pub bands: Vec<BandResidual>,
+    /// Change within a window (second half against the first).
+    pub within_window: Option<WithinWindow>,
+    /// Dependence on the time within an experiment (across its periods).
+    pub over_time: Option<TimeDependence>,
+    /// Harmonics and non-harmonic content of its output channel.
+    pub harmonics: Vec<HarmonicContent>,
     /// In words, every line.
     pub words: Vec<String>,
     /// The lines that say something remains (significant dependences, or
     /// that one amplitude cannot tell): what the verdict repeats.
     pub findings: Vec<String>,
+}
+
+/// The residual in one frequency band.
+#[derive(Debug, Clone, Serialize)]
+pub struct BandResidual {
+    /// Band.
+    pub band: &'static str,
+    /// Points in it.
+    pub points: usize,
+    /// Mean squared whitened residual per real component (1 = at the noise).
+    pub chi2_per_component: f64,
+    /// Weighted mean in-phase residual (% or Nm).
+    pub in_phase: Estimate,
+    /// Weighted mean quadrature residual (`None` for the static balance).
+    pub quadrature: Option<Estimate>,
+}
+
+/// The change of a transfer function within its windows.
+#[derive(Debug, Clone, Serialize)]
+pub struct WithinWindow {
+    /// Windows split in halves.
+    pub windows: usize,
+    /// Rate of the in-phase change (% of the value per second).
+    pub in_phase: Estimate,
+    /// Rate of the quadrature change (% per second).
+    pub quadrature: Estimate,
+    /// Significant (level divided over transfer functions and parts).
+    pub significant: bool,
+}
+
+/// The residual's dependence on the time within an experiment.
+#[derive(Debug, Clone, Serialize)]
+pub struct TimeDependence {
+    /// The share of the start time's spread that the per-experiment trend
+    /// in frequency does not explain (0: time is a function of frequency).
+    pub independent_share: f64,
+    /// Time and frequency cannot be told apart (share below 5 %).
+    pub confounded_with_frequency: bool,
+    /// Slope of the in-phase residual (% or Nm per minute), when not confounded.
+    pub in_phase: Option<Estimate>,
+    /// Slope of the quadrature residual (% per minute).
+    pub quadrature: Option<Estimate>,
+    /// Significant (level divided over transfer functions and parts).
+    pub significant: bool,
 }
 
 struct Row<'a> {
@@ -188,6 +260,21 @@ fn t_p(value: f64, se: f64, dof: f64) -> f64 {
     StudentsT::new(0.0, 1.0, dof).map_or(f64::NAN, |t| 2.0 * t.sf((value / se).abs()))
 }
 
+/// The last coefficient of the weighted regression of part `k` (0 in
+/// phase, 1 in quadrature) of the rows' residual on the columns of `x`.
+fn last_coefficient(rs: &[Row], x: &DMatrix<f64>, k: usize) -> Option<Estimate> {
+    let y: Vec<f64> = rs.iter().map(|r| r.rel[k]).collect();
+    let sd: Vec<f64> = rs.iter().map(|r| r.sd[k]).collect();
+    wls(x, &y, &sd).map(|(b, se, _, dof)| {
+        let j = b.len() - 1;
+        Estimate {
+            value: b[j],
+            std_error: se[j],
+            p_value: t_p(b[j], se[j], dof),
+        }
+    })
+}
+
 /// Smooth trend columns in `ln ω` for the observations of `sel`.
 fn trend(rows: &[Row], sel: &dyn Fn(&Row) -> bool) -> Vec<Vec<f64>> {
     let xs: Vec<f64> = rows
@@ -250,6 +337,7 @@ pub fn characterise(d: &Dataset, phys: &Physics, level: f64) -> Vec<Remains> {
     let lo = amps.iter().copied().fold(f64::INFINITY, f64::min);
     let two_amplitudes = amps.iter().any(|a| *a > lo * 1.05);
     let high = |r: &Row| d.conditions[r.o.window].amplitude_nm > lo * 1.05;
+    let content = crate::signatures::harmonics(d, level);
     let mut out = Vec::new();
     for &tf in &d.supported {
         let rs = rows(d, phys, tf);
@@ -292,18 +380,7 @@ pub fn characterise(d: &Dataset, phys: &Physics, level: f64) -> Vec<Remains> {
             }
             cols.push(rs.iter().map(|r| f64::from(u8::from(high(r)))).collect());
             let x = matrix(&cols);
-            let fit_part = |k: usize| {
-                let y: Vec<f64> = rs.iter().map(|r| r.rel[k]).collect();
-                let sd: Vec<f64> = rs.iter().map(|r| r.sd[k]).collect();
-                wls(&x, &y, &sd).map(|(b, se, _, dof)| {
-                    let j = b.len() - 1;
-                    Estimate {
-                        value: b[j],
-                        std_error: se[j],
-                        p_value: t_p(b[j], se[j], dof),
-                    }
-                })
-            };
+            let fit_part = |k: usize| last_coefficient(&rs, &x, k);
             let ip = fit_part(0);
             let q = if tf.is_dynamic() { fit_part(1) } else { None };
             ip.map(|in_phase| {
@@ -350,18 +427,7 @@ pub fn characterise(d: &Dataset, phys: &Physics, level: f64) -> Vec<Remains> {
             }
             cols.push(rs.iter().map(|r| (th(r) / 0.1).powi(2)).collect());
             let x = matrix(&cols);
-            let fit_part = |k: usize| {
-                let y: Vec<f64> = rs.iter().map(|r| r.rel[k]).collect();
-                let sd: Vec<f64> = rs.iter().map(|r| r.sd[k]).collect();
-                wls(&x, &y, &sd).map(|(b, se, _, dof)| {
-                    let j = b.len() - 1;
-                    Estimate {
-                        value: b[j],
-                        std_error: se[j],
-                        p_value: t_p(b[j], se[j], dof),
-                    }
-                })
-            };
+            let fit_part = |k: usize| last_coefficient(&rs, &x, k);
             fit_part(0).map(|in_phase| {
                 let q = fit_part(1);
                 let lo = rs.iter().map(th).fold(f64::INFINITY, f64::min);
@@ -460,6 +526,15 @@ pub fn characterise(d: &Dataset, phys: &Physics, level: f64) -> Vec<Remains> {
         } else {
             None
         };
+        let bands = if tf.is_dynamic() {
+            bands(&rs)
+        } else {
+            Vec::new()
+        };
+        let within_window = within_window(d, tf, alpha);
+        let over_time = over_time(d, &rs, tf, &exps, alpha, misfit);
+        let harmonics: Vec<HarmonicContent> =
+            content.iter().filter(|h| h.tf == tf).cloned().collect();
         let mut lines = words_of(
             tf,
             chi,
@@ -471,6 +546,24 @@ pub fn characterise(d: &Dataset, phys: &Physics, level: f64) -> Vec<Remains> {
         if let Some(a) = &angle_amplitude {
             lines.insert(1, (angle_words(tf, a), a.significant));
         }
+        if !bands.is_empty() {
+            lines.push(band_words(tf, &bands, misfit));
+        }
+        if let Some(w) = &within_window {
+            lines.push(within_words(tf, w));
+        }
+        if let Some(o) = &over_time {
+            lines.push(time_words(tf, o));
+        }
+        // As every other dependence: a finding only where the transfer
+        // function's own residual is beyond the noise (gravity's sin θ
+        // makes even harmonics at large angle amplitudes that the
+        // linearised model, within the noise at ω, need not describe).
+        lines.extend(
+            crate::signatures::words(tf, &harmonics.iter().collect::<Vec<_>>())
+                .into_iter()
+                .map(|(w, f)| (w, f && misfit)),
+        );
         let words: Vec<String> = lines.iter().map(|l| l.0.clone()).collect();
         let findings: Vec<String> = lines.into_iter().filter(|l| l.1).map(|l| l.0).collect();
         out.push(Remains {
@@ -479,11 +572,341 @@ pub fn characterise(d: &Dataset, phys: &Physics, level: f64) -> Vec<Remains> {
             amplitude,
             angle_amplitude,
             operating_point,
+            bands,
+            within_window,
+            over_time,
+            harmonics,
             words,
             findings,
         });
     }
     out
+}
+
+/// Weighted mean of `y` (standard deviations `sd`), its standard error
+/// scaled by the scatter about it when that exceeds the noise.
+fn weighted_mean(y: &[f64], sd: &[f64]) -> Estimate {
+    let (mut sw, mut swy) = (0.0, 0.0);
+    for (v, s) in y.iter().zip(sd) {
+        let w = 1.0 / (s * s).max(1e-300);
+        sw += w;
+        swy += w * v;
+    }
+    let m = swy / sw;
+    let dof = y.len() as f64 - 1.0;
+    let chi: f64 = y.iter().zip(sd).map(|(v, s)| ((v - m) / s).powi(2)).sum();
+    let scale = if dof > 0.0 { (chi / dof).max(1.0) } else { 1.0 };
+    let se = (scale / sw).sqrt();
+    Estimate {
+        value: m,
+        std_error: se,
+        p_value: t_p(m, se, dof.max(1.0)),
+    }
+}
+
+/// The residual per frequency band, in order of frequency.
+fn bands(rs: &[Row]) -> Vec<BandResidual> {
+    let mut by: Vec<(&'static str, f64, Vec<&Row>)> = Vec::new();
+    for r in rs {
+        let b = crate::engine::band_of(r.o.omega_rad_s);
+        match by.iter_mut().find(|x| x.0 == b) {
+            Some(x) => {
+                x.1 = x.1.min(r.o.omega_rad_s);
+                x.2.push(r);
+            }
+            None => by.push((b, r.o.omega_rad_s, vec![r])),
+        }
+    }
+    by.sort_by(|a, b| a.1.total_cmp(&b.1));
+    by.into_iter()
+        .map(|(band, _, v)| {
+            let part = |k: usize| {
+                let y: Vec<f64> = v.iter().map(|r| r.rel[k]).collect();
+                let sd: Vec<f64> = v.iter().map(|r| r.sd[k]).collect();
+                weighted_mean(&y, &sd)
+            };
+            let chi = v
+                .iter()
+                .map(|r| (0..2).map(|k| (r.rel[k] / r.sd[k]).powi(2)).sum::<f64>())
+                .sum::<f64>()
+                / (2 * v.len()).max(1) as f64;
+            BandResidual {
+                band,
+                points: v.len(),
+                chi2_per_component: chi,
+                in_phase: part(0),
+                quadrature: Some(part(1)),
+            }
+        })
+        .collect()
+}
+
+/// The change of `tf` within its single-sine windows: each window with at
+/// least four whole cycles split into two halves of equal whole cycles.
+fn within_window(d: &Dataset, tf: Tf, alpha: f64) -> Option<WithinWindow> {
+    let (mut y, mut sd): ([Vec<f64>; 2], [Vec<f64>; 2]) = Default::default();
+    for r in within_window_rates(d, tf) {
+        for k in 0..2 {
+            y[k].push(r.rate[k]);
+            sd[k].push(r.sd);
+        }
+    }
+    if y[0].len() < 3 {
+        return None;
+    }
+    let in_phase = weighted_mean(&y[0], &sd[0]);
+    let quadrature = weighted_mean(&y[1], &sd[1]);
+    Some(WithinWindow {
+        windows: y[0].len(),
+        significant: in_phase.p_value < alpha || quadrature.p_value < alpha,
+        in_phase,
+        quadrature,
+    })
+}
+
+/// The measured rate of change of a transfer function within one window.
+#[derive(Debug, Clone, Copy)]
+pub struct WindowRate {
+    /// The observation (its window, frequency and value).
+    pub observation: Observation,
+    /// Rate of change, in phase and in quadrature with the window's value
+    /// (% of the value per second): second half less first over the time
+    /// between their centres.
+    pub rate: [f64; 2],
+    /// Standard deviation of each component (% per second).
+    pub sd: f64,
+    /// Time between the halves' centres (s).
+    pub dt_s: f64,
+}
+
+/// The change of `tf` (`S_h` or `S_h-e`) within each single-sine window
+/// with at least four whole cycles, split into two halves of equal whole
+/// cycles, each measured by the window's own correlation.
+pub fn within_window_rates(d: &Dataset, tf: Tf) -> Vec<WindowRate> {
+    use exo_impedance::frf::{sine_amplitude, sine_ratio, whole_cycles};
+    let mut out = Vec::new();
+    if !matches!(tf, Tf::Sh | Tf::She) {
+        return out;
+    }
+    for o in d.of(tf) {
+        let s = &d.signals[o.window];
+        let w = o.omega_rad_s;
+        if w <= 0.0 || s.t_s.len() < 32 {
+            continue;
+        }
+        let output = if tf == Tf::Sh {
+            &s.tau_c_nm
+        } else {
+            &s.tau_s_net_nm
+        };
+        let Some(n) = whole_cycles(&s.t_s, w) else {
+            continue;
+        };
+        let dt = d.conditions[o.window].sample_period_s;
+        let period = std::f64::consts::TAU / w;
+        let t0 = s.t_s[0];
+        let cycles = ((s.t_s[n - 1] - t0 + dt) / period).round() as usize;
+        if cycles < 4 {
+            continue;
+        }
+        let m = (cycles / 2) as f64;
+        let i1 = s.t_s.partition_point(|t| *t < t0 + m * period - 0.5 * dt);
+        let i2 = s
+            .t_s
+            .partition_point(|t| *t < t0 + 2.0 * m * period - 0.5 * dt);
+        let half = |a: usize, b: usize| {
+            let th = sine_amplitude(&s.t_s[a..b], &s.theta_rad[a..b], w, true).ok()?;
+            let yy = sine_amplitude(&s.t_s[a..b], &output[a..b], w, true).ok()?;
+            sine_ratio(&th, &yy).ok()
+        };
+        let (Some(p1), Some(p2)) = (half(0, i1), half(i1, i2)) else {
+            continue;
+        };
+        let v = o.value;
+        let scale = v.norm_sqr();
+        if scale.is_nan() || scale <= 0.0 {
+            continue;
+        }
+        let per_s = 100.0 / (m * period);
+        let rel = (p2.ratio - p1.ratio) * v.conj() / scale * per_s;
+        let var = 0.5 * (p1.cov[0][0] + p1.cov[1][1] + p2.cov[0][0] + p2.cov[1][1]) / scale
+            * per_s
+            * per_s;
+        if !(var.is_finite() && var > 0.0 && rel.re.is_finite() && rel.im.is_finite()) {
+            continue;
+        }
+        out.push(WindowRate {
+            observation: *o,
+            rate: [rel.re, rel.im],
+            sd: var.sqrt(),
+            dt_s: m * period,
+        });
+    }
+    out
+}
+
+/// The residual's dependence on the time within an experiment (start time
+/// of the window less that of the experiment's first window, in minutes).
+fn over_time(
+    d: &Dataset,
+    rs: &[Row],
+    tf: Tf,
+    exps: &[u32],
+    alpha: f64,
+    misfit: bool,
+) -> Option<TimeDependence> {
+    let exp_of = |r: &Row| d.conditions[r.o.window].experiment;
+    let minutes: Vec<f64> = rs
+        .iter()
+        .map(|r| d.conditions[r.o.window].elapsed_s / 60.0)
+        .collect();
+    let mut base = Vec::new();
+    for &e in exps {
+        let sel = |r: &Row| exp_of(r) == e;
+        if tf.is_dynamic() {
+            base.extend(trend(rs, &sel));
+        } else {
+            base.push(rs.iter().map(|r| f64::from(u8::from(sel(r)))).collect());
+        }
+    }
+    // The share of the time column the trend does not explain (ordinary
+    // least squares), against its spread about each experiment's mean.
+    let x0 = matrix(&base);
+    let tv = DVector::from_column_slice(&minutes);
+    let inv = (x0.transpose() * &x0).try_inverse()?;
+    let resid = &tv - &x0 * (&inv * (x0.transpose() * &tv));
+    let spread: f64 = exps
+        .iter()
+        .map(|&e| {
+            let v: Vec<f64> = rs
+                .iter()
+                .zip(&minutes)
+                .filter(|(r, _)| exp_of(r) == e)
+                .map(|(_, m)| *m)
+                .collect();
+            let mean = v.iter().sum::<f64>() / v.len().max(1) as f64;
+            v.iter().map(|m| (m - mean).powi(2)).sum::<f64>()
+        })
+        .sum();
+    if spread.is_nan() || spread <= 0.0 {
+        return None;
+    }
+    let share = (resid.norm_squared() / spread).sqrt();
+    if share < 0.05 {
+        return Some(TimeDependence {
+            independent_share: share,
+            confounded_with_frequency: true,
+            in_phase: None,
+            quadrature: None,
+            significant: false,
+        });
+    }
+    let mut cols = base;
+    cols.push(minutes);
+    let x = matrix(&cols);
+    let fit_part = |k: usize| last_coefficient(rs, &x, k);
+    let ip = fit_part(0);
+    let q = if tf.is_dynamic() { fit_part(1) } else { None };
+    let significant =
+        misfit && (ip.is_some_and(|e| e.p_value < alpha) || q.is_some_and(|e| e.p_value < alpha));
+    Some(TimeDependence {
+        independent_share: share,
+        confounded_with_frequency: false,
+        in_phase: ip,
+        quadrature: q,
+        significant,
+    })
+}
+
+fn band_words(tf: Tf, b: &[BandResidual], misfit: bool) -> (String, bool) {
+    let each: Vec<String> = b
+        .iter()
+        .map(|x| {
+            let mut s = format!(
+                "{} {:.1}× the noise ({} points; in phase {}",
+                x.band,
+                x.chi2_per_component,
+                x.points,
+                est(&x.in_phase, " %")
+            );
+            if let Some(q) = &x.quadrature {
+                s += &format!(", quadrature {}", est(q, " %"));
+            }
+            s + ")"
+        })
+        .collect();
+    let worst = b
+        .iter()
+        .max_by(|a, c| {
+            (a.chi2_per_component * a.points as f64)
+                .total_cmp(&(c.chi2_per_component * c.points as f64))
+        })
+        .map_or("", |x| x.band);
+    let s = if misfit {
+        format!(
+            "{}: by frequency band, most of the misfit is in the {worst} band — {}",
+            tf.name(),
+            each.join("; ")
+        )
+    } else {
+        format!("{}: by frequency band — {}", tf.name(), each.join("; "))
+    };
+    (s, misfit)
+}
+
+fn within_words(tf: Tf, w: &WithinWindow) -> (String, bool) {
+    let s = if w.significant {
+        format!(
+            "{}: changes within a window — in phase {} per second, quadrature {} per second (second half of each of {} windows against its first; fatigue, warm-up or a drifting sensor; the arm's decaying ringing is not at ω and does not enter)",
+            tf.name(),
+            est(&w.in_phase, " %"),
+            est(&w.quadrature, " %"),
+            w.windows
+        )
+    } else {
+        format!(
+            "{}: no change within a window detected (in phase {} per second, quadrature {} per second; {} windows split in halves)",
+            tf.name(),
+            est(&w.in_phase, " %"),
+            est(&w.quadrature, " %"),
+            w.windows
+        )
+    };
+    (s, w.significant)
+}
+
+fn time_words(tf: Tf, t: &TimeDependence) -> (String, bool) {
+    let unit = if tf.is_dynamic() { " %" } else { " Nm" };
+    if t.confounded_with_frequency {
+        return (
+            format!(
+                "{}: a drift over the experiment cannot be told from a dependence on frequency by the residual alone: the periods sweep ω upwards, so a window's start time is a function of its frequency ({:.1} % of the time's spread is independent of it); a frequency repeated late in the experiment would tell, and the drift form of the library tests it through the model",
+                tf.name(),
+                100.0 * t.independent_share
+            ),
+            false,
+        );
+    }
+    let mut s = match &t.in_phase {
+        Some(e) if t.significant => format!(
+            "{}: drifts over the experiment — {} per minute",
+            tf.name(),
+            est(e, unit)
+        ),
+        Some(e) => format!(
+            "{}: no drift over the experiment detected ({} per minute",
+            tf.name(),
+            est(e, unit)
+        ),
+        None => format!("{}: drift over the experiment not estimable", tf.name()),
+    };
+    if let Some(q) = &t.quadrature {
+        s += &format!(", quadrature {} per minute", est(q, unit));
+    }
+    if t.in_phase.is_some() && !t.significant {
+        s += ")";
+    }
+    (s, t.significant)
 }
 
 fn est(e: &Estimate, unit: &str) -> String {

@@ -43,6 +43,15 @@ pub enum Term {
     TorqueSensorOffset,
     /// The stretch-reflex pathway of the human joint.
     StretchReflex,
+    /// Generic form: a polynomial (stiffening or softening) spring of the
+    /// human joint, `K θ + K₃ θ³`: stiffness that grows with the amplitude.
+    CubicStiffness,
+    /// Generic form: a cubic damper of the human joint, `B₃ θ̇³`: damping
+    /// that grows with the amplitude and the frequency.
+    CubicDamping,
+    /// Generic form: the human's stiffness drifting within an experiment,
+    /// `K_e (1 + ρ t)`.
+    StiffnessDrift,
 }
 
 impl Term {
@@ -66,6 +75,19 @@ impl Term {
         Term::StretchReflex,
     ];
 
+    /// The library of generic forms outside the catalogue, tried when no
+    /// catalogue term explains the structure that remains at a step.
+    pub const FORMS: [Term; 3] = [
+        Term::CubicStiffness,
+        Term::CubicDamping,
+        Term::StiffnessDrift,
+    ];
+
+    /// A generic form (not a named term of the catalogue).
+    pub fn generic(self) -> bool {
+        Term::FORMS.contains(&self)
+    }
+
     /// Plain words.
     pub fn words(self) -> &'static str {
         match self {
@@ -85,6 +107,13 @@ impl Term {
             Term::SeaSensorGain => "a gain error of the SEA torque sensor",
             Term::TorqueSensorOffset => "an offset between the SEA and cuff torque sensors",
             Term::StretchReflex => "a stretch reflex (delayed velocity feedback)",
+            Term::CubicStiffness => {
+                "an amplitude-dependent stiffness of the human joint (polynomial spring K θ + K₃ θ³)"
+            }
+            Term::CubicDamping => {
+                "an amplitude-dependent damping of the human joint (cubic damper B₃ θ̇³)"
+            }
+            Term::StiffnessDrift => "the human's stiffness drifting within each experiment",
         }
     }
 
@@ -107,6 +136,8 @@ impl Term {
             Term::SeaSensorGain => "sensors.sea_deflection.gain",
             Term::TorqueSensorOffset => "sensors.sea_deflection.offset",
             Term::StretchReflex => "human.stretch_reflex",
+            Term::CubicStiffness => "human.cubic_stiffness_nm_per_rad3",
+            Term::CubicDamping | Term::StiffnessDrift => "(none: the simulator has no such term)",
         }
     }
 
@@ -129,6 +160,9 @@ impl Term {
             Term::SeaSensorGain => vec![Param::GainTauS],
             Term::TorqueSensorOffset => vec![Param::TorqueOffset],
             Term::StretchReflex => vec![Param::ReflexGain, Param::ReflexDelay, Param::ReflexCutoff],
+            Term::CubicStiffness => vec![Param::CubicStiffness],
+            Term::CubicDamping => vec![Param::CubicDamping],
+            Term::StiffnessDrift => vec![Param::StiffnessDrift],
         }
     }
 
@@ -139,7 +173,10 @@ impl Term {
             | Term::HumanViscousDamping
             | Term::CuffCompliance
             | Term::EncoderDelay
-            | Term::StretchReflex => &[Tf::Sh, Tf::She],
+            | Term::StretchReflex
+            | Term::CubicStiffness
+            | Term::CubicDamping
+            | Term::StiffnessDrift => &[Tf::Sh, Tf::She],
             Term::CuffSensorDelay => &[Tf::Sh],
             Term::CuffSensorGain => &[Tf::Sh, Tf::Balance],
             Term::CoulombFriction | Term::JointViscousFriction | Term::InertiaError => &[Tf::She],
@@ -173,6 +210,9 @@ impl Term {
             | Term::SeaSensorGain => false,
             Term::TorqueSensorOffset => p.torque_offset_nm != 0.0,
             Term::StretchReflex => p.reflex[0] > 0.0,
+            Term::CubicStiffness => p.k3 != 0.0,
+            Term::CubicDamping => p.b3 != 0.0,
+            Term::StiffnessDrift => p.k_drift_per_min != 0.0,
         }
     }
 
@@ -208,6 +248,9 @@ impl Term {
             Term::SeaSensorGain => p.gain[2] = 1.0,
             Term::TorqueSensorOffset => p.torque_offset_nm = 0.0,
             Term::StretchReflex => p.reflex = [1.0, 0.04, 15.0],
+            Term::CubicStiffness => p.k3 = 0.0,
+            Term::CubicDamping => p.b3 = 0.0,
+            Term::StiffnessDrift => p.k_drift_per_min = 0.0,
         }
     }
 
@@ -222,12 +265,8 @@ impl Term {
         se: &dyn Fn(Param) -> Option<f64>,
         experiments: &[u32],
     ) -> bool {
-        let absent = |q: Param| match q {
-            Param::GainTauC | Param::GainTauS => 1.0,
-            _ => 0.0,
-        };
         let beyond = |q: Param| match se(q) {
-            Some(s) if s.is_finite() => (p.get(q) - absent(q)).abs() > 2.0 * s,
+            Some(s) if s.is_finite() => (p.get(q) - q.absent()).abs() > 2.0 * s,
             _ => false,
         };
         match self {
@@ -323,6 +362,24 @@ impl Term {
                 pm(Param::ReflexGain, 1.0, 2, " Nm·s/rad"),
                 pm(Param::ReflexDelay, 1e3, 1, " ms"),
                 pm(Param::ReflexCutoff, 1.0, 1, " rad/s")
+            ),
+            Term::CubicStiffness => {
+                let sense = if p.k3 >= 0.0 {
+                    "stiffening"
+                } else {
+                    "softening"
+                };
+                format!(
+                    "{sense} spring, K₃ = {}",
+                    pm(Param::CubicStiffness, 1.0, 0, " Nm/rad³")
+                )
+            }
+            Term::CubicDamping => {
+                format!("B₃ = {}", pm(Param::CubicDamping, 1.0, 3, " Nm·s³/rad³"))
+            }
+            Term::StiffnessDrift => format!(
+                "ρ = {} of K_h per minute",
+                pm(Param::StiffnessDrift, 100.0, 2, " %")
             ),
         }
     }

@@ -64,7 +64,16 @@ fn f_test_degrees_of_freedom_and_holm_match_the_hand_computation() {
     let mut p_current = r.refit.parameters as f64;
     let mut nontrivial_holm = false;
     assert!(!r.steps.is_empty());
+    // A step number has the catalogue's candidates and then the library's
+    // forms, both fitted against the same current model: the chosen term's
+    // parameters count from the next step number on.
+    let (mut pending, mut last_step) = (0.0, 0);
     for step in &r.steps {
+        if step.step != last_step {
+            p_current += pending;
+            pending = 0.0;
+            last_step = step.step;
+        }
         let c = &step.candidates;
         let m = c.len();
         // Sorted by raw p (ties by fit), as Holm's procedure needs.
@@ -113,7 +122,7 @@ fn f_test_degrees_of_freedom_and_holm_match_the_hand_computation() {
             );
         }
         if let Some(ch) = c.iter().find(|c| c.chosen) {
-            p_current += ch.added_parameters as f64;
+            pending += ch.added_parameters as f64;
         }
     }
     assert!(

@@ -90,6 +90,7 @@ pub fn load_and_diagnose(a: &DiagnoseArgs) -> Result<(PlantModel, Dataset, Diagn
         max_terms: a.max_terms,
         nominal_subject: a.subject.as_deref().map(nominal_subject).transpose()?,
         candidates: Term::ALL.to_vec(),
+        forms: Term::FORMS.to_vec(),
     };
     let r = diagnose(&d, &model, &settings).map_err(|e| {
         anyhow::anyhow!(

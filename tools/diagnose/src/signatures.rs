@@ -1,0 +1,513 @@
+//! Time-domain signatures of what remains (issue 15, item 2): harmonics of
+//! the excitation and non-harmonic content, each measured against the
+//! noise of its own window, with the arm's transient ringing separated
+//! from that noise.
+//!
+//! Per single-sine window and torque channel (`τ_c` for `S_h`, `τ_s −
+//! τ_gravity` for `S_h-e`), over the window's whole cycles of ω:
+//!
+//! 1. least squares of the samples on a mean, a linear trend and the
+//!    fundamental, 2nd and 3rd harmonics (cosine and sine each);
+//! 2. the residual's Hann-windowed spectrum at the block's DFT frequencies
+//!    `2πk/T` (`X_k = (2/Σw) Σ w r e^{−jω_k t}`), leaving out the first
+//!    five harmonics' bins and the two lowest bins (the trend); the window keeps a strong transient from leaking over the
+//!    band, and its equivalent noise bandwidth converts a bin's power to
+//!    that of a harmonic's estimate;
+//! 3. the strongest non-harmonic bin, when above ten times that floor, is
+//!    **fitted** as a decaying sinusoid at its frequency (decay rate from its
+//!    amplitude in the window's two halves) together with step 1's terms,
+//!    and the floor and the harmonics are measured again without it: the
+//!    arm's ringing separated from the noise;
+//! 4. the noise power per bin is the **median** of `|X_k|²` over those bins
+//!    divided by `ln 2` (white noise makes `|X_k|²` exponential, whose
+//!    median is `ln 2` times its mean). A ringing occupies a few bins, so
+//!    the median is not lifted by it as a mean would be (the test this
+//!    replaces took the level at 2.5 ω as the floor, where the ringing of
+//!    the arm at its natural frequency often is);
+//! 5. a harmonic's `|A_h|²` over that noise power is `Exp(1)` under noise
+//!    alone (its sine and cosine are orthogonal to the others over whole
+//!    cycles, so their estimates have the bins' variance); summed over an
+//!    experiment's `n` windows, twice the sum is `χ²(2n)`: the p-value;
+//! 6. the strongest bin that is no harmonic is the window's non-harmonic
+//!    content; beyond `−ln(α/bins)` times the noise power it is reported
+//!    with its frequency and its amplitude in the first and in the second
+//!    half of the window: a ratio below 0.8 is a transient that decays (the
+//!    arm's ringing after the protocol's steps), near 1 a persistent
+//!    oscillation that is no harmonic of the excitation.
+//!
+//! Assumptions: the noise is white over the bins used (up to six times ω,
+//! at least 40 bins); a ringing that falls on a harmonic's bin is counted
+//! as that harmonic.
+
+use std::collections::BTreeMap;
+
+use nalgebra::{DMatrix, DVector};
+use num_complex::Complex64;
+use serde::Serialize;
+use statrs::distribution::{ChiSquared, ContinuousCDF};
+
+use crate::data::{Dataset, Tf};
+
+/// The harmonics of one window's channel, against its noise.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct WindowSpectrum {
+    /// Amplitude of the fundamental (signal units).
+    pub fundamental: f64,
+    /// Amplitudes of the 2nd and 3rd harmonics.
+    pub harmonics: [f64; 2],
+    /// Noise power per DFT bin, `E|X_k|²` (signal units²), from the median.
+    pub noise_power: f64,
+    /// DFT bins the noise power was taken over.
+    pub bins: usize,
+    /// The strongest non-harmonic bin: (ω in rad/s, amplitude, power over
+    /// the noise power, amplitude in the second half over the first).
+    pub peak: Option<(f64, f64, f64, f64)>,
+}
+
+/// `(2/n) Σ r e^{−jωt}` over `t`, `r`.
+fn project(t: &[f64], r: &[f64], w: f64) -> Complex64 {
+    let n = r.len().max(1) as f64;
+    let mut acc = Complex64::new(0.0, 0.0);
+    for (ti, ri) in t.iter().zip(r) {
+        acc += ri * Complex64::from_polar(1.0, -w * ti);
+    }
+    acc * (2.0 / n)
+}
+
+/// The spectrum of one window's channel `y` at `t` (s, from the window
+/// start) for an excitation at `w` (rad/s); `None` with less than one whole
+/// cycle or too few samples.
+pub fn window_spectrum(t: &[f64], y: &[f64], w: f64) -> Option<WindowSpectrum> {
+    window_harmonics(t, y, w).map(|x| x.0)
+}
+
+/// [`window_spectrum`] and the phasors `X_h` of the fundamental, 2nd and
+/// 3rd harmonics (`y ≈ Re Σ X_h e^{j h ω t}`, `t` from the window start).
+pub fn window_harmonics(t: &[f64], y: &[f64], w: f64) -> Option<(WindowSpectrum, [Complex64; 3])> {
+    let n = exo_impedance::frf::whole_cycles(t, w)?;
+    if n < 32 || y.len() < n {
+        return None;
+    }
+    let t0 = t[0];
+    let tau: Vec<f64> = t[..n].iter().map(|x| x - t0).collect();
+    let dt = tau[n - 1] / (n - 1) as f64;
+    let span = n as f64 * dt;
+    let cycles = (span * w / std::f64::consts::TAU).round().max(1.0) as usize;
+    let yv = DVector::from_column_slice(&y[..n]);
+    // Mean, trend, cos/sin of the first three harmonics, and (second pass)
+    // a decaying sinusoid `e^{−λt}` at the ringing's frequency.
+    let fit = |ringing: Option<(f64, f64)>| {
+        let p = if ringing.is_some() { 10 } else { 8 };
+        let x = DMatrix::from_fn(n, p, |i, j| {
+            let s = tau[i];
+            match (j, ringing) {
+                (0, _) => 1.0,
+                (1, _) => s / span - 0.5,
+                (8, Some((wr, l))) => (-l * s).exp() * (wr * s).cos(),
+                (9, Some((wr, l))) => (-l * s).exp() * (wr * s).sin(),
+                _ => {
+                    let h = ((j - 2) / 2 + 1) as f64;
+                    if j % 2 == 0 {
+                        (h * w * s).cos()
+                    } else {
+                        (h * w * s).sin()
+                    }
+                }
+            }
+        });
+        let beta = (x.transpose() * &x).try_inverse()? * (x.transpose() * &yv);
+        let r: Vec<f64> = (&yv - &x * &beta).iter().copied().collect();
+        Some((beta, r))
+    };
+    // The residual's Hann-windowed spectrum (sidelobes falling as 1/Δω³,
+    // so a strong transient does not leak over the band): bins 2 … up to
+    // 6 ω, without the first five harmonics' bins and `skip`.
+    let hann: Vec<f64> = (0..n)
+        .map(|i| {
+            (std::f64::consts::PI * (i as f64 + 0.5) / n as f64)
+                .sin()
+                .powi(2)
+        })
+        .collect();
+    let sum_w: f64 = hann.iter().sum();
+    // Equivalent noise bandwidth in bins: a bin's noise power over that
+    // of an unwindowed projection (whose variance the harmonics share).
+    let enbw = n as f64 * hann.iter().map(|v| v * v).sum::<f64>() / (sum_w * sum_w);
+    let kmax = (n / 2).saturating_sub(1).min((6 * cycles).max(40));
+    // Only the harmonics' own bins: with few cycles in the window the
+    // harmonics are a few bins apart, and the least squares removed the
+    // first three anyway.
+    let harmonic_bin = |k: usize| (1..=5).any(|h| k == h * cycles);
+    let spectrum = |r: &[f64], skip: Option<usize>| -> Vec<(usize, f64)> {
+        (2..=kmax)
+            .filter(|&k| !harmonic_bin(k) && skip.is_none_or(|q| (k as i64 - q as i64).abs() > 2))
+            .map(|k| {
+                let wk = std::f64::consts::TAU * k as f64 / span;
+                let mut acc = Complex64::new(0.0, 0.0);
+                for i in 0..n {
+                    acc += (hann[i] * r[i]) * Complex64::from_polar(1.0, -wk * tau[i]);
+                }
+                (k, (acc * (2.0 / sum_w)).norm_sqr())
+            })
+            .collect()
+    };
+    let floor = |pw: &[(usize, f64)]| {
+        let mut v: Vec<f64> = pw.iter().map(|p| p.1).collect();
+        v.sort_by(f64::total_cmp);
+        median(v) / std::f64::consts::LN_2 / enbw
+    };
+    let (beta0, r0) = fit(None)?;
+    let mut power = spectrum(&r0, None);
+    if power.len() < 8 {
+        return None;
+    }
+    let floor0 = floor(&power);
+    power.sort_by(|a, b| b.1.total_cmp(&a.1));
+    // The strongest non-harmonic bin, its decay from the first half of the
+    // window to the second (unwindowed projections of the residual).
+    let peak0 = power.first().map(|&(k, pw)| {
+        let wk = std::f64::consts::TAU * k as f64 / span;
+        let half = n / 2;
+        let a1 = project(&tau[..half], &r0[..half], wk).norm();
+        let a2 = project(&tau[half..], &r0[half..], wk).norm();
+        (k, wk, pw, a2 / a1.max(1e-300))
+    });
+    // A peak well above the floor is fitted as a decaying sinusoid (its
+    // rate from the halves' ratio) and taken out before the floor and the
+    // harmonics are measured: the ringing separated from the noise.
+    let ringing = peak0.filter(|p| p.2 / enbw > 10.0 * floor0);
+    let (beta, noise_power, bins) = match ringing.and_then(|(k, wk, _, ratio)| {
+        // Its frequency and decay rate refined on a small grid about the
+        // bin and the halves' estimate (least residual).
+        let lambda0 = (-ratio.clamp(1e-3, 1.0).ln() / (0.5 * span)).max(0.2 / span);
+        let dw = std::f64::consts::TAU / span;
+        let mut best: Option<(f64, DVector<f64>, Vec<f64>)> = None;
+        for i in -4..=4 {
+            for l in [0.0, 0.5, 0.75, 1.0, 1.5, 2.0, 3.0] {
+                let Some((b, r)) = fit(Some((wk + 0.125 * i as f64 * dw, l * lambda0))) else {
+                    continue;
+                };
+                let rss: f64 = r.iter().map(|v| v * v).sum();
+                if best.as_ref().is_none_or(|x| rss < x.0) {
+                    best = Some((rss, b, r));
+                }
+            }
+        }
+        let (_, b, r) = best?;
+        let pw = spectrum(&r, Some(k));
+        (pw.len() >= 8).then(|| (b, floor(&pw), pw.len()))
+    }) {
+        Some(x) => x,
+        None => (beta0, floor0, power.len()),
+    };
+    if !(noise_power.is_finite() && noise_power > 0.0) {
+        return None;
+    }
+    let amp = |h: usize| beta[2 + 2 * h].hypot(beta[3 + 2 * h]);
+    // a cos + b sin = Re((a − j b) e^{jωt}).
+    let phasor = |h: usize| Complex64::new(beta[2 + 2 * h], -beta[3 + 2 * h]);
+    let phasors = [phasor(0), phasor(1), phasor(2)];
+    let peak = peak0.map(|(_, wk, pw, ratio)| {
+        // Amplitude of a steady sinusoid at the bin (the window's gain
+        // taken out), power over the floor in the same units.
+        (wk, pw.sqrt(), pw / (noise_power * enbw), ratio)
+    });
+    Some((
+        WindowSpectrum {
+            fundamental: amp(0),
+            harmonics: [amp(1), amp(2)],
+            noise_power,
+            bins,
+            peak,
+        },
+        phasors,
+    ))
+}
+
+/// What a polynomial spring predicts beyond the fundamental, checked where
+/// it predicts it: the cubic term `K₃ θ³` of the human's spring puts
+/// `¼ K₃ Θ₁³` into the 3rd harmonic of `τ_c` (`Θ₁` the angle's
+/// fundamental phasor), on top of the linear response `S_h(3ω) Θ₃` to the
+/// angle's own 3rd harmonic. With `y = T₃ − S_h(3ω) Θ₃ − ¼ K₃⁰ Θ₁³` the
+/// current model's 3rd-harmonic residual and `m = ¼ ΔK₃ Θ₁³` the change the
+/// candidate makes, both whitened by the noise of `τ_c`'s spectrum in the
+/// window, `β = Re Σ m̄ y/|m|²` is the fraction of the predicted harmonic the
+/// data show, its standard error `1/|m|` scaled by the scatter. Returns
+/// `(|m|², β, se, windows)`, `None` when the candidate changes no `K₃` or no
+/// window has the harmonics.
+pub fn cubic_harmonic_check(
+    d: &Dataset,
+    before: &crate::model::Physics,
+    after: &crate::model::Physics,
+) -> Option<(f64, f64, f64, usize)> {
+    let dk3 = after.k3 - before.k3;
+    if dk3 == 0.0 || !d.supported.contains(&Tf::Sh) {
+        return None;
+    }
+    let (mut ym, mut mm, mut rows) = (0.0, 0.0, Vec::new());
+    for (i, s) in d.signals.iter().enumerate() {
+        let w = s.omega_rad_s;
+        if w <= 0.0 {
+            continue;
+        }
+        let (Some((_, th)), Some((spec, tc))) = (
+            window_harmonics(&s.t_s, &s.theta_rad, w),
+            window_harmonics(&s.t_s, &s.tau_c_nm, w),
+        ) else {
+            continue;
+        };
+        let c = &d.conditions[i];
+        // Per real component: E|X|² = 2σ².
+        let sd = (0.5 * spec.noise_power).sqrt();
+        let zero = Complex64::new(0.0, 0.0);
+        let cube = th[0] * th[0] * th[0] * 0.25;
+        let y = tc[2] - before.predict_tf(Tf::Sh, 3.0 * w, c, zero) * th[2] - before.k3 * cube;
+        let m = dk3 * cube;
+        let (y, m) = (y / sd, m / sd);
+        ym += (m.conj() * y).re;
+        mm += m.norm_sqr();
+        rows.push((y, m));
+    }
+    if mm.is_nan() || mm <= 1e-12 {
+        return None;
+    }
+    let beta = ym / mm;
+    let dof = (2.0 * rows.len() as f64 - 1.0).max(1.0);
+    let scatter = rows
+        .iter()
+        .map(|(y, m)| (y - beta * m).norm_sqr())
+        .sum::<f64>()
+        / dof;
+    Some((mm, beta, (scatter.max(1.0) / mm).sqrt(), rows.len()))
+}
+
+/// Non-harmonic content of an experiment's windows beyond their noise.
+#[derive(Debug, Clone, Serialize)]
+pub struct NonHarmonic {
+    /// Windows whose strongest non-harmonic bin is beyond the noise.
+    pub windows: usize,
+    /// Windows examined.
+    pub of: usize,
+    /// Median frequency of those peaks (rad/s).
+    pub omega_rad_s: f64,
+    /// Median peak amplitude (% of the fundamental).
+    pub size_pct: f64,
+    /// Median peak power over the noise power.
+    pub power_ratio: f64,
+    /// Median amplitude in the window's second half over its first.
+    pub decay: f64,
+    /// Decays within the window (median ratio below 0.8): a transient.
+    pub transient: bool,
+}
+
+/// The harmonics of one experiment's channel, against the noise.
+#[derive(Debug, Clone, Serialize)]
+pub struct HarmonicContent {
+    /// Experiment.
+    pub experiment: u32,
+    /// Channel (`tau_c`, `tau_s_net`).
+    pub channel: &'static str,
+    /// The transfer function the channel is the output of.
+    pub tf: Tf,
+    /// Windows analysed.
+    pub windows: usize,
+    /// RMS over the windows of the 2nd and 3rd harmonic (% of the fundamental).
+    pub harmonic_pct: [f64; 2],
+    /// The noise level of one bin (% of the fundamental, RMS over windows).
+    pub noise_pct: f64,
+    /// Mean power of the 2nd and 3rd harmonic over the noise power (1 = noise).
+    pub power_ratio: [f64; 2],
+    /// p-values of the 2nd and 3rd harmonic (χ²(2n) of the summed ratios).
+    pub p_value: [f64; 2],
+    /// Beyond the noise at the level divided over every test.
+    pub significant: [bool; 2],
+    /// Non-harmonic content beyond the noise, if any window has it.
+    pub non_harmonic: Option<NonHarmonic>,
+}
+
+fn median(mut v: Vec<f64>) -> f64 {
+    if v.is_empty() {
+        return f64::NAN;
+    }
+    v.sort_by(f64::total_cmp);
+    let n = v.len();
+    if n % 2 == 1 {
+        v[n / 2]
+    } else {
+        0.5 * (v[n / 2 - 1] + v[n / 2])
+    }
+}
+
+/// The harmonic and non-harmonic content of every experiment's torque
+/// channels; `level` is the family-wise level (divided over experiments,
+/// channels and the two harmonics; per window over its bins for the
+/// non-harmonic peak).
+pub fn harmonics(d: &Dataset, level: f64) -> Vec<HarmonicContent> {
+    let mut acc: BTreeMap<(u32, &'static str, Tf), Vec<WindowSpectrum>> = BTreeMap::new();
+    for (i, s) in d.signals.iter().enumerate() {
+        let w = s.omega_rad_s;
+        if w <= 0.0 {
+            continue;
+        }
+        let e = d.conditions[i].experiment;
+        for (name, y, tf) in [
+            ("tau_c", &s.tau_c_nm, Tf::Sh),
+            ("tau_s_net", &s.tau_s_net_nm, Tf::She),
+        ] {
+            if !d.supported.contains(&tf) {
+                continue;
+            }
+            if let Some(ws) = window_spectrum(&s.t_s, y, w) {
+                acc.entry((e, name, tf)).or_default().push(ws);
+            }
+        }
+    }
+    let alpha = level / (2 * acc.len()).max(1) as f64;
+    acc.into_iter()
+        .map(|((experiment, channel, tf), ws)| {
+            let nw = ws.len();
+            let mut harmonic_pct = [0.0; 2];
+            let mut power_ratio = [0.0; 2];
+            let mut p_value = [f64::NAN; 2];
+            for h in 0..2 {
+                let ratios: Vec<f64> = ws
+                    .iter()
+                    .map(|x| x.harmonics[h].powi(2) / x.noise_power)
+                    .collect();
+                let sum: f64 = ratios.iter().sum();
+                power_ratio[h] = sum / nw as f64;
+                harmonic_pct[h] = 100.0
+                    * (ws
+                        .iter()
+                        .map(|x| (x.harmonics[h] / x.fundamental).powi(2))
+                        .sum::<f64>()
+                        / nw as f64)
+                        .sqrt();
+                p_value[h] = ChiSquared::new(2.0 * nw as f64).map_or(f64::NAN, |c| c.sf(2.0 * sum));
+            }
+            let noise_pct = 100.0
+                * (ws
+                    .iter()
+                    .map(|x| x.noise_power / x.fundamental.powi(2))
+                    .sum::<f64>()
+                    / nw as f64)
+                    .sqrt();
+            let peaks: Vec<(f64, f64, f64, f64)> = ws
+                .iter()
+                .filter_map(|x| {
+                    let (wk, a, ratio, decay) = x.peak?;
+                    let critical = -(level / x.bins as f64).ln();
+                    (ratio > critical).then_some((wk, 100.0 * a / x.fundamental, ratio, decay))
+                })
+                .collect();
+            let non_harmonic = (!peaks.is_empty()).then(|| {
+                let decay = median(peaks.iter().map(|p| p.3).collect());
+                NonHarmonic {
+                    windows: peaks.len(),
+                    of: nw,
+                    omega_rad_s: median(peaks.iter().map(|p| p.0).collect()),
+                    size_pct: median(peaks.iter().map(|p| p.1).collect()),
+                    power_ratio: median(peaks.iter().map(|p| p.2).collect()),
+                    decay,
+                    transient: decay < 0.8,
+                }
+            });
+            HarmonicContent {
+                experiment,
+                channel,
+                tf,
+                windows: nw,
+                harmonic_pct,
+                noise_pct,
+                power_ratio,
+                significant: [p_value[0] < alpha, p_value[1] < alpha],
+                p_value,
+                non_harmonic,
+            }
+        })
+        .collect()
+}
+
+/// The lines about one transfer function's channel: (words, finding).
+/// Harmonics beyond the noise and persistent non-harmonic content are
+/// findings; a decaying transient is said but is no finding (the arm rings
+/// after every step of the protocol).
+pub fn words(tf: Tf, rows: &[&HarmonicContent]) -> Vec<(String, bool)> {
+    let Some(first) = rows.first() else {
+        return Vec::new();
+    };
+    let channel = first.channel;
+    let mut out = Vec::new();
+    for (h, name) in [(1usize, "3rd"), (0, "2nd")] {
+        let sig: Vec<String> = rows
+            .iter()
+            .filter(|r| r.significant[h])
+            .map(|r| {
+                format!(
+                    "exp {} {:.2} % of the fundamental against a noise level of {:.2} % (power {:.0}× the noise, p = {:.1e})",
+                    r.experiment, r.harmonic_pct[h], r.noise_pct, r.power_ratio[h], r.p_value[h]
+                )
+            })
+            .collect();
+        if !sig.is_empty() {
+            let kind = if h == 1 {
+                "odd harmonics come from a symmetric nonlinearity: a stiffening or softening spring, friction, backlash"
+            } else {
+                "even harmonics come from an asymmetric one: gravity's sin θ about the posture at large angle amplitudes, a spring stiffer on one side, a nonlinearity about an offset posture"
+            };
+            out.push((
+                format!(
+                    "{} ({channel}): {name} harmonic of the excitation beyond the noise in {} ({kind})",
+                    tf.name(),
+                    sig.join("; ")
+                ),
+                true,
+            ));
+        }
+    }
+    if !rows.iter().any(|r| r.significant[0] || r.significant[1]) {
+        let worst = rows
+            .iter()
+            .map(|r| r.harmonic_pct[1].max(r.harmonic_pct[0]))
+            .fold(0.0, f64::max);
+        out.push((
+            format!(
+                "{} ({channel}): no harmonic of the excitation beyond the noise (largest 2nd or 3rd {:.2} % of the fundamental; noise {:.2}–{:.2} %)",
+                tf.name(),
+                worst,
+                rows.iter().map(|r| r.noise_pct).fold(f64::INFINITY, f64::min),
+                rows.iter().map(|r| r.noise_pct).fold(0.0, f64::max)
+            ),
+            false,
+        ));
+    }
+    for r in rows {
+        if let Some(nh) = &r.non_harmonic {
+            let what = if nh.transient {
+                format!(
+                    "a transient that decays (second half of the window {:.2}× the first): the arm's ringing after the protocol's steps, kept out of the noise floor",
+                    nh.decay
+                )
+            } else {
+                format!(
+                    "persistent (second half {:.2}× the first): an oscillation that is no harmonic of the excitation — an instability, a limit cycle or a second source",
+                    nh.decay
+                )
+            };
+            out.push((
+                format!(
+                    "{} ({channel}) exp {}: non-harmonic content at ≈ {:.1} rad/s in {} of {} windows, {:.1} % of the fundamental ({:.0}× the noise power), {what}",
+                    tf.name(),
+                    r.experiment,
+                    nh.omega_rad_s,
+                    nh.windows,
+                    nh.of,
+                    nh.size_pct,
+                    nh.power_ratio
+                ),
+                !nh.transient && 2 * nh.windows > nh.of,
+            ));
+        }
+    }
+    out
+}

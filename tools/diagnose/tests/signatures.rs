@@ -1,0 +1,87 @@
+//! The harmonic test against a noise floor that keeps the ringing out
+//! (issue 15, item 2): a window with known white noise, a known 3rd
+//! harmonic and a decaying ringing at another frequency. Expected values
+//! from the construction (the noise power of a DFT bin of white noise is
+//! `4σ²/n`), not from the function under test.
+
+use exo_diagnose::signatures::window_spectrum;
+
+/// Deterministic standard normal samples (xorshift64* and Box–Muller).
+fn normals(seed: u64, n: usize) -> Vec<f64> {
+    let mut x = seed;
+    let mut uniform = || {
+        x ^= x >> 12;
+        x ^= x << 25;
+        x ^= x >> 27;
+        ((x.wrapping_mul(0x2545_F491_4F6C_DD1D) >> 11) as f64 + 0.5) / (1u64 << 53) as f64
+    };
+    (0..n)
+        .map(|_| {
+            let (u, v) = (uniform(), uniform());
+            (-2.0 * u.ln()).sqrt() * (std::f64::consts::TAU * v).cos()
+        })
+        .collect()
+}
+
+/// 5 s at 500 Hz, ω = 4 rad/s (whole cycles: 3), fundamental 2 Nm, noise σ.
+fn window(sigma: f64, third: f64, ringing: f64, seed: u64) -> (Vec<f64>, Vec<f64>) {
+    let w = 4.0;
+    let t: Vec<f64> = (0..2500).map(|i| i as f64 / 500.0).collect();
+    let e = normals(seed, t.len());
+    let y = t
+        .iter()
+        .zip(&e)
+        .map(|(t, e)| {
+            0.3 + 2.0 * (w * t).sin()
+                + third * (3.0 * w * t + 0.4).cos()
+                + ringing * (-0.8 * t).exp() * (6.7 * t).sin()
+                + sigma * e
+        })
+        .collect();
+    (t, y)
+}
+
+#[test]
+fn the_noise_floor_is_the_noise_not_the_ringing() {
+    let sigma = 0.05;
+    let (t, y) = window(sigma, 0.0, 0.4, 3);
+    let s = window_spectrum(&t, &y, 4.0).expect("spectrum");
+    // Whole cycles of 4 rad/s in 5 s: 3 (4.712 s, 2356 samples).
+    let n = 2356.0;
+    let expected = 4.0 * sigma * sigma / n;
+    assert!(
+        (s.noise_power / expected - 1.0).abs() < 0.3,
+        "noise power {} against {expected}",
+        s.noise_power
+    );
+    // The ringing is found, at its frequency, and decays.
+    let (w, a, ratio, decay) = s.peak.expect("peak");
+    assert!((w - 6.7).abs() < 1.4, "peak at {w}");
+    assert!(ratio > 100.0 && a > 0.05, "peak {a} ratio {ratio}");
+    assert!(decay < 0.5, "decay {decay}");
+    // The mean power of a harmonic that is absent is that of a bin.
+    assert!((s.fundamental - 2.0).abs() < 0.01, "{}", s.fundamental);
+}
+
+#[test]
+fn a_third_harmonic_stands_out_of_the_noise_and_noise_alone_does_not() {
+    let sigma: f64 = 0.05;
+    let n = 2356.0;
+    let bin = (4.0 * sigma * sigma / n).sqrt();
+    // A 3rd harmonic of 4 bins' noise amplitude, beside the ringing.
+    let (t, y) = window(sigma, 4.0 * bin, 0.4, 5);
+    let s = window_spectrum(&t, &y, 4.0).expect("spectrum");
+    let r3 = s.harmonics[1].powi(2) / s.noise_power;
+    assert!(r3 > 5.0, "3rd harmonic power ratio {r3}");
+    assert!((s.harmonics[1] / (4.0 * bin) - 1.0).abs() < 0.5);
+    // Noise alone over 40 windows: the summed ratio is χ²(2n)/2, mean n.
+    let total: f64 = (0..40)
+        .map(|k| {
+            let (t, y) = window(sigma, 0.0, 0.4, 100 + k);
+            let s = window_spectrum(&t, &y, 4.0).expect("spectrum");
+            s.harmonics[1].powi(2) / s.noise_power
+        })
+        .sum();
+    // Mean 40, standard deviation √40 ≈ 6.3 (plus the floor's own error).
+    assert!((total - 40.0).abs() < 20.0, "summed ratio {total}");
+}
