@@ -76,6 +76,25 @@ pub fn ankle_csv() -> PathBuf {
     csv
 }
 
+/// Imports the real ankle recording ([`ankle_csv`]; torque sign flipped,
+/// as README says) into `dir/ankle.mcap` with `exo import`, asserting it
+/// succeeded; returns the recording's path.
+pub fn import_ankle(dir: &Path) -> PathBuf {
+    std::fs::create_dir_all(dir).unwrap();
+    let rec = dir.join("ankle.mcap");
+    let out = exo(&[
+        "import",
+        ankle_csv().to_str().unwrap(),
+        "--flip-torque",
+        "--subject",
+        "ankle",
+        "-o",
+        rec.to_str().unwrap(),
+    ]);
+    assert!(out.status.success(), "{}", stderr(&out));
+    rec
+}
+
 /// The workspace's `configs/` directory.
 pub fn configs_dir() -> PathBuf {
     workspace_root().join("configs")

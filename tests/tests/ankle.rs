@@ -13,25 +13,8 @@
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
-use exo_tests::{ankle_csv, exo, python, stderr, stdout, workspace_root};
+use exo_tests::{ankle_csv, exo, import_ankle, python, stderr, stdout, workspace_root};
 use serde_json::Value;
-
-/// Imports the ankle CSV (torque sign flipped, as README says) into `dir`.
-fn import_ankle(dir: &Path) -> PathBuf {
-    std::fs::create_dir_all(dir).unwrap();
-    let rec = dir.join("ankle.mcap");
-    let out = exo(&[
-        "import",
-        ankle_csv().to_str().unwrap(),
-        "--flip-torque",
-        "--subject",
-        "ankle",
-        "-o",
-        rec.to_str().unwrap(),
-    ]);
-    assert!(out.status.success(), "{}", stderr(&out));
-    rec
-}
 
 fn scratch(tag: &str) -> PathBuf {
     std::env::temp_dir().join(format!("exo-it-ankle-{tag}-{}", std::process::id()))

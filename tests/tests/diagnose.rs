@@ -158,18 +158,7 @@ fn a_python_written_recording_with_a_sensor_delay_and_complex_stiffness_is_diagn
 #[test]
 fn the_real_ankle_recording_is_diagnosed_against_an_m1_model() {
     let dir = scratch("ankle");
-    let csv = ankle_csv();
-    let rec = dir.join("ankle.mcap");
-    let out = exo(&[
-        "import",
-        csv.to_str().unwrap(),
-        "--flip-torque",
-        "--subject",
-        "ankle",
-        "-o",
-        rec.to_str().unwrap(),
-    ]);
-    assert!(out.status.success(), "{}", stderr(&out));
+    let rec = import_ankle(&dir);
     let model = configs_dir().join("plants/ankle-m1.toml");
     let v = diagnose_json(&model, &[&rec], &[]);
     // Only τ/θ exists in a position-perturbation record.

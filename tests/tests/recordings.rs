@@ -119,20 +119,8 @@ fn a_recording_written_by_an_independent_python_script_is_fitted() {
 
 #[test]
 fn the_real_ankle_recording_is_imported_fitted_and_reported() {
-    let csv = ankle_csv();
     let dir = std::env::temp_dir().join(format!("exo-it-ankle-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
-    let rec = dir.join("ankle.mcap");
-    let out = exo(&[
-        "import",
-        csv.to_str().unwrap(),
-        "--flip-torque",
-        "--subject",
-        "ankle",
-        "-o",
-        rec.to_str().unwrap(),
-    ]);
-    assert!(out.status.success(), "{}", stderr(&out));
+    let rec = import_ankle(&dir);
     let v = fit_json(&[&rec]);
     let e = &v["subjects"][0]["experiments"][0];
     let pts = e["points"].as_array().unwrap();
