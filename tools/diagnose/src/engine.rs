@@ -1353,6 +1353,11 @@ impl StepContext<'_> {
                         why.push(check.words.clone());
                     }
                     r.0.amplitude_check = Some(check);
+                } else if r.0.term.needs_two_amplitudes() {
+                    why.push(
+                        "the recordings have one excitation amplitude: an amplitude-dependent form cannot be told from a frequency dependence there"
+                            .into(),
+                    );
                 }
                 if why.is_empty() {
                     pick = Some(i);
