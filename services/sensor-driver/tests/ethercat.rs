@@ -454,6 +454,13 @@ fn a_missed_cycle_and_a_vanished_drive_each_latch_within_the_cycle() {
     net.sim.kill().unwrap();
     net.sim.wait().unwrap();
     let s = rig.step(tau_of(0));
+    // Killing and reaping the simulator runs on the cycle's thread: on a
+    // loaded machine it can take a whole period, and the late cycle then
+    // latches first (seen once in CI: 11 ms at 100 Hz). That lateness is
+    // not what this part provokes, so it is a timing fault of the run.
+    if let Some(f @ BusFault::CycleMissed { .. }) = s.fault {
+        panic!("{TIMING_FAULT} after killing the simulator: {f:?}");
+    }
     assert!(
         matches!(s.fault, Some(BusFault::FrameLost { os_error: 0 })),
         "the first cycle after the drive vanished: {s:?}"
