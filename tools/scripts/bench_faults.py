@@ -84,9 +84,11 @@ def topics(path):
     return out
 
 
-def one(case, proc, stall_s, i):
-    d = tempfile.mkdtemp(prefix="exo-faults-")
-    cfg = run_file(d, f"bf{case[0]}{i}")
+def start_run(d, instance):
+    """Starts `exo run` of a real-time run file in `d` (instance `instance`),
+    waits for its five services and 2 s more; returns the `exo run` process
+    and its services' pids by name."""
+    cfg = run_file(d, instance)
     p = subprocess.Popen(["target/release/exo", "run", cfg, "--no-report"],
                          stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True,
                          env=dict(os.environ, RUST_LOG="warn"))
@@ -96,6 +98,12 @@ def one(case, proc, stall_s, i):
         time.sleep(0.05)
         kids = children(p.pid)
     time.sleep(2.0)
+    return p, kids
+
+
+def one(case, proc, stall_s, i):
+    d = tempfile.mkdtemp(prefix="exo-faults-")
+    p, kids = start_run(d, f"bf{case[0]}{i}")
     target = next(v for k, v in kids.items() if proc.startswith(k) or k.startswith(proc[:15]))
     os.kill(target, signal.SIGSTOP)
     time.sleep(stall_s)

@@ -19,13 +19,11 @@ import os
 import re
 import signal
 import statistics
-import subprocess
 import sys
 import tempfile
-import time
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from bench_faults import children, pct, run_file  # noqa: E402  (one copy of each)
+from bench_faults import pct, start_run  # noqa: E402  (one copy of each)
 
 RUNS = int(sys.argv[1]) if len(sys.argv) > 1 else 10
 CASES = [("baseline", None), ("recorder", "exo-recorder"), ("identifier", "exo-identifier")]
@@ -33,16 +31,7 @@ CASES = [("baseline", None), ("recorder", "exo-recorder"), ("identifier", "exo-i
 
 def one(case, proc, i):
     d = tempfile.mkdtemp(prefix="exo-restart-")
-    cfg = run_file(d, f"br{case[0]}{i}")
-    p = subprocess.Popen(["target/release/exo", "run", cfg, "--no-report"],
-                         stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True,
-                         env=dict(os.environ, RUST_LOG="warn"))
-    t0 = time.time()
-    kids = {}
-    while len(kids) < 5 and time.time() - t0 < 30:
-        time.sleep(0.05)
-        kids = children(p.pid)
-    time.sleep(2.0)
+    p, kids = start_run(d, f"br{case[0]}{i}")
     if proc:
         target = next(v for k, v in kids.items() if proc.startswith(k))
         os.kill(target, signal.SIGKILL)
