@@ -39,10 +39,7 @@ fn the_import_refuses_garbage_by_key_and_passes_good_samples() {
     let port = free_port();
     let endpoint = format!("tcp/127.0.0.1:{port}");
     let remote = format!("garbage{}", std::process::id());
-    let mut config = exo_tunnel::zenoh_config(&[endpoint.clone()], &[], None).unwrap();
-    config
-        .insert_json5("scouting/multicast/enabled", "false")
-        .unwrap();
+    let config = exo_tunnel::zenoh_config(std::slice::from_ref(&endpoint), &[], None).unwrap();
     let session = zenoh::open(config).wait().unwrap();
     let put = |key: &str, bytes: &[u8]| {
         session
