@@ -271,3 +271,45 @@ impl<T: Message> Collector<T> {
         self.0.finish().expect("collector")
     }
 }
+
+/// Waits until a tunnel carries `from`'s channels onto `to`'s: markers
+/// (identifier FRF points, which nothing reads while no identifier runs)
+/// published on `from` every 50 ms until one arrives on `to`. Panics after
+/// `timeout` with both tunnels' logs.
+pub fn wait_for_tunnel(from: &Scenario, to: &Scenario, timeout: Duration) {
+    use exo_messages::channels::IDENTIFIER_FRF;
+    let markers = to.collect(IDENTIFIER_FRF);
+    let ipc = exo_service_kit::ipc::Ipc::open(
+        &format!("tunnel_marker_{}", std::process::id()),
+        &from.instance,
+        None,
+    )
+    .expect("marker node");
+    let out = ipc.outbox(IDENTIFIER_FRF).expect("marker publisher");
+    let t = Instant::now();
+    let mut seq = 0;
+    while markers.snapshot().is_empty() {
+        assert!(
+            t.elapsed() < timeout,
+            "the tunnel did not connect: export {} import {}",
+            from.log("exo-tunnel"),
+            to.log("exo-tunnel")
+        );
+        seq += 1;
+        out.send(exo_messages::FrfPoint {
+            seq,
+            ..Default::default()
+        })
+        .expect("marker");
+        std::thread::sleep(Duration::from_millis(50));
+    }
+    markers.finish();
+}
+
+/// A TCP port on loopback that was free a moment ago (the OS's choice).
+pub fn free_tcp_port() -> u16 {
+    std::net::TcpListener::bind("127.0.0.1:0")
+        .and_then(|l| l.local_addr())
+        .expect("a free port on loopback")
+        .port()
+}

@@ -44,12 +44,7 @@ fn a_tunnel_on_a_port_in_use_stops_alone_and_the_run_goes_on() {
 
 #[test]
 fn a_tunnel_on_a_free_port_exports_the_run() {
-    let port = std::net::TcpListener::bind("127.0.0.1:0")
-        .unwrap()
-        .local_addr()
-        .unwrap()
-        .port();
-    let (ok, err) = run_with_tunnel("tunfree", port);
+    let (ok, err) = run_with_tunnel("tunfree", free_tcp_port());
     assert!(ok, "{err}");
     assert!(err.contains("controller: protocol done"), "{err}");
     assert!(!err.contains("tunnel stopped"), "{err}");

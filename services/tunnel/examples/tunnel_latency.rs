@@ -11,79 +11,20 @@
 //! histograms (µs); lost = published − received.
 //!
 //! `cargo build -p exo-tunnel --bins --examples && cargo run -p exo-tunnel
-//! --example tunnel_latency` (dev profile: Zenoh, iceoryx2 and every other
+//! --example tunnel_latency` (the binaries of the same profile; dev profile: Zenoh, iceoryx2 and every other
 //! dependency at opt-level 3, exo's crates at 1; EXO_BENCH_SECONDS sets
 //! each rate's duration, default 10).
 
-use std::path::{Path, PathBuf};
-use std::process::{Child, Command, Stdio};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
-use exo_messages::channels::{IDENTIFIER_FRF, SENSOR};
-use exo_messages::{FrfPoint, SensorSample};
+use exo_messages::channels::SENSOR;
+use exo_messages::SensorSample;
 use exo_service_kit::ipc::Ipc;
 use exo_service_kit::{monotonic_ns, sleep_until_ns};
+use exo_tests::{free_tcp_port, terminate, wait_for_tunnel, Scenario};
 use hdrhistogram::Histogram;
-
-fn repo() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("../..")
-}
-
-fn binary(name: &str) -> PathBuf {
-    let exe = std::env::current_exe().unwrap();
-    let profile_dir = exe.parent().and_then(|d| d.parent()).unwrap();
-    for dir in [
-        profile_dir.to_path_buf(),
-        profile_dir.parent().unwrap().join("release"),
-    ] {
-        let p = dir.join(name);
-        if p.exists() {
-            return p;
-        }
-    }
-    panic!("{name} not built: cargo build -p exo-tunnel --bins");
-}
-
-/// A run file for `instance` with the tunnel listening on `endpoint`.
-fn run_file(dir: &Path, instance: &str, endpoint: &str) -> PathBuf {
-    let cfgs = repo().join("configs");
-    let text = std::fs::read_to_string(cfgs.join("default.toml"))
-        .unwrap()
-        .replace("\"plants/", &format!("\"{}/plants/", cfgs.display()))
-        .replace("\"subjects/", &format!("\"{}/subjects/", cfgs.display()))
-        .replace(
-            "\"experiments.toml\"",
-            &format!("\"{}/experiments.toml\"", cfgs.display()),
-        )
-        .replace("instance = \"exo\"", &format!("instance = \"{instance}\""))
-        .replace(
-            "output_dir = \"out/runs\"",
-            &format!("output_dir = \"{}\"", dir.display()),
-        )
-        + &format!("\n[tunnel]\nlisten = [\"{endpoint}\"]\n");
-    let p = dir.join(format!("{instance}.toml"));
-    std::fs::write(&p, text).unwrap();
-    p
-}
-
-fn spawn(bin: &Path, args: &[&str], log: &Path) -> Child {
-    Command::new(bin)
-        .args(args)
-        .stdout(Stdio::null())
-        .stderr(std::fs::File::create(log).unwrap())
-        .spawn()
-        .unwrap()
-}
-
-fn stop(mut c: Child) {
-    if let Ok(pid) = i32::try_from(c.id()) {
-        // SAFETY: signalling our own child.
-        unsafe { libc::kill(pid, libc::SIGTERM) };
-    }
-    let _ = c.wait();
-}
 
 /// Receives on `instance`'s sample channel until `done`, recording latency.
 fn receiver(
@@ -148,57 +89,24 @@ fn main() {
         .ok()
         .and_then(|s| s.parse().ok())
         .unwrap_or(10.0);
-    let tunnel = binary("exo-tunnel");
-    let dir = std::env::temp_dir().join(format!("exo-tunnel-bench-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
-    let port = std::net::TcpListener::bind("127.0.0.1:0")
-        .unwrap()
-        .local_addr()
-        .unwrap()
-        .port();
-    let endpoint = format!("tcp/127.0.0.1:{port}");
-    let a = format!("benchA{}", std::process::id());
-    let b = format!("benchB{}", std::process::id());
-    let cfg_a = run_file(&dir, &a, &endpoint);
-    let cfg_b = run_file(&dir, &b, &endpoint);
-    let export = spawn(
-        &tunnel,
-        &["--config", cfg_a.to_str().unwrap()],
-        &dir.join("export.log"),
-    );
-    let import = spawn(
-        &tunnel,
+    let endpoint = format!("tcp/127.0.0.1:{}", free_tcp_port());
+    let exo = Scenario::new("benchA", &[]);
+    exo.append(&format!("\n[tunnel]\nlisten = [\"{endpoint}\"]\n"));
+    let other = Scenario::new("benchB", &[]);
+    let mut export = exo.spawn("exo-tunnel", &[]);
+    let mut import = other.spawn(
+        "exo-tunnel",
         &[
-            "--config",
-            cfg_b.to_str().unwrap(),
             "--import-from",
             &endpoint,
             "--remote-instance",
-            &a,
+            &exo.instance,
         ],
-        &dir.join("import.log"),
     );
+    wait_for_tunnel(&exo, &other, Duration::from_secs(60));
+    let (a, b) = (exo.instance.clone(), other.instance.clone());
     let ipc = Ipc::open(&format!("bench_pub_{}", std::process::id()), &a, None).unwrap();
     let out = ipc.outbox(SENSOR).unwrap();
-    // Wait for the link (a marker through it).
-    {
-        let ipc_b = Ipc::open(&format!("bench_mark_{}", std::process::id()), &b, None).unwrap();
-        let marks = ipc_b.inbox(IDENTIFIER_FRF, 16).unwrap();
-        let marker = ipc.outbox(IDENTIFIER_FRF).unwrap();
-        let t = Instant::now();
-        loop {
-            marker.send(FrfPoint::default()).unwrap();
-            std::thread::sleep(Duration::from_millis(50));
-            if marks.try_recv().unwrap().is_some() {
-                break;
-            }
-            assert!(
-                t.elapsed() < Duration::from_secs(60),
-                "no link; see {}",
-                dir.display()
-            );
-        }
-    }
     println!(
         "| path | rate (Hz) | p50 (µs) | p90 | p99 | p99.9 | max | received | throughput (msg/s) | lost |"
     );
@@ -235,6 +143,6 @@ fn main() {
             secs,
         );
     }
-    stop(export);
-    stop(import);
+    terminate(&mut export);
+    terminate(&mut import);
 }

@@ -14,8 +14,14 @@
 //!   [`key`] (`<instance>/<channel>`, e.g. `exo/sensor`). It only
 //!   subscribes to iceoryx2 and only publishes to Zenoh: nothing from the
 //!   network reaches the exo computer's channels, so the actuator command
-//!   path cannot be driven from another host. Zenoh drops what a slow link
-//!   cannot carry (congestion control "drop"), never blocking the export.
+//!   path cannot be driven from another host. A slow link makes the export
+//!   wait (Zenoh's congestion control "block"; Zenoh closes a link stalled
+//!   for 5 s) rather than drop: the export is its own process, so its wait
+//!   never delays control, and a subscriber on the other computer gets
+//!   every sample as long as the export keeps within its channels' 8192
+//!   sample buffers (beyond, iceoryx2 drops the oldest, as for any slow
+//!   subscriber). Zenoh's default, "drop", drops a sample whose queue
+//!   stays full for 1 ms, which a loaded computer does.
 //! - **import** (on the other computer, `exo-tunnel --import-from
 //!   tcp/HOST:7447 --remote-instance exo`): subscribes to the remote
 //!   instance's keys and publishes every sample onto that computer's own

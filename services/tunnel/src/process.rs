@@ -110,6 +110,7 @@ fn export<T: Recordable>(
     let k = key(ipc.instance(), topic.channel());
     let publisher = session
         .declare_publisher(k.clone())
+        .congestion_control(zenoh::qos::CongestionControl::Block)
         .wait()
         .map_err(|e| anyhow::anyhow!("declaring the Zenoh publisher {k}: {e}"))?;
     Ok(Box::new(Export {

@@ -14,14 +14,6 @@ use exo_recording::Recordable;
 use exo_tests::*;
 use zenoh::Wait;
 
-fn free_port() -> u16 {
-    std::net::TcpListener::bind("127.0.0.1:0")
-        .unwrap()
-        .local_addr()
-        .unwrap()
-        .port()
-}
-
 fn good(seq: u64) -> SensorSample {
     SensorSample {
         seq,
@@ -36,7 +28,7 @@ fn good(seq: u64) -> SensorSample {
 
 #[test]
 fn the_import_refuses_garbage_by_key_and_passes_good_samples() {
-    let port = free_port();
+    let port = free_tcp_port();
     let endpoint = format!("tcp/127.0.0.1:{port}");
     let remote = format!("garbage{}", std::process::id());
     let config = exo_tunnel::zenoh_config(std::slice::from_ref(&endpoint), &[], None).unwrap();

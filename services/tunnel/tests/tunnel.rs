@@ -4,23 +4,14 @@
 //! tunnel imports, and whose channels then carry the first one's samples
 //! and commands, every one, bit for bit, in order (lockstep).
 
-use std::time::{Duration, Instant};
+use std::time::Duration;
 
-use exo_messages::channels::{COMMAND, IDENTIFIER_FRF, SENSOR};
-use exo_messages::FrfPoint;
+use exo_messages::channels::{COMMAND, SENSOR};
 use exo_tests::*;
-
-fn free_port() -> u16 {
-    std::net::TcpListener::bind("127.0.0.1:0")
-        .unwrap()
-        .local_addr()
-        .unwrap()
-        .port()
-}
 
 #[test]
 fn another_host_receives_every_sample_over_zenoh() {
-    let port = free_port();
+    let port = free_tcp_port();
     let endpoint = format!("tcp/127.0.0.1:{port}");
     let exo = Scenario::new("tunexo", &[("periods = [1, 4, 7]", "periods = [1]")]);
     exo.append(&format!("\n[tunnel]\nlisten = [\"{endpoint}\"]\n"));
@@ -42,36 +33,8 @@ fn another_host_receives_every_sample_over_zenoh() {
     let here_commands = exo.collect(COMMAND);
 
     // The link is up once a marker published on the exo computer arrives
-    // on the other one (nothing on the exo side reads identifier points
-    // while its identifier is off).
-    let markers = other.collect(IDENTIFIER_FRF);
-    {
-        let ipc = exo_service_kit::ipc::Ipc::open(
-            &format!("tunnel_marker_{}", std::process::id()),
-            &exo.instance,
-            None,
-        )
-        .unwrap();
-        let out = ipc.outbox(IDENTIFIER_FRF).unwrap();
-        let t = Instant::now();
-        let mut seq = 0;
-        while markers.snapshot().is_empty() {
-            assert!(
-                t.elapsed() < Duration::from_secs(60),
-                "the tunnel did not connect: export {} import {}",
-                exo.log("exo-tunnel"),
-                other.log("exo-tunnel")
-            );
-            seq += 1;
-            out.send(FrfPoint {
-                seq,
-                ..Default::default()
-            })
-            .unwrap();
-            std::thread::sleep(Duration::from_millis(50));
-        }
-    }
-    assert!(markers.finish().iter().all(|m| m.seq >= 1));
+    // on the other one.
+    wait_for_tunnel(&exo, &other, Duration::from_secs(60));
 
     let mut plant = exo.spawn("exo-plant-sim", &[]);
     let mut driver = exo.spawn("exo-sensor-driver", &[]);
