@@ -313,3 +313,14 @@ pub fn free_tcp_port() -> u16 {
         .expect("a free port on loopback")
         .port()
 }
+
+/// Signals a test may send with [`signal`].
+pub use libc::{SIGCONT, SIGSTOP};
+
+/// Sends `signal` (e.g. [`SIGSTOP`], [`SIGCONT`]) to a child.
+pub fn signal(child: &Child, signal: i32) {
+    let pid = i32::try_from(child.id()).expect("pid");
+    // SAFETY: signalling our own child.
+    let rc = unsafe { libc::kill(pid, signal) };
+    assert_eq!(rc, 0, "kill({pid}, {signal})");
+}

@@ -66,3 +66,53 @@ fn another_host_receives_every_sample_over_zenoh() {
         "loopback: {log}"
     );
 }
+
+/// An importer that stops reading (SIGSTOP: the link stalls and the export
+/// waits on it) and an export killed with SIGKILL mid-run never disturb
+/// control: the protocol runs to its end, every sample in order, none
+/// flagged.
+#[test]
+fn a_stalled_importer_and_a_killed_export_never_disturb_control() {
+    let endpoint = format!("tcp/127.0.0.1:{}", free_tcp_port());
+    let exo = Scenario::new("tunkill", &[("periods = [1, 4, 7]", "periods = [1]")]);
+    exo.append(&format!("\n[tunnel]\nlisten = [\"{endpoint}\"]\n"));
+    let other = Scenario::new("tunstalled", &[]);
+    let mut export = exo.spawn("exo-tunnel", &[]);
+    let mut import = other.spawn(
+        "exo-tunnel",
+        &[
+            "--import-from",
+            &endpoint,
+            "--remote-instance",
+            &exo.instance,
+        ],
+    );
+    wait_for_tunnel(&exo, &other, Duration::from_secs(60));
+    signal(&import, SIGSTOP);
+
+    let samples = exo.collect(SENSOR);
+    let mut plant = exo.spawn("exo-plant-sim", &[]);
+    let mut driver = exo.spawn("exo-sensor-driver", &[]);
+    let mut controller = exo.spawn("exo-controller", &[]);
+    samples.wait_for(Duration::from_secs(120), "2 s of samples", |s| {
+        s.len() > 2000
+    });
+    kill_9(&mut export);
+    let status = wait_exit(&mut controller, Duration::from_secs(600), "controller");
+    assert!(
+        status.success(),
+        "control was disturbed: {}",
+        exo.log("exo-controller")
+    );
+    terminate(&mut driver);
+    terminate(&mut plant);
+    signal(&import, SIGCONT);
+    terminate(&mut import);
+    let samples = samples.finish();
+    assert!(samples.len() > 5000);
+    assert!(samples.windows(2).all(|w| w[1].seq == w[0].seq + 1));
+    assert!(
+        samples.iter().all(|s| s.status == 0),
+        "a sample carries a fault flag"
+    );
+}
