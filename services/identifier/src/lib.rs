@@ -1019,3 +1019,53 @@ impl Identifier {
         }
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_command_cursor_gives_the_latest_command_at_or_before_a_stamp() {
+        // A ring with room to spare, and a full one that has wrapped.
+        for (cap, pushes) in [(8, 2), (3, 5)] {
+            let mut ring = Ring::<2>::new(cap);
+            for i in 1..=pushes {
+                ring.push(10 * i, [i as f64, -(i as f64)], 0);
+            }
+            let oldest = 10 * (pushes - ring.len as u64 + 1);
+            let newest = 10 * pushes;
+            let mut c = CommandCursor::new(&ring);
+            assert_eq!(c.at(oldest - 5), None, "before every command");
+            let v = |s: u64| [(s / 10) as f64, -((s / 10) as f64)];
+            assert_eq!(c.at(oldest), Some((v(oldest), true)));
+            assert_eq!(c.at(oldest + 5), Some((v(oldest), false)));
+            assert_eq!(c.at(newest), Some((v(newest), true)));
+            // Past the last command: still the last one, not an unwritten
+            // or overwritten slot of the ring.
+            assert_eq!(c.at(newest + 5), Some((v(newest), false)));
+            assert_eq!(c.at(newest + 50), Some((v(newest), false)));
+        }
+    }
+
+    #[test]
+    fn fewer_than_nine_in_ten_commands_are_warned_about() {
+        let id = Identifier::new(IdentifierSettings {
+            fit_source: FitSource::ActuatorTorque,
+            ..IdentifierSettings::default()
+        });
+        let warned = |exact, count| {
+            let mut out = Vec::new();
+            id.command_coverage("w", exact, count, &mut out);
+            out.len()
+        };
+        assert_eq!(warned(10, 10), 0);
+        assert_eq!(warned(9, 10), 0, "nine in ten is enough");
+        assert_eq!(warned(8, 10), 1);
+        assert_eq!(warned(0, 10), 1);
+        // The cuff's S_h needs no command.
+        let cuff = Identifier::new(IdentifierSettings::default());
+        let mut out = Vec::new();
+        cuff.command_coverage("w", 0, 10, &mut out);
+        assert!(out.is_empty());
+    }
+}

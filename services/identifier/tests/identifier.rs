@@ -427,6 +427,17 @@ fn ten_periods_give_ten_points_and_the_m2_fit_recovers_k_and_h() {
             m2.m_h_se
         );
         assert!((m2.c_h - 0.25).abs() < 0.01);
+        // C = H/K and its standard error by first-order propagation,
+        // written out: σ_C² = (σ_H/K)² + (H σ_K/K²)².
+        assert_eq!(m2.c_h, m2.h_h / m2.k_h);
+        let c_se = ((m2.h_h_se / m2.k_h).powi(2)
+            + (m2.h_h * m2.k_h_se / (m2.k_h * m2.k_h)).powi(2))
+        .sqrt();
+        assert!(
+            (m2.c_h_se - c_se).abs() <= 1e-12 * c_se,
+            "σ_C {} vs {c_se}",
+            m2.c_h_se
+        );
         // Hysteretic data: M1 (viscous only) is rejected against M3, M2 is not.
         let crit = f_critical(1.0, 16.0, F_TEST_LEVEL).unwrap();
         assert!((m2.f_critical - crit).abs() < 1e-9);
@@ -696,6 +707,16 @@ fn bad_settings_are_refused_naming_the_field() {
                 ..Default::default()
             },
         ),
+        // The product rate · window (2e8 samples) is what is bounded, not
+        // either alone.
+        (
+            "max_window_s",
+            IdentifierSettings {
+                rate_hz: 2e4,
+                max_window_s: 1e4,
+                ..Default::default()
+            },
+        ),
     ];
     for (field, s) in bad {
         let e = Identifier::try_new(s).unwrap_err();
@@ -703,6 +724,12 @@ fn bad_settings_are_refused_naming_the_field() {
         assert!(e.to_string().contains(field));
     }
     assert!(Identifier::try_new(IdentifierSettings::default()).is_ok());
+    assert!(Identifier::try_new(IdentifierSettings {
+        rate_hz: 1e3,
+        max_window_s: 9e4,
+        ..Default::default()
+    })
+    .is_ok());
 }
 
 #[test]
