@@ -20,7 +20,7 @@ use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
 use std::time::Duration;
 
-use exo_tests::{stderr, stdout, workspace_bin};
+use exo_tests::{netns, stderr, stdout, workspace_bin, Scenario};
 
 const IN_NETNS: &str = "EXO_PLANT_DRIVE_IN_NETNS";
 const RATE_HZ: f64 = 250.0;
@@ -72,50 +72,21 @@ fn plant_drive() -> PathBuf {
     out
 }
 
-/// The shipped run file at the test's rate, its paths made absolute, its
-/// recording in `dir`.
-fn run_file(dir: &Path) -> PathBuf {
-    let configs = exo_config::configs_dir();
-    let text = std::fs::read_to_string(configs.join("ethercat-exo.toml")).unwrap();
-    let text = text
-        .replace(
-            "plant_model = \"",
-            &format!("plant_model = \"{}/", configs.display()),
-        )
-        .replace(
-            "subject_file = \"",
-            &format!("subject_file = \"{}/", configs.display()),
-        )
-        .replace(
-            "experiments_file = \"",
-            &format!("experiments_file = \"{}/", configs.display()),
-        )
-        .replace(
-            "output_dir = \"out/runs\"",
-            &format!("output_dir = \"{}\"", dir.join("runs").display()),
-        )
-        .replace(
-            "instance = \"exoplantecat\"",
-            &format!("instance = \"pd{}\"", std::process::id()),
-        )
-        .replace("rate_hz = 1000.0", &format!("rate_hz = {RATE_HZ}"))
-        // The deadlines in the same number of periods as the file's at 1 kHz
-        // (the command's must be at least one period).
-        .replace("command_deadline_ms = 1.0", "command_deadline_ms = 4.0")
-        .replace("sample_deadline_ms = 5.0", "sample_deadline_ms = 20.0")
-        .replace("bus_deadline_ms = 5.0", "bus_deadline_ms = 20.0")
-        .replace("drive_watchdog_ms = 10.0", "drive_watchdog_ms = 40.0");
-    let path = dir.join("run.toml");
-    std::fs::write(&path, text).unwrap();
-    path
-}
-
-fn ip(args: &str) {
-    let ok = Command::new("ip")
-        .args(args.split(' '))
-        .status()
-        .expect("ip");
-    assert!(ok.success(), "ip {args}");
+/// The shipped run file at the test's rate, with the deadlines in the same
+/// number of periods as the file's at 1 kHz (the command's must be at
+/// least one period).
+fn scenario() -> Scenario {
+    Scenario::of(
+        "ethercat-exo.toml",
+        "plantdrive",
+        &[
+            ("rate_hz = 1000.0", &format!("rate_hz = {RATE_HZ}")),
+            ("command_deadline_ms = 1.0", "command_deadline_ms = 4.0"),
+            ("sample_deadline_ms = 5.0", "sample_deadline_ms = 20.0"),
+            ("bus_deadline_ms = 5.0", "bus_deadline_ms = 20.0"),
+            ("drive_watchdog_ms = 10.0", "drive_watchdog_ms = 40.0"),
+        ],
+    )
 }
 
 #[test]
@@ -125,61 +96,14 @@ fn exo_run_identifies_the_simulated_human_behind_the_emulated_drive() {
         let dir = plant_drive();
         // The binaries `exo run` starts, found before entering the namespace.
         let _ = workspace_bin("exo");
-        // Real time as on a rig where it is permitted (root here): every
-        // process of the run in SCHED_FIFO, so that builds sharing the CPUs
-        // do not delay a cycle by a whole period. Elsewhere at normal
-        // priority, at the mercy of the load.
-        let fifo = Command::new("chrt")
-            .args(["-f", "40", "true"])
-            .status()
-            .is_ok_and(|s| s.success());
-        for attempt in 1..=ATTEMPTS {
-            let mut cmd = if fifo {
-                let mut c = Command::new("chrt");
-                c.args(["-f", "40", "unshare"]);
-                c
-            } else {
-                Command::new("unshare")
-            };
-            let out = cmd
-                .arg("-rn")
-                .arg(std::env::current_exe().unwrap())
-                .args(["--exact", name, "--nocapture", "--test-threads=1"])
-                .env(IN_NETNS, &dir)
-                .output()
-                .expect("unshare");
-            let text = format!("{}\n{}", stdout(&out), stderr(&out));
-            if out.status.success() && text.contains("1 passed") {
-                return;
-            }
-            assert!(
-                text.contains(TIMING_FAULT) && attempt < ATTEMPTS,
-                "in its network namespace (attempt {attempt}):\n{text}"
-            );
-            eprintln!("attempt {attempt} met a timing fault of the machine; again");
-        }
+        netns::rerun_inside(name, IN_NETNS, dir.as_os_str(), TIMING_FAULT, ATTEMPTS);
         return;
     };
     let drive_dir = PathBuf::from(drive_dir);
-    for cmd in [
-        "link add ecm0 type veth peer name ecm0b",
-        "link add ecs0 type veth peer name ecs0b",
-        "link add br0 type bridge",
-        "link set ecm0b master br0",
-        "link set ecs0b master br0",
-        "link set lo up",
-        "link set br0 up",
-        "link set ecm0b up",
-        "link set ecs0b up",
-        "link set ecm0 up",
-        "link set ecs0 up",
-    ] {
-        ip(cmd);
-    }
-    let dir = std::env::temp_dir().join(format!("exo-plant-drive-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
-    let run = run_file(&dir);
-    let drive_log = dir.join("drive.log");
+    netns::bridge_master_and_drive();
+    let sc = scenario();
+    let run = sc.config.clone();
+    let drive_log = sc.dir.join("drive.log");
     let mut drive = Command::new(drive_dir.join("exo_plant_drive"))
         .args(["-i", "ecs0", "-s"])
         .arg(drive_dir.join("slave_configs/exo-drive.json"))
@@ -256,5 +180,5 @@ fn exo_run_identifies_the_simulated_human_behind_the_emulated_drive() {
         (k / k0 - 1.0).abs() < 0.05 && (h / h0 - 1.0).abs() < 0.05,
         "fitted K = {k}, H = {h}; the simulated subject has K = {k0}, H = {h0}\n{v:#}"
     );
-    let _ = std::fs::remove_dir_all(&dir);
+    let _ = std::fs::remove_dir_all(&sc.dir);
 }
