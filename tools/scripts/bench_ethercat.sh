@@ -15,7 +15,9 @@
 # `ethercat-exo-plant`, the drive whose mechanics are our plant
 # (tools/plant-drive, configs/ethercat-exo.toml: the same plant, subject and
 # protocol as the simulator row); `simulator-bus`, that run file on the
-# simulator's bus with exo-plant-sim.
+# simulator's bus with exo-plant-sim. A late cycle or frame latches the
+# driver's safe state by design, and a latched driver records no round
+# trips: an EtherCAT row's `n` counts those before its latch.
 set -euo pipefail
 secs=${1:-20}
 root=$(pwd)
