@@ -301,6 +301,30 @@ mod tests {
     }
 
     #[test]
+    fn the_c_header_declares_the_same_codes() {
+        let header = std::fs::read_to_string(
+            std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("cpp/exo_plant_drive.h"),
+        )
+        .unwrap();
+        let defined = |name: &str| -> i32 {
+            let line = header
+                .lines()
+                .find(|l| l.starts_with(&format!("#define {name} ")))
+                .unwrap_or_else(|| panic!("{name} not in the header"));
+            let value = line[name.len() + 9..].trim().trim_matches(['(', ')']);
+            value.parse().unwrap_or_else(|_| panic!("{line}"))
+        };
+        assert_eq!(defined("EXO_PLANT_DRIVE_OK"), EXO_PLANT_DRIVE_OK);
+        assert_eq!(defined("EXO_PLANT_DRIVE_NULL"), EXO_PLANT_DRIVE_NULL);
+        assert_eq!(
+            defined("EXO_PLANT_DRIVE_NOT_FINITE"),
+            EXO_PLANT_DRIVE_NOT_FINITE
+        );
+        assert_eq!(defined("EXO_PLANT_DRIVE_IPC"), EXO_PLANT_DRIVE_IPC);
+        assert_eq!(defined("EXO_PLANT_DRIVE_PANIC"), EXO_PLANT_DRIVE_PANIC);
+    }
+
+    #[test]
     fn null_pointers_are_refused() {
         let mut r = ExoPlantReadings::default();
         let p = open();
