@@ -113,8 +113,9 @@ impl ExoPlantDrive {
                 Err(_) => return Err(EXO_PLANT_DRIVE_IPC),
             }
         }
+        // Held whatever frame it answers (the real-time path of the plant
+        // process), so no frame number.
         self.node.hold_motor(&BusMotorCommand {
-            frame_seq: self.node.tick(),
             tau_motor_nm,
             enable: u32::from(enabled),
             ..Default::default()
