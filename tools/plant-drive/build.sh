@@ -18,7 +18,7 @@ if [ -z "$lib" ]; then
 fi
 [ -f "$lib" ] || { echo "plant-drive build: $lib not found" >&2; exit 1; }
 for tool in cmake g++; do
-  command -v $tool >/dev/null || { echo "plant-drive build: install $tool first" >&2; exit 1; }
+  command -v $tool >/dev/null || { echo "plant-drive build: install $tool first (../shared/vendor/kickcat/build.sh installs it when run as root)" >&2; exit 1; }
 done
 [ -f /usr/include/tinyxml2.h ] || { echo "plant-drive build: install libtinyxml2-dev first" >&2; exit 1; }
 if [ ! -f "$out/argparse-prefix/.done" ]; then
