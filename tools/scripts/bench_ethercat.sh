@@ -8,6 +8,7 @@
 #
 # Usage: tools/scripts/bench_ethercat.sh [SECONDS=20]   (from the workspace root)
 #   WARMUP=s   round trips left out at the start (default 0.5)
+#   RATE=Hz    the cycle (default 1000; an integer)
 # Needs: unshare -rn (user namespaces), ip, and chrt -f where permitted.
 # Three rows: `ethercat-kickcat`, KickCAT's own motor with torque scale 0 (a
 # drive that holds still: a free KickCAT motor under the protocol's torques
@@ -31,17 +32,30 @@ kc=$target/kickcat
 pd=$target/plant-drive
 tools/plant-drive/build.sh "$pd" "$bin/libexo_plant_drive.a" >/dev/null
 warmup=${WARMUP:-0.5}
+rate=${RATE:-1000}
 # A still motor: our slave config beside the vendored one (same ESI).
 cat > "$kc/slave_configs/ecat402-drive-still.json" <<'JSON'
 { "esi": "ecat402-drive.xml", "ds402_motor": true, "motor_torque_scale": 0.0 }
 JSON
 out=$(mktemp -d)
 trap 'rm -rf "$out"' EXIT
-sed -e "s|plant_model = \"|plant_model = \"$root/configs/|" \
-    -e "s|subject_file = \"|subject_file = \"$root/configs/|" \
-    -e "s|experiments_file = \"|experiments_file = \"$root/configs/|" \
-    -e "s|output_dir = \"out/runs\"|output_dir = \"$out/runs\"|" \
-    configs/ethercat-kickcat.toml > "$out/ecat.toml"
+# A shipped run file with its paths absolute, at $rate Hz: the deadlines
+# kept in periods as the files give them at 1 kHz (command 1, sample and
+# bus 5, the drive's watchdog 10).
+absolute() {
+  local ms; ms=$(awk "BEGIN { print 1000 / $rate }")
+  sed -e "s|plant_model = \"|plant_model = \"$root/configs/|" \
+      -e "s|subject_file = \"|subject_file = \"$root/configs/|" \
+      -e "s|experiments_file = \"|experiments_file = \"$root/configs/|" \
+      -e "s|output_dir = \"out/runs\"|output_dir = \"$out/runs\"|" \
+      -e "s|^rate_hz = 1000.0|rate_hz = $rate.0|" \
+      -e "s|^command_deadline_ms = 1.0|command_deadline_ms = $ms|" \
+      -e "s|^sample_deadline_ms = 5.0|sample_deadline_ms = $(awk "BEGIN { print 5 * $ms }")|" \
+      -e "s|^bus_deadline_ms = 5.0|bus_deadline_ms = $(awk "BEGIN { print 5 * $ms }")|" \
+      -e "s|^drive_watchdog_ms = 10.0|drive_watchdog_ms = $(awk "BEGIN { print 10 * $ms }")|" \
+      "configs/$1"
+}
+absolute ethercat-kickcat.toml > "$out/ecat.toml"
 cat >> "$out/ecat.toml" <<'TOML'
 
 [realtime]
@@ -51,11 +65,7 @@ controller_cpu = 1
 sched_fifo_priority = 80
 lock_memory = true
 TOML
-sed -e "s|plant_model = \"|plant_model = \"$root/configs/|" \
-    -e "s|subject_file = \"|subject_file = \"$root/configs/|" \
-    -e "s|experiments_file = \"|experiments_file = \"$root/configs/|" \
-    -e "s|output_dir = \"out/runs\"|output_dir = \"$out/runs\"|" \
-    configs/ethercat-exo.toml > "$out/plant.toml"
+absolute ethercat-exo.toml > "$out/plant.toml"
 sed -n '/^\[realtime\]/,$p' "$out/ecat.toml" >> "$out/plant.toml"
 sed -e 's|backend = "ethercat"|backend = "simulator"|' -e 's|plant_sim = false|plant_sim = true|' \
     -e 's|instance = "exoplantecat"|instance = "exoplantsim"|' "$out/plant.toml" > "$out/sim.toml"
@@ -82,7 +92,7 @@ PY
 }
 
 export -f run 2>/dev/null || true
-echo "machine: $(nproc) CPUs, $(uname -r), load $(cut -d' ' -f1-3 /proc/loadavg); $secs s per row, 1 kHz, $profile build, warm-up $warmup s"
+echo "machine: $(nproc) CPUs, $(uname -r), load $(cut -d' ' -f1-3 /proc/loadavg); $secs s per row, $rate Hz, $profile build, warm-up $warmup s"
 $fifo unshare -rn bash -c "
   set -e
   for c in 'ecm0 type veth peer name ecm0b' 'ecs0 type veth peer name ecs0b' 'br0 type bridge'; do ip link add \$c; done
