@@ -66,9 +66,9 @@ sched_fifo_priority = 80
 lock_memory = true
 TOML
 absolute ethercat-exo.toml > "$out/plant.toml"
-sed -n '/^\[realtime\]/,$p' "$out/ecat.toml" >> "$out/plant.toml"
 sed -e 's|backend = "ethercat"|backend = "simulator"|' -e 's|plant_sim = false|plant_sim = true|' \
-    -e 's|instance = "exoplantecat"|instance = "exoplantsim"|' "$out/plant.toml" > "$out/sim.toml"
+    -e 's|instance = "exoplantecat"|instance = "exoplantsim"|' -e 's|^sensor_driver_cpu = 1|plant_sim_cpu = 1\nsensor_driver_cpu = 1|' \
+    "$out/plant.toml" > "$out/sim.toml"
 fifo=; chrt -f 40 true 2>/dev/null && fifo="chrt -f 40"
 
 run() { # run NAME CONFIG WITH_PLANT
