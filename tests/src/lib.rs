@@ -115,11 +115,18 @@ pub struct Scenario {
 impl Scenario {
     /// Writes the scenario `tag` with `replacements` applied to the default run file.
     pub fn new(tag: &str, replacements: &[(&str, &str)]) -> Self {
+        Self::of("default.toml", tag, replacements)
+    }
+
+    /// Writes the scenario `tag` with `replacements` applied to the shipped
+    /// run file `file` (in `configs/`): its paths made absolute, its
+    /// instance unique, its recordings in the scenario's directory.
+    pub fn of(file: &str, tag: &str, replacements: &[(&str, &str)]) -> Self {
         let instance = format!("t{}{}", tag.replace(['_', '-'], ""), std::process::id());
         let dir = std::env::temp_dir().join(format!("exo-it-{instance}"));
         std::fs::create_dir_all(&dir).unwrap();
         let cfgs = configs_dir();
-        let mut text = std::fs::read_to_string(cfgs.join("default.toml")).unwrap();
+        let mut text = std::fs::read_to_string(cfgs.join(file)).unwrap();
         text = text
             .replace("\"plants/", &format!("\"{}/plants/", cfgs.display()))
             .replace("\"subjects/", &format!("\"{}/subjects/", cfgs.display()))
@@ -127,11 +134,18 @@ impl Scenario {
                 "\"experiments.toml\"",
                 &format!("\"{}/experiments.toml\"", cfgs.display()),
             )
-            .replace("instance = \"exo\"", &format!("instance = \"{instance}\""))
             .replace(
                 "output_dir = \"out/runs\"",
                 &format!("output_dir = \"{}\"", dir.display()),
             );
+        text = text
+            .lines()
+            .map(|l| match l.starts_with("instance = ") {
+                true => format!("instance = \"{instance}\""),
+                false => l.to_string(),
+            })
+            .collect::<Vec<_>>()
+            .join("\n");
         for (from, to) in replacements {
             assert!(
                 text.contains(from),
@@ -323,4 +337,81 @@ pub fn signal(child: &Child, signal: i32) {
     // SAFETY: signalling our own child.
     let rc = unsafe { libc::kill(pid, signal) };
     assert_eq!(rc, 0, "kill({pid}, {signal})");
+}
+
+/// Tests of the EtherCAT backend in a user and network namespace of their
+/// own (`unshare -rn`, no privileges needed): the test binary runs the test
+/// again inside, where it builds the network and starts the emulated drive.
+pub mod netns {
+    use std::ffi::OsStr;
+    use std::process::Command;
+
+    /// In the parent: runs test `name` of this test binary again under
+    /// `unshare -rn` (under `chrt -f 40` where permitted, as real time on a
+    /// rig: builds sharing the CPUs then do not delay a cycle by a whole
+    /// period), with `key=value` in its environment, and asserts it passed.
+    /// A run whose output holds `timing_fault` (a fault of the machine's
+    /// timing that the test did not provoke) is run again, `attempts` runs
+    /// at most, each retry named on stderr.
+    pub fn rerun_inside(name: &str, key: &str, value: &OsStr, timing_fault: &str, attempts: usize) {
+        let fifo = Command::new("chrt")
+            .args(["-f", "40", "true"])
+            .status()
+            .is_ok_and(|s| s.success());
+        for attempt in 1..=attempts {
+            let mut cmd = if fifo {
+                let mut c = Command::new("chrt");
+                c.args(["-f", "40", "unshare"]);
+                c
+            } else {
+                Command::new("unshare")
+            };
+            let out = cmd
+                .arg("-rn")
+                .arg(std::env::current_exe().unwrap())
+                .args(["--exact", name, "--nocapture", "--test-threads=1"])
+                .env(key, value)
+                .output()
+                .expect("unshare");
+            let text = format!("{}\n{}", crate::stdout(&out), crate::stderr(&out));
+            if out.status.success() && text.contains("1 passed") {
+                return;
+            }
+            assert!(
+                text.contains(timing_fault) && attempt < attempts,
+                "{name} in its network namespace (attempt {attempt}):\n{text}"
+            );
+            eprintln!("{name}: attempt {attempt} met a timing fault it did not provoke; again");
+        }
+    }
+
+    /// Inside the namespace: the master's veth pair (`ecm0`) and the
+    /// drive's (`ecs0`), joined by a bridge (with a direct pair, the drive
+    /// emulator can die when the master's end goes down mid-frame), all up.
+    pub fn bridge_master_and_drive() {
+        for args in [
+            "link add ecm0 type veth peer name ecm0b",
+            "link add ecs0 type veth peer name ecs0b",
+            "link add br0 type bridge",
+            "link set ecm0b master br0",
+            "link set ecs0b master br0",
+            "link set lo up",
+            "link set br0 up",
+            "link set ecm0b up",
+            "link set ecs0b up",
+            "link set ecm0 up",
+            "link set ecs0 up",
+        ] {
+            ip(args);
+        }
+    }
+
+    /// Runs `ip args`, asserting it succeeded.
+    pub fn ip(args: &str) {
+        let ok = Command::new("ip")
+            .args(args.split(' '))
+            .status()
+            .expect("ip");
+        assert!(ok.success(), "ip {args}");
+    }
 }

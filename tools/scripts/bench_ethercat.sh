@@ -7,31 +7,55 @@
 # counters. BENCHMARKS.md, "EtherCAT".
 #
 # Usage: tools/scripts/bench_ethercat.sh [SECONDS=20]   (from the workspace root)
+#   WARMUP=s   round trips left out at the start (default 0.5)
+#   RATE=Hz    the cycle (default 1000; an integer)
 # Needs: unshare -rn (user namespaces), ip, and chrt -f where permitted.
-# The emulated motor's torque scale is 0 (a drive that holds still): the
-# benchmark is of timing, and a free KickCAT motor under the protocol's
-# torques runs away past the controller's angle limits within a second.
+# Three rows: `ethercat-kickcat`, KickCAT's own motor with torque scale 0 (a
+# drive that holds still: a free KickCAT motor under the protocol's torques
+# runs away past the controller's angle limits within a second);
+# `ethercat-exo-plant`, the drive whose mechanics are our plant
+# (tools/plant-drive, configs/ethercat-exo.toml: the same plant, subject and
+# protocol as the simulator row); `simulator-bus`, that run file on the
+# simulator's bus with exo-plant-sim. A late cycle or frame latches the
+# driver's safe state by design, and a latched driver records no round
+# trips: an EtherCAT row's `n` counts those before its latch.
 set -euo pipefail
 secs=${1:-20}
 root=$(pwd)
 target=${CARGO_TARGET_DIR:-$root/target}
 profile=${PROFILE:-release}
 flag=--release; [ "$profile" = dev ] && flag=
-cargo build $flag -p exo-sensor-driver -p exo-controller -p exo-plant-sim >/dev/null
+cargo build $flag -p exo-sensor-driver -p exo-controller -p exo-plant-sim -p exo-plant-drive >/dev/null
 bin=$target/$([ "$profile" = dev ] && echo debug || echo release)
 kc=$target/kickcat
 ../shared/vendor/kickcat/build.sh "$kc" >/dev/null
+pd=$target/plant-drive
+tools/plant-drive/build.sh "$pd" "$bin/libexo_plant_drive.a" >/dev/null
+warmup=${WARMUP:-0.5}
+rate=${RATE:-1000}
 # A still motor: our slave config beside the vendored one (same ESI).
 cat > "$kc/slave_configs/ecat402-drive-still.json" <<'JSON'
 { "esi": "ecat402-drive.xml", "ds402_motor": true, "motor_torque_scale": 0.0 }
 JSON
 out=$(mktemp -d)
 trap 'rm -rf "$out"' EXIT
-sed -e "s|plant_model = \"|plant_model = \"$root/configs/|" \
-    -e "s|subject_file = \"|subject_file = \"$root/configs/|" \
-    -e "s|experiments_file = \"|experiments_file = \"$root/configs/|" \
-    -e "s|output_dir = \"out/runs\"|output_dir = \"$out/runs\"|" \
-    configs/ethercat-kickcat.toml > "$out/ecat.toml"
+# A shipped run file with its paths absolute, at $rate Hz: the deadlines
+# kept in periods as the files give them at 1 kHz (command 1, sample and
+# bus 5, the drive's watchdog 10).
+absolute() {
+  local ms; ms=$(awk "BEGIN { print 1000 / $rate }")
+  sed -e "s|plant_model = \"|plant_model = \"$root/configs/|" \
+      -e "s|subject_file = \"|subject_file = \"$root/configs/|" \
+      -e "s|experiments_file = \"|experiments_file = \"$root/configs/|" \
+      -e "s|output_dir = \"out/runs\"|output_dir = \"$out/runs\"|" \
+      -e "s|^rate_hz = 1000.0|rate_hz = $rate.0|" \
+      -e "s|^command_deadline_ms = 1.0|command_deadline_ms = $ms|" \
+      -e "s|^sample_deadline_ms = 5.0|sample_deadline_ms = $(awk "BEGIN { print 5 * $ms }")|" \
+      -e "s|^bus_deadline_ms = 5.0|bus_deadline_ms = $(awk "BEGIN { print 5 * $ms }")|" \
+      -e "s|^drive_watchdog_ms = 10.0|drive_watchdog_ms = $(awk "BEGIN { print 10 * $ms }")|" \
+      "configs/$1"
+}
+absolute ethercat-kickcat.toml > "$out/ecat.toml"
 cat >> "$out/ecat.toml" <<'TOML'
 
 [realtime]
@@ -41,8 +65,10 @@ controller_cpu = 1
 sched_fifo_priority = 80
 lock_memory = true
 TOML
+absolute ethercat-exo.toml > "$out/plant.toml"
 sed -e 's|backend = "ethercat"|backend = "simulator"|' -e 's|plant_sim = false|plant_sim = true|' \
-    -e 's|instance = "exoecat"|instance = "exoecatsim"|' "$out/ecat.toml" > "$out/sim.toml"
+    -e 's|instance = "exoplantecat"|instance = "exoplantsim"|' -e 's|^sensor_driver_cpu = 1|plant_sim_cpu = 1\nsensor_driver_cpu = 1|' \
+    "$out/plant.toml" > "$out/sim.toml"
 fifo=; chrt -f 40 true 2>/dev/null && fifo="chrt -f 40"
 
 run() { # run NAME CONFIG WITH_PLANT
@@ -50,7 +76,7 @@ run() { # run NAME CONFIG WITH_PLANT
   [ "$plant" = 1 ] && { "$bin/exo-plant-sim" --config "$cfg" 2>"$out/$name-plant.log" & pids+=($!); }
   "$bin/exo-controller" --config "$cfg" 2>"$out/$name-controller.log" & pids+=($!)
   sleep 2 # the controller's ports up before the cycle starts (iceoryx2 builds a connection on first use)
-  "$bin/exo-sensor-driver" --config "$cfg" --round-trip-report "$out/$name.json" --round-trip-warmup-s 0.5 2>"$out/$name-driver.log" & local drv=$!
+  "$bin/exo-sensor-driver" --config "$cfg" --round-trip-report "$out/$name.json" --round-trip-warmup-s "$warmup" 2>"$out/$name-driver.log" & local drv=$!
   sleep "$secs"
   kill -TERM "$drv" "${pids[@]}" 2>/dev/null || true
   wait "$drv" || true; wait "${pids[@]}" 2>/dev/null || true
@@ -66,7 +92,7 @@ PY
 }
 
 export -f run 2>/dev/null || true
-echo "machine: $(nproc) CPUs, $(uname -r), load $(cut -d' ' -f1-3 /proc/loadavg); $secs s per row, 1 kHz, $profile build"
+echo "machine: $(nproc) CPUs, $(uname -r), load $(cut -d' ' -f1-3 /proc/loadavg); $secs s per row, $rate Hz, $profile build, warm-up $warmup s"
 $fifo unshare -rn bash -c "
   set -e
   for c in 'ecm0 type veth peer name ecm0b' 'ecs0 type veth peer name ecs0b' 'br0 type bridge'; do ip link add \$c; done
@@ -74,8 +100,12 @@ $fifo unshare -rn bash -c "
   for l in lo br0 ecm0b ecs0b ecm0 ecs0; do ip link set \$l up; done
   cd '$kc'; ./network_simulator -i ecs0 -s slave_configs/ecat402-drive-still.json >/dev/null 2>&1 & sim=\$!
   sleep 1; cd '$root'
-  $(declare -f run); out='$out' bin='$bin' secs='$secs'
+  $(declare -f run); out='$out' bin='$bin' secs='$secs' warmup='$warmup'
   run ethercat-kickcat '$out/ecat.toml' 0
+  kill \$sim; sleep 0.5
+  '$pd/exo_plant_drive' -i ecs0 -s '$pd/slave_configs/exo-drive.json' -r '$out/plant.toml' >/dev/null 2>'$out/drive.log' & sim=\$!
+  sleep 1
+  run ethercat-exo-plant '$out/plant.toml' 0
   kill \$sim
   run simulator-bus '$out/sim.toml' 1
 "

@@ -32,6 +32,8 @@ use exo_messages::{bus_status, status, ActuatorCommand, OperatorCommand, Operato
 use exo_sensor_driver::cia402::{DriveState, Phase};
 use exo_sensor_driver::ethercat::EthercatBus;
 use exo_sensor_driver::{BusFault, DriverNode, HardwareBus, SafetyEvent};
+use exo_tests::netns::{self, ip};
+use exo_tests::Scenario;
 
 /// Counts the heap allocations of the thread that arms it (the cycle's).
 struct Counting;
@@ -91,63 +93,11 @@ fn netns(name: &str) -> Option<Network> {
         static ONE_AT_A_TIME: std::sync::Mutex<()> = std::sync::Mutex::new(());
         let _turn = ONE_AT_A_TIME.lock().unwrap_or_else(|e| e.into_inner());
         let dir = kickcat();
-        // Real time as on a rig where it is permitted (root here): the
-        // master and the simulator in SCHED_FIFO, so that builds sharing
-        // the CPUs do not delay a cycle by a whole period. Elsewhere the
-        // tests run on, at the mercy of the load.
-        let fifo = Command::new("chrt")
-            .args(["-f", "40", "true"])
-            .status()
-            .is_ok_and(|s| s.success());
-        let mut cmd = if fifo {
-            let mut c = Command::new("chrt");
-            c.args(["-f", "40", "unshare"]);
-            c
-        } else {
-            Command::new("unshare")
-        };
-        cmd.args(["-rn"])
-            .arg(std::env::current_exe().unwrap())
-            .args(["--exact", name, "--nocapture", "--test-threads=1"])
-            .env(IN_NETNS, &dir);
-        for attempt in 1..=ATTEMPTS {
-            let out = cmd.output().expect("unshare");
-            let text = format!(
-                "{}\n{}",
-                String::from_utf8_lossy(&out.stdout),
-                String::from_utf8_lossy(&out.stderr)
-            );
-            if out.status.success() && text.contains("1 passed") {
-                return None;
-            }
-            // A cycle the machine delayed by a whole period, or a frame it
-            // held past the time-out, where the test provoked none: the
-            // backend was right to latch; the run says nothing of the
-            // rest. Run it again (a few times at most).
-            assert!(
-                text.contains(TIMING_FAULT) && attempt < ATTEMPTS,
-                "{name} in its network namespace (attempt {attempt}):\n{text}"
-            );
-            eprintln!("{name}: attempt {attempt} met a timing fault it did not provoke; again");
-        }
+        netns::rerun_inside(name, IN_NETNS, dir.as_os_str(), TIMING_FAULT, ATTEMPTS);
         return None;
     }
     let dir = PathBuf::from(std::env::var_os(IN_NETNS).unwrap());
-    for cmd in [
-        "link add ecm0 type veth peer name ecm0b",
-        "link add ecs0 type veth peer name ecs0b",
-        "link add br0 type bridge",
-        "link set ecm0b master br0",
-        "link set ecs0b master br0",
-        "link set lo up",
-        "link set br0 up",
-        "link set ecm0b up",
-        "link set ecs0b up",
-        "link set ecm0 up",
-        "link set ecs0 up",
-    ] {
-        ip(cmd);
-    }
+    netns::bridge_master_and_drive();
     let sim = Command::new(dir.join("network_simulator"))
         .args(["-i", "ecs0", "-s"])
         .arg(dir.join("slave_configs/ecat402-drive.json"))
@@ -157,14 +107,6 @@ fn netns(name: &str) -> Option<Network> {
         .spawn()
         .expect("network_simulator");
     Some(Network { sim })
-}
-
-fn ip(args: &str) {
-    let ok = Command::new("ip")
-        .args(args.split(' '))
-        .status()
-        .expect("ip");
-    assert!(ok.success(), "ip {args}");
 }
 
 struct Network {
@@ -675,31 +617,8 @@ fn an_interface_that_is_down_is_refused() {
 
 /// The shipped run file with its relative paths made absolute, `edit`ed,
 /// written to a scratch directory.
-fn run_file(tag: &str, edit: impl Fn(String) -> String) -> PathBuf {
-    let configs = exo_config::configs_dir();
-    let text = std::fs::read_to_string(configs.join("ethercat-kickcat.toml")).unwrap();
-    let text = text
-        .replace(
-            "plant_model = \"plants/",
-            &format!("plant_model = \"{}/plants/", configs.display()),
-        )
-        .replace(
-            "subject_file = \"subjects/",
-            &format!("subject_file = \"{}/subjects/", configs.display()),
-        )
-        .replace(
-            "experiments_file = \"",
-            &format!("experiments_file = \"{}/", configs.display()),
-        )
-        .replace(
-            "instance = \"exoecat\"",
-            &format!("instance = \"ecat{tag}\""),
-        );
-    let dir = std::env::temp_dir().join(format!("exo-ethercat-{tag}-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
-    let path = dir.join("run.toml");
-    std::fs::write(&path, edit(text)).unwrap();
-    path
+fn run_file(tag: &str, replacements: &[(&str, &str)]) -> PathBuf {
+    Scenario::of("ethercat-kickcat.toml", tag, replacements).config
 }
 
 #[test]
@@ -712,9 +631,10 @@ fn the_driver_process_refuses_another_drive_and_brings_this_one_up_and_down() {
     std::thread::sleep(Duration::from_millis(300));
     let driver = env!("CARGO_BIN_EXE_exo-sensor-driver");
     // Another product code: refused at start, naming the key, exit 1.
-    let wrong = run_file("wrong", |t| {
-        t.replace("product_code = 0x03b11002", "product_code = 0x00000032")
-    });
+    let wrong = run_file(
+        "wrong",
+        &[("product_code = 0x03b11002", "product_code = 0x00000032")],
+    );
     let out = Command::new(driver)
         .arg("--config")
         .arg(&wrong)
@@ -727,15 +647,19 @@ fn the_driver_process_refuses_another_drive_and_brings_this_one_up_and_down() {
     assert!(!text.contains("Operation Enabled"), "{text}");
     // The right file: up to OP, Operation Enabled (at the safe torque,
     // no controller runs), then SIGTERM: quick stop, disable, exit 0.
-    let right = run_file("right", |t| {
-        // The tests' rate (the deadlines at least one period).
-        t.replace("rate_hz = 1000.0", &format!("rate_hz = {RATE_HZ:?}"))
-            .replace("command_deadline_ms = 1.0", "command_deadline_ms = 10.0")
-            .replace("sample_deadline_ms = 5.0", "sample_deadline_ms = 10.0")
-            .replace("bus_deadline_ms = 5.0", "bus_deadline_ms = 10.0")
-            .replace("drive_watchdog_ms = 10.0", "drive_watchdog_ms = 20.0")
-            .replace("velocity_cutoff_hz = 50.0", "velocity_cutoff_hz = 20.0")
-    });
+    // The tests' rate (the deadlines at least one period).
+    let rate = format!("rate_hz = {RATE_HZ:?}");
+    let right = run_file(
+        "right",
+        &[
+            ("rate_hz = 1000.0", &rate),
+            ("command_deadline_ms = 1.0", "command_deadline_ms = 10.0"),
+            ("sample_deadline_ms = 5.0", "sample_deadline_ms = 10.0"),
+            ("bus_deadline_ms = 5.0", "bus_deadline_ms = 10.0"),
+            ("drive_watchdog_ms = 10.0", "drive_watchdog_ms = 20.0"),
+            ("velocity_cutoff_hz = 50.0", "velocity_cutoff_hz = 20.0"),
+        ],
+    );
     let mut child = Command::new(driver)
         .arg("--config")
         .arg(&right)
