@@ -286,6 +286,27 @@ impl<T: Message> Collector<T> {
     }
 }
 
+/// Starts a tunnel from `exo` to `other` over loopback: `exo`'s run file
+/// gets `[tunnel] listen` on a free port, its `exo-tunnel` exports, and
+/// `other`'s imports `exo`'s instance. Returns (export, import, the
+/// endpoint) once the link carries samples ([`wait_for_tunnel`]).
+pub fn start_tunnel(exo: &Scenario, other: &Scenario) -> (Child, Child, String) {
+    let endpoint = format!("tcp/127.0.0.1:{}", free_tcp_port());
+    exo.append(&format!("\n[tunnel]\nlisten = [\"{endpoint}\"]\n"));
+    let export = exo.spawn("exo-tunnel", &[]);
+    let import = other.spawn(
+        "exo-tunnel",
+        &[
+            "--import-from",
+            &endpoint,
+            "--remote-instance",
+            &exo.instance,
+        ],
+    );
+    wait_for_tunnel(exo, other, Duration::from_secs(60));
+    (export, import, endpoint)
+}
+
 /// Waits until a tunnel carries `from`'s channels onto `to`'s: markers
 /// (identifier FRF points, which nothing reads while no identifier runs)
 /// published on `from` every 50 ms until one arrives on `to`. Panics after

@@ -23,7 +23,7 @@ use exo_messages::channels::SENSOR;
 use exo_messages::SensorSample;
 use exo_service_kit::ipc::Ipc;
 use exo_service_kit::{monotonic_ns, sleep_until_ns};
-use exo_tests::{free_tcp_port, terminate, wait_for_tunnel, Scenario};
+use exo_tests::{start_tunnel, terminate, Scenario};
 use hdrhistogram::Histogram;
 
 /// Receives on `instance`'s sample channel until `done`, recording latency.
@@ -89,21 +89,9 @@ fn main() {
         .ok()
         .and_then(|s| s.parse().ok())
         .unwrap_or(10.0);
-    let endpoint = format!("tcp/127.0.0.1:{}", free_tcp_port());
     let exo = Scenario::new("benchA", &[]);
-    exo.append(&format!("\n[tunnel]\nlisten = [\"{endpoint}\"]\n"));
     let other = Scenario::new("benchB", &[]);
-    let mut export = exo.spawn("exo-tunnel", &[]);
-    let mut import = other.spawn(
-        "exo-tunnel",
-        &[
-            "--import-from",
-            &endpoint,
-            "--remote-instance",
-            &exo.instance,
-        ],
-    );
-    wait_for_tunnel(&exo, &other, Duration::from_secs(60));
+    let (mut export, mut import, _) = start_tunnel(&exo, &other);
     let (a, b) = (exo.instance.clone(), other.instance.clone());
     let ipc = Ipc::open(&format!("bench_pub_{}", std::process::id()), &a, None).unwrap();
     let out = ipc.outbox(SENSOR).unwrap();

@@ -11,30 +11,13 @@ use exo_tests::*;
 
 #[test]
 fn another_host_receives_every_sample_over_zenoh() {
-    let port = free_tcp_port();
-    let endpoint = format!("tcp/127.0.0.1:{port}");
     let exo = Scenario::new("tunexo", &[("periods = [1, 4, 7]", "periods = [1]")]);
-    exo.append(&format!("\n[tunnel]\nlisten = [\"{endpoint}\"]\n"));
     let other = Scenario::new("tunother", &[]);
-
-    let mut export = exo.spawn("exo-tunnel", &[]);
-    let mut import = other.spawn(
-        "exo-tunnel",
-        &[
-            "--import-from",
-            &endpoint,
-            "--remote-instance",
-            &exo.instance,
-        ],
-    );
+    let (mut export, mut import, endpoint) = start_tunnel(&exo, &other);
     let there_samples = other.collect(SENSOR);
     let there_commands = other.collect(COMMAND);
     let here_samples = exo.collect(SENSOR);
     let here_commands = exo.collect(COMMAND);
-
-    // The link is up once a marker published on the exo computer arrives
-    // on the other one.
-    wait_for_tunnel(&exo, &other, Duration::from_secs(60));
 
     let mut plant = exo.spawn("exo-plant-sim", &[]);
     let mut driver = exo.spawn("exo-sensor-driver", &[]);
@@ -73,21 +56,9 @@ fn another_host_receives_every_sample_over_zenoh() {
 /// flagged.
 #[test]
 fn a_stalled_importer_and_a_killed_export_never_disturb_control() {
-    let endpoint = format!("tcp/127.0.0.1:{}", free_tcp_port());
     let exo = Scenario::new("tunkill", &[("periods = [1, 4, 7]", "periods = [1]")]);
-    exo.append(&format!("\n[tunnel]\nlisten = [\"{endpoint}\"]\n"));
     let other = Scenario::new("tunstalled", &[]);
-    let mut export = exo.spawn("exo-tunnel", &[]);
-    let mut import = other.spawn(
-        "exo-tunnel",
-        &[
-            "--import-from",
-            &endpoint,
-            "--remote-instance",
-            &exo.instance,
-        ],
-    );
-    wait_for_tunnel(&exo, &other, Duration::from_secs(60));
+    let (mut export, mut import, _) = start_tunnel(&exo, &other);
     signal(&import, SIGSTOP);
 
     let samples = exo.collect(SENSOR);
