@@ -8,7 +8,10 @@
 //! torque command (after the actuator delay and saturation), the posture
 //! the human holds `θ_eq` and its rate, and the nonlinear exoskeleton torques
 //! (gravity `−g(m_a l_a + m_L l_L) sin θ_e`, Coulomb friction) evaluated at
-//! the start of the step.
+//! the start of the step. With backlash in the joint (`[exo.backlash]`)
+//! the SEA's torque drives a motor side (angle, velocity) stepped beside
+//! the linear part, and the gear mesh's torque reaches the arm through the
+//! nonlinear input.
 //!
 //! Sign convention (the paper's): `τ_c` is the torque the cuff applies to
 //! the human; the human's impedance pulls the forearm back towards `θ_eq`.
