@@ -527,3 +527,24 @@ fn a_drifting_stiffness_follows_k_times_one_plus_rho_t() {
         );
     }
 }
+
+/// With `exo.backlash.lash_rad` = 0 the term is off: its other keys (here
+/// absurd: a motor side of nearly the whole arm's inertia on a soft mesh)
+/// change nothing, bit for bit.
+#[test]
+fn backlash_off_ignores_its_other_keys() {
+    let m = default_model();
+    let mut odd = m;
+    odd.exo.backlash.motor_inertia_kg_m2 = 0.099;
+    odd.exo.backlash.mesh_stiffness_nm_per_rad = 10.0;
+    odd.exo.backlash.mesh_damping_nm_s_per_rad = 0.0;
+    let run = |m: &PlantModel| {
+        let mut p = Plant::new(m);
+        for k in 0..20_000 {
+            let tau_g = p.truth().tau_g_nm;
+            p.step(tau_g + 2.0 * (6.0 * k as f64 * 1e-4).sin());
+        }
+        p.truth()
+    };
+    assert_eq!(run(&m), run(&odd));
+}
