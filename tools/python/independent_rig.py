@@ -11,7 +11,7 @@ Rust simulator, not fit_frf.py, not write_recording.py. It exists so that
     independent_rig.py OUT.mcap --seed N [--subject NAME] [--experiments 1,2,...]
         [--periods 10] [--truth TRUTH.json] [--noise-scale X] [--random-subject]
         [--params PARAMS.json] [--damping viscous|two-point] [--twitch S] [--pre-window S]
-        [--writer own|mcap]
+        [--writer own|mcap] [--k3 K3] [--exo-spring K] [--k-drift RHO] [--lash RAD]
     independent_rig.py --monte-carlo N --out-dir DIR --seed S0 [--experiments 1,3]
         (N recordings DIR/mc000.mcap, ... with seeds S0+i, plus DIR/truth.json)
 
@@ -38,6 +38,12 @@ Model (linear about the operating point except gravity; rad, Nm, s, kg m^2):
 * exoskeleton: M_e th'' = tau_s - tau_c - tau_g(th), M_e = 0.1 + load 0.45^2,
   tau_g = g (1.5 kg * 0.2 m + load * 0.45 m) sin th (th = 0 hanging down).
 * SEA: tau_s follows tau_d through a 10 Hz, zeta 0.7 second-order low pass.
+* concealed physics outside exo's catalogue (off by default): --k3 a cubic
+  human spring, --exo-spring a spring in the exoskeleton joint, --k-drift
+  the human's stiffness drifting within each experiment, --lash backlash in
+  the joint's gear mesh (tau_s then drives a motor side of 0.02 kg m^2,
+  part of the arm's inertia, which pushes the arm only beyond the lost
+  motion; see simulate()).
 * controller (500 Hz, zero-order hold, from the measured signals):
   tau_d = tau_gravity(th_meas) - (alpha - 1) tau_c_meas + bias(t) + tau_x(t);
   the gravity compensation uses +3 % arm mass and +2 % load mass.
