@@ -19,8 +19,11 @@ use std::process::Command;
 use exo_tests::*;
 use serde_json::Value;
 
-fn scratch() -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("exo-it-diag-outside-{}", std::process::id()));
+/// A scratch directory of its own for each test (`case`), which run in
+/// parallel in one process.
+fn scratch(case: &str) -> PathBuf {
+    let dir =
+        std::env::temp_dir().join(format!("exo-it-diag-outside-{}-{case}", std::process::id()));
     let _ = std::fs::remove_dir_all(&dir);
     std::fs::create_dir_all(&dir).unwrap();
     dir
@@ -120,7 +123,7 @@ fn assert_exclusive(v: &Value) {
 
 #[test]
 fn physics_outside_the_catalogue_is_reported_unexplained_not_named() {
-    let dir = scratch();
+    let dir = scratch("forms");
 
     // Null: the linear human the model describes; nothing is missing.
     let v = diagnose(&rig(&dir, "linear.mcap", &[]));
@@ -257,6 +260,29 @@ fn physics_outside_the_catalogue_is_reported_unexplained_not_named() {
     for tf in ["S_h", "S_h-e"] {
         let a = &remains(&v, tf)["angle_amplitude"];
         assert!(a["significant"] == false, "exo spring {tf}: {a:#}");
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// Backlash in the rig's joint (`--lash`: lost motion in the gear mesh
+/// between the SEA's output and the arm, written by the rig's own physics)
+/// at 0.02 and 0.1 rad. The arm is held up against gravity, so the SEA's
+/// torque never reverses and the mesh never opens: there is nothing to
+/// find, and nothing may be named ("no missing physics").
+#[test]
+fn backlash_in_the_rigs_joint_under_gravity_names_nothing() {
+    let dir = scratch("lash");
+    for lash in ["0.02", "0.1"] {
+        let v = diagnose(&rig(&dir, &format!("lash-{lash}.mcap"), &["--lash", lash]));
+        let text = verdict(&v).join("\n");
+        assert!(found(&v).is_empty(), "lash {lash}:\n{text}");
+        assert!(
+            verdict(&v)
+                .iter()
+                .any(|l| l.starts_with("no missing physics")),
+            "lash {lash}:\n{text}"
+        );
+        assert_exclusive(&v);
     }
     let _ = std::fs::remove_dir_all(&dir);
 }

@@ -11,7 +11,7 @@ Rust simulator, not fit_frf.py, not write_recording.py. It exists so that
     independent_rig.py OUT.mcap --seed N [--subject NAME] [--experiments 1,2,...]
         [--periods 10] [--truth TRUTH.json] [--noise-scale X] [--random-subject]
         [--params PARAMS.json] [--damping viscous|two-point] [--twitch S] [--pre-window S]
-        [--writer own|mcap]
+        [--writer own|mcap] [--k3 K3] [--exo-spring K] [--k-drift RHO] [--lash RAD]
     independent_rig.py --monte-carlo N --out-dir DIR --seed S0 [--experiments 1,3]
         (N recordings DIR/mc000.mcap, ... with seeds S0+i, plus DIR/truth.json)
 
@@ -38,6 +38,12 @@ Model (linear about the operating point except gravity; rad, Nm, s, kg m^2):
 * exoskeleton: M_e th'' = tau_s - tau_c - tau_g(th), M_e = 0.1 + load 0.45^2,
   tau_g = g (1.5 kg * 0.2 m + load * 0.45 m) sin th (th = 0 hanging down).
 * SEA: tau_s follows tau_d through a 10 Hz, zeta 0.7 second-order low pass.
+* concealed physics outside exo's catalogue (off by default): --k3 a cubic
+  human spring, --exo-spring a spring in the exoskeleton joint, --k-drift
+  the human's stiffness drifting within each experiment, --lash backlash in
+  the joint's gear mesh (tau_s then drives a motor side of 0.02 kg m^2,
+  part of the arm's inertia, which pushes the arm only beyond the lost
+  motion; see simulate()).
 * controller (500 Hz, zero-order hold, from the measured signals):
   tau_d = tau_gravity(th_meas) - (alpha - 1) tau_c_meas + bias(t) + tau_x(t);
   the gravity compensation uses +3 % arm mass and +2 % load mass.
@@ -99,6 +105,12 @@ SIGMA_TAU_S = 0.05  # Nm
 SIGMA_ENC = 2e-5  # rad
 TWITCH_TICKS = 10  # 20 ms pulse
 TWITCH_IMPULSE_SIGMA = 0.004  # N m s (default; --twitch overrides)
+# --lash: the drive's output (motor side) between the SEA and the gear mesh
+# to the arm; its inertia is a part of ARM_INERTIA.
+MOTOR_SIDE_INERTIA = 0.02  # kg m^2
+MESH_STIFFNESS = 2.0e4  # N m / rad, in contact
+MESH_DAMPING = 8.0  # N m s / rad, in contact
+MESH_SUBSTEPS = 10  # RK4 steps per tick with a lash (the mesh's mode: 1000 rad/s)
 
 # ---------------------------------------------------------------- protocol (Table I)
 GROUPS = [  # (grip kg, bias Nm, omega_0 rad/s)
@@ -270,7 +282,15 @@ def min_jerk(x):
     return x**3 * (10.0 - 15.0 * x + 6.0 * x**2)
 
 
-def simulate(specs, pre_window_s=PRE_WINDOW_S, k_cubic=0.0, k_exo_spring=0.0, k_drift=0.0):
+def mesh(lead, lead_rate, lash):
+    """Torque of the gear mesh on the arm for the motor side leading the arm
+    by `lead` (rad) at rate `lead_rate`: nothing while the lead is inside the
+    lost motion (+-lash/2), a stiff damped contact beyond it."""
+    past = np.maximum(np.abs(lead) - 0.5 * lash, 0.0)
+    return np.where(past > 0.0, np.sign(lead) * MESH_STIFFNESS * past + MESH_DAMPING * lead_rate, 0.0)
+
+
+def simulate(specs, pre_window_s=PRE_WINDOW_S, k_cubic=0.0, k_exo_spring=0.0, k_drift=0.0, lash=0.0):
     """Simulates the periods side by side (vectorised over periods), RK4 with
     the controller's torque held over each 2 ms tick, from rest at the start
     of the ramp-in to the end of the analysis window. Returns the recorded
@@ -285,7 +305,11 @@ def simulate(specs, pre_window_s=PRE_WINDOW_S, k_cubic=0.0, k_exo_spring=0.0, k_
     k_drift (1/min): the human's stiffness drifting within each experiment,
     K(t) = K (1 + k_drift t / 60), t (s) from the start of the experiment's
     first analysis window (period k's window starts k T_PERIOD after it);
-    the static spring k0 carries the change, so the loss H stays."""
+    the static spring k0 carries the change, so the loss H stays.
+    lash (rad): lost motion in the exoskeleton joint's drive. The SEA's
+    torque then acts on the motor side (inertia MOTOR_SIDE_INERTIA, taken
+    out of the arm's) which drives the arm through a gear mesh with this
+    total play (see mesh()); integrated with MESH_SUBSTEPS RK4 steps a tick."""
     rec0 = T_ANALYSIS - ticks(pre_window_s)
     n_rec = N_SIM - rec0
     col = lambda key: np.array([s[key] for s in specs], dtype=float)
@@ -297,7 +321,7 @@ def simulate(specs, pre_window_s=PRE_WINDOW_S, k_cubic=0.0, k_exo_spring=0.0, k_
     omega, amp, bias = col("omega"), col("amplitude"), col("bias_nm")
     th_rest, th_goal = col("theta_rest"), col("theta_goal")
     P = len(specs)
-    m_tot = m_e(load) + m_h
+    m_tot = m_e(load) + m_h - (MOTOR_SIDE_INERTIA if lash else 0.0)
     inv_m = 1.0 / m_tot
     g_true = G * (ARM_MASS * ARM_COM + load * LEVER)
     g_comp = G * (COMP_ARM_MASS_FACTOR * ARM_MASS * ARM_COM + COMP_LOAD_MASS_FACTOR * load * LEVER)
@@ -326,6 +350,9 @@ def simulate(specs, pre_window_s=PRE_WINDOW_S, k_cubic=0.0, k_exo_spring=0.0, k_
     tc0 = (g_comp - g_true) * np.sin(th_rest) / alpha
     ts = g_true * np.sin(th_rest) + tc0
     dts = np.zeros(P)
+    # The motor side at rest, in contact on the side its torque pushes.
+    mot = th_rest + np.sign(ts) * 0.5 * lash + ts / MESH_STIFFNESS
+    om_mot = np.zeros(P)
     th_m_prev = None
     om_e = np.zeros(P)
     a_om = 1.0 - math.exp(-2.0 * math.pi * OMEGA_FILTER_HZ * DT)
@@ -343,7 +370,8 @@ def simulate(specs, pre_window_s=PRE_WINDOW_S, k_cubic=0.0, k_exo_spring=0.0, k_
         f_h = b * om + kn * th + km * (th - q) - un  # the human's passive torque less the voluntary
         if k_cubic:
             f_h = f_h + k_cubic * (th - th_p[:, n]) ** 3
-        acc = (ts - g_true * np.sin(th) - k_exo_spring * (th - th_goal) - f_h) * inv_m
+        drive = mesh(mot - th, om_mot - om, lash) if lash else ts
+        acc = (drive - g_true * np.sin(th) - k_exo_spring * (th - th_goal) - f_h) * inv_m
         tau_c = m_h * acc + f_h
         th_m = np.round((th + n_enc[:, n]) / ENC_Q) * ENC_Q
         tc_m = tau_c + n_tc[:, n]
@@ -377,6 +405,26 @@ def simulate(specs, pre_window_s=PRE_WINDOW_S, k_cubic=0.0, k_exo_spring=0.0, k_
             return (om_, (ts_ - g_true * np.sin(th_) - spring - b * om_ - kn * th_ - km * (th_ - q_) - cubic + un)
                     * inv_m,
                     dts_, w2 * (tau_d - ts_) - z2 * dts_, (th_ - q_) * inv_tau)
+        if lash:
+            def f(th_, om_, ts_, dts_, q_, mot_, om_mot_):
+                cubic = k_cubic * (th_ - thp) ** 3 if k_cubic else 0.0
+                spring = k_exo_spring * (th_ - th_goal)
+                tm = mesh(mot_ - th_, om_mot_ - om_, lash)
+                return (om_, (tm - g_true * np.sin(th_) - spring - b * om_ - kn * th_ - km * (th_ - q_) - cubic
+                              + un) * inv_m,
+                        dts_, w2 * (tau_d - ts_) - z2 * dts_, (th_ - q_) * inv_tau,
+                        om_mot_, (ts_ - tm) / MOTOR_SIDE_INERTIA)
+            hs = h / MESH_SUBSTEPS
+            y = (th, om, ts, dts, q, mot, om_mot)
+            for _ in range(MESH_SUBSTEPS):
+                k1 = f(*y)
+                k2 = f(*(x + 0.5 * hs * d for x, d in zip(y, k1)))
+                k3 = f(*(x + 0.5 * hs * d for x, d in zip(y, k2)))
+                k4 = f(*(x + hs * d for x, d in zip(y, k3)))
+                y = tuple(x + hs / 6.0 * (d1 + 2.0 * d2 + 2.0 * d3 + d4)
+                          for x, d1, d2, d3, d4 in zip(y, k1, k2, k3, k4))
+            th, om, ts, dts, q, mot, om_mot = y
+            continue
         k1 = f(th, om, ts, dts, q)
         k2 = f(*(x + 0.5 * h * d for x, d in zip((th, om, ts, dts, q), k1)))
         k3 = f(*(x + 0.5 * h * d for x, d in zip((th, om, ts, dts, q), k2)))
@@ -787,6 +835,9 @@ def main(argv=None):
     ap.add_argument("--k-drift", type=float, default=0.0, metavar="RHO",
                     help="the human's stiffness drifting within each experiment, K (1 + RHO t/60), "
                          "RHO per minute, t from the experiment's first analysis window (0 = none)")
+    ap.add_argument("--lash", type=float, default=0.0, metavar="RAD",
+                    help="backlash (total lost motion, rad) in the exoskeleton joint's gear mesh between the "
+                         "SEA's output and the arm (0 = none)")
     ap.add_argument("--batch-periods", type=int, default=400, help="periods simulated side by side")
     a = ap.parse_args(argv)
     experiments = parse_experiments(a.experiments)
@@ -847,12 +898,14 @@ def main(argv=None):
     name = a.subject or f"indep{a.seed}"
     specs = period_specs(a.seed, subj, experiments, a.periods, a.noise_scale, a.twitch, a.damping)
     warn_unstable([(name, specs)])
-    sim = simulate(specs, a.pre_window, a.k3, a.exo_spring, a.k_drift)
+    if not 0.0 <= a.lash <= 0.2:
+        raise SystemExit("--lash must be in [0, 0.2] rad")
+    sim = simulate(specs, a.pre_window, a.k3, a.exo_spring, a.k_drift, a.lash)
     write_recording(a.out, name, a.seed, specs, sim, a.noise_scale, a.writer)
     if a.truth:
         t = subject_truth(name, a.seed, subj, specs)
         t.update(rig=rig_truth(), k3_nm_per_rad3=a.k3, exo_spring_nm_per_rad=a.exo_spring,
-                 k_drift_per_min=a.k_drift, noise_scale=a.noise_scale, twitch_sigma_nms=a.twitch, damping=a.damping,
+                 k_drift_per_min=a.k_drift, lash_rad=a.lash, noise_scale=a.noise_scale, twitch_sigma_nms=a.twitch, damping=a.damping,
                  experiments_written=experiments,
                  periods=a.periods)
         with open(a.truth, "w") as f:

@@ -75,6 +75,7 @@ pub const PLANT_RANGES: Ranges = &[
         Range::closed(-1e5, 1e5),
     ),
     ("human.stretch_reflex.cutoff_rad_s", Range::above(0.0, 1e4)),
+    ("human.stiffness_drift_per_min", Range::closed(-0.5, 0.5)),
     (
         "human.rest_angle_rad",
         Range::closed(-std::f64::consts::TAU, std::f64::consts::TAU),
@@ -86,6 +87,16 @@ pub const PLANT_RANGES: Ranges = &[
     ("exo.arm_inertia_kg_m2", Range::above(0.0, 10.0)),
     ("exo.load_lever_arm_m", Range::closed(0.0, 2.0)),
     ("exo.load_kg", Range::closed(0.0, 50.0)),
+    ("exo.backlash.lash_rad", Range::closed(0.0, 0.2)),
+    ("exo.backlash.motor_inertia_kg_m2", Range::above(0.0, 10.0)),
+    (
+        "exo.backlash.mesh_stiffness_nm_per_rad",
+        Range::above(0.0, 1e7),
+    ),
+    (
+        "exo.backlash.mesh_damping_nm_s_per_rad",
+        Range::closed(0.0, 1e4),
+    ),
     ("gravity.arm_mass_kg", Range::closed(0.0, 50.0)),
     ("gravity.arm_com_m", Range::closed(0.0, 2.0)),
     ("gravity.g_m_s2", Range::closed(0.0, 20.0)),
@@ -289,6 +300,14 @@ pub struct Human {
     /// discovers a polynomial spring. Range [−1e5, 1e5].
     #[serde(default)]
     pub cubic_stiffness_nm_per_rad3: f64,
+    /// Drift of the joint stiffness within each experiment (fraction of
+    /// `K` per minute): the spring is `K (1 + ρ t/60)`, `t` (s) from the
+    /// moment the experiment's impedance is set (the subject file's
+    /// experiment start), e.g. fatigue or co-contraction building up; the
+    /// hysteretic damping `H` stays. 0 (the default when the key is absent)
+    /// is a stiffness constant within the experiment. Range [−0.5, 0.5].
+    #[serde(default)]
+    pub stiffness_drift_per_min: f64,
     /// Posture the subject holds at rest and during a period (rad). Range [−2π, 2π].
     pub rest_angle_rad: f64,
     /// Posture during a period (the paper: about 45°). Range [−2π, 2π].
@@ -305,6 +324,66 @@ pub struct Exo {
     pub load_lever_arm_m: f64,
     /// Default load (kg); the protocol's load overrides it. Range [0, 50].
     pub load_kg: f64,
+    /// Backlash (lost motion) in the joint's drive, between the motor side
+    /// (the SEA's output) and the arm; off when the section is absent.
+    #[serde(default)]
+    pub backlash: Backlash,
+}
+
+/// `[exo.backlash]`: lost motion in the exoskeleton joint's gear mesh,
+/// between the drive's output (motor side) and the arm. The SEA's torque
+/// acts on the motor side's inertia `J_m`; the mesh passes
+/// `k_g dz(θ_m − θ_e) + b_g (ω_m − ω_e)` (the damping only in contact) to
+/// the arm, `dz` a dead zone of half-width `lash_rad/2`. `J_m` is a part of
+/// `exo.arm_inertia_kg_m2` (the arm keeps the rest), so with the mesh closed
+/// the joint's total inertia is the nominal one. Where the SEA's torque
+/// does not reverse (an arm held up against gravity) the mesh never opens
+/// and the backlash has no effect. Off while `lash_rad` is 0.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Backlash {
+    /// Total lost motion (rad). Range [0, 0.2]; 0 is off.
+    pub lash_rad: f64,
+    /// Motor-side (drive output) inertia `J_m` (kg·m²), taken out of
+    /// `exo.arm_inertia_kg_m2`. Range (0, 10], below the arm's inertia.
+    pub motor_inertia_kg_m2: f64,
+    /// Mesh stiffness `k_g` in contact (Nm/rad). Range (0, 10⁷], and
+    /// `√(k_g/J_m) · integration.step_s` ≤ 0.5.
+    pub mesh_stiffness_nm_per_rad: f64,
+    /// Mesh damping `b_g` in contact (Nm·s/rad). Range [0, 10⁴].
+    pub mesh_damping_nm_s_per_rad: f64,
+}
+
+impl Default for Backlash {
+    fn default() -> Self {
+        Self {
+            lash_rad: 0.0,
+            motor_inertia_kg_m2: 0.02,
+            mesh_stiffness_nm_per_rad: 2e4,
+            mesh_damping_nm_s_per_rad: 8.0,
+        }
+    }
+}
+
+impl Backlash {
+    /// On (a lash above zero).
+    pub fn enabled(&self) -> bool {
+        self.lash_rad > 0.0
+    }
+
+    /// The torque (Nm) the mesh passes from the motor side to the arm at
+    /// the motor side's lead `d = θ_m − θ_e` (rad) and its rate `v` (rad/s):
+    /// none inside the lash, `k_g (d ∓ lash/2) + b_g v` in contact.
+    pub fn mesh_torque_nm(&self, d: f64, v: f64) -> f64 {
+        let half = 0.5 * self.lash_rad;
+        if d > half {
+            self.mesh_stiffness_nm_per_rad * (d - half) + self.mesh_damping_nm_s_per_rad * v
+        } else if d < -half {
+            self.mesh_stiffness_nm_per_rad * (d + half) + self.mesh_damping_nm_s_per_rad * v
+        } else {
+            0.0
+        }
+    }
 }
 
 /// `[gravity]`.
@@ -600,6 +679,28 @@ impl PlantModel {
             ]
             .into_iter()
             .fold(0.0, f64::max);
+            let bl = self.exo.backlash;
+            if bl.enabled() {
+                if bl.motor_inertia_kg_m2 >= self.exo.arm_inertia_kg_m2 {
+                    bad(
+                        "exo.backlash.motor_inertia_kg_m2",
+                        format!(
+                            "must be below exo.arm_inertia_kg_m2 = {} (it is a part of it), got {}",
+                            self.exo.arm_inertia_kg_m2, bl.motor_inertia_kg_m2
+                        ),
+                    );
+                }
+                let w_mesh = (bl.mesh_stiffness_nm_per_rad / bl.motor_inertia_kg_m2).sqrt();
+                if w_mesh * step > 0.5 {
+                    bad(
+                        "exo.backlash.mesh_stiffness_nm_per_rad",
+                        format!(
+                            "the mesh's mode √(k_g/J_m) = {w_mesh:.0} rad/s is too fast for integration.step_s = {step} s: at most {:.3e} Nm/rad",
+                            (0.5 / step).powi(2) * bl.motor_inertia_kg_m2
+                        ),
+                    );
+                }
+            }
             if w_max * step > 0.5 {
                 bad(
                     "integration.step_s",
@@ -661,11 +762,28 @@ impl PlantModel {
                 "human.cubic_stiffness_nm_per_rad3".into(),
                 h.cubic_stiffness_nm_per_rad3,
             ),
+            (
+                "human.stiffness_drift_per_min".into(),
+                h.stiffness_drift_per_min,
+            ),
             ("human.rest_angle_rad".into(), h.rest_angle_rad),
             ("human.active_angle_rad".into(), h.active_angle_rad),
             ("exo.arm_inertia_kg_m2".into(), self.exo.arm_inertia_kg_m2),
             ("exo.load_lever_arm_m".into(), self.exo.load_lever_arm_m),
             ("exo.load_kg".into(), self.exo.load_kg),
+            ("exo.backlash.lash_rad".into(), self.exo.backlash.lash_rad),
+            (
+                "exo.backlash.motor_inertia_kg_m2".into(),
+                self.exo.backlash.motor_inertia_kg_m2,
+            ),
+            (
+                "exo.backlash.mesh_stiffness_nm_per_rad".into(),
+                self.exo.backlash.mesh_stiffness_nm_per_rad,
+            ),
+            (
+                "exo.backlash.mesh_damping_nm_s_per_rad".into(),
+                self.exo.backlash.mesh_damping_nm_s_per_rad,
+            ),
             ("gravity.arm_mass_kg".into(), self.gravity.arm_mass_kg),
             ("gravity.arm_com_m".into(), self.gravity.arm_com_m),
             ("gravity.g_m_s2".into(), self.gravity.g_m_s2),
@@ -733,6 +851,18 @@ impl PlantModel {
         out.push(("integration.step_s".into(), self.integration.step_s));
         out.push(("integration.seed".into(), self.integration.seed as f64));
         out
+    }
+
+    /// Exoskeleton inertia with `load_kg` (kg·m²): the arm's side of the
+    /// joint, without the motor side's inertia when there is backlash
+    /// (`[exo.backlash]`).
+    pub fn arm_side_inertia_kg_m2(&self, load_kg: f64) -> f64 {
+        let motor = if self.exo.backlash.enabled() {
+            self.exo.backlash.motor_inertia_kg_m2
+        } else {
+            0.0
+        };
+        self.exo_inertia_kg_m2(load_kg) - motor
     }
 
     /// Exoskeleton inertia with `load_kg` (kg·m²).

@@ -143,6 +143,9 @@ impl PlantNode {
             self.protocol.omega,
             self.protocol.load_kg,
         );
+        if p.experiment != self.protocol.experiment {
+            self.plant.start_experiment_clock();
+        }
         if now != before {
             if let Some(e) = self.subject.get(p.experiment) {
                 self.plant

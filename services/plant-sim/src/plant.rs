@@ -8,7 +8,10 @@
 //! torque command (after the actuator delay and saturation), the posture
 //! the human holds `θ_eq` and its rate, and the nonlinear exoskeleton torques
 //! (gravity `−g(m_a l_a + m_L l_L) sin θ_e`, Coulomb friction) evaluated at
-//! the start of the step.
+//! the start of the step. With backlash in the joint (`[exo.backlash]`)
+//! the SEA's torque drives a motor side (angle, velocity) stepped beside
+//! the linear part, and the gear mesh's torque reaches the arm through the
+//! nonlinear input.
 //!
 //! Sign convention (the paper's): `τ_c` is the torque the cuff applies to
 //! the human; the human's impedance pulls the forearm back towards `θ_eq`.
@@ -226,6 +229,12 @@ pub struct Plant {
     tau_s_delay: Delay,
     tau_d_held: f64,
     external_torque_nm: f64,
+    /// The motor side of a joint with backlash (`[exo.backlash]`): its
+    /// angle (rad) and velocity (rad/s); unused without backlash.
+    motor: [f64; 2],
+    /// Simulated time (s) at which the running experiment started (the
+    /// origin of `human.stiffness_drift_per_min`).
+    drift_origin_s: f64,
     rng: Rng,
 }
 
@@ -287,6 +296,8 @@ impl Plant {
             tau_s_delay: Delay::new(steps_of(model.sensors.sea_deflection.terms.delay_s, h), 0.0),
             tau_d_held: 0.0,
             external_torque_nm: 0.0,
+            motor: [model.human.rest_angle_rad, 0.0],
+            drift_origin_s: 0.0,
             rng: Rng::new(model.integration.seed),
         };
         p.rebuild();
@@ -294,6 +305,12 @@ impl Plant {
         p.x[p.layout.th_e] = rest;
         p.x[p.layout.th_h] = rest;
         p
+    }
+
+    /// Marks the start of an experiment: the human's stiffness drift
+    /// (`human.stiffness_drift_per_min`) counts from now.
+    pub fn start_experiment_clock(&mut self) {
+        self.drift_origin_s = self.t_s;
     }
 
     /// The model.
@@ -484,7 +501,10 @@ impl Plant {
         };
 
         let m_h = m.human.inertia_kg_m2;
-        let m_e = m.exo_inertia_kg_m2(self.load_kg);
+        // With backlash the SEA drives the motor side, which the mesh
+        // couples to the arm through `U_TAU_NL` ([`Plant::mesh_torque`]).
+        let m_e = m.arm_side_inertia_kg_m2(self.load_kg);
+        let backlash = m.exo.backlash.enabled();
         let b_f = if m.joint_friction.viscous.enabled {
             m.joint_friction.viscous.b_nm_s_per_rad
         } else {
@@ -523,9 +543,12 @@ impl Plant {
                 a[(s + 1, s)] = -wn * wn;
                 a[(s + 1, s + 1)] = -2.0 * z * wn;
                 b[(s + 1, U_TAU_D)] = wn * wn;
-                act_x[s] = 1.0;
+                if !backlash {
+                    act_x[s] = 1.0;
+                }
             }
-            None => act_u[U_TAU_D] = 1.0,
+            None if !backlash => act_u[U_TAU_D] = 1.0,
+            None => {}
         }
         a[(0, 1)] = 1.0;
         if compliant {
@@ -615,6 +638,9 @@ impl Plant {
     fn nonlinear_torque(&mut self) -> f64 {
         let (th, w) = (self.x[self.layout.th_e], self.x[self.layout.w_e]);
         let mut tau = self.external_torque_nm - self.gravity_torque_tracked(th);
+        if self.model.exo.backlash.enabled() {
+            tau += self.mesh_torque();
+        }
         let c = self.model.joint_friction.coulomb;
         if c.enabled {
             tau -= c.torque_nm * (w / c.smoothing_rad_s).tanh();
@@ -663,7 +689,8 @@ impl Plant {
         self.u[U_THETA_EQ] = self.drive.theta_eq_rad;
         self.u[U_OMEGA_EQ] = self.drive.omega_eq_rad_s;
         self.u[U_TAU_NL] = self.nonlinear_torque();
-        self.u[U_TAU_REFLEX] = self.reflex_torque() + self.cubic_spring_torque();
+        self.u[U_TAU_REFLEX] =
+            self.reflex_torque() + self.cubic_spring_torque() + self.drift_spring_torque();
         let (x, u) = (self.x.as_slice(), self.u.as_slice());
         let (cols, next) = (&self.phi_gamma_cols, self.x_next.as_mut_slice());
         // Up to 16 states (rigid cuff with the SEA: 4; compliant: 6; a
@@ -729,6 +756,34 @@ impl Plant {
         }
         let d = self.x[self.layout.th_h] - self.drive.theta_eq_rad;
         -k3 * d * d * d
+    }
+
+    /// The drifting part of the human's spring on the human joint (Nm):
+    /// `−K ρ (t − t₀)/60 (θ_h − θ_eq)`, `t₀` the experiment's start
+    /// ([`Plant::start_experiment_clock`]), held over the step like the
+    /// reflex; 0 when `human.stiffness_drift_per_min` is 0.
+    fn drift_spring_torque(&self) -> f64 {
+        let rho = self.model.human.stiffness_drift_per_min;
+        if rho == 0.0 {
+            return 0.0;
+        }
+        let d = self.x[self.layout.th_h] - self.drive.theta_eq_rad;
+        -self.k_h * rho * (self.t_s - self.drift_origin_s) / 60.0 * d
+    }
+
+    /// The backlash mesh's torque on the arm (Nm) at the step's start, and
+    /// the motor side advanced over the step under the SEA's torque less
+    /// the mesh's (semi-implicit Euler: the mesh's mode is at most
+    /// 0.5 rad per step, `PlantModel::validate`).
+    fn mesh_torque(&mut self) -> f64 {
+        let bl = self.model.exo.backlash;
+        let (th, w) = (self.x[self.layout.th_e], self.x[self.layout.w_e]);
+        let [th_m, w_m] = self.motor;
+        let tau_mesh = bl.mesh_torque_nm(th_m - th, w_m - w);
+        let h = self.model.integration.step_s;
+        let w_m = w_m + h * (self.tau_s_nm() - tau_mesh) / bl.motor_inertia_kg_m2;
+        self.motor = [th_m + h * w_m, w_m];
+        tau_mesh
     }
 
     /// Feeds the stretch velocity through the reflex's delay and its two

@@ -440,3 +440,111 @@ fn prony_matched_mode_is_exact_at_the_excitation_and_damped_elsewhere() {
     assert!(viscous > 0.4, "equivalent viscous kept {viscous}");
     assert!(matched < 0.2, "prony matched kept {matched}");
 }
+
+/// `[exo.backlash]` with the arm held up against gravity: the SEA's torque
+/// never reverses, so the mesh never opens and the joint responds as
+/// without backlash (the motor side's inertia is a part of the arm's; the
+/// mesh's stiffness in series is 200× the joint's dynamic stiffness).
+#[test]
+fn backlash_under_a_gravity_preload_never_opens() {
+    let mut m = default_model();
+    m.sensors.cuff_ft.terms.noise_std = 0.0;
+    m.human.active_angle_rad = 0.785;
+    let run = |m: &PlantModel| {
+        let mut p = Plant::new(m);
+        p.set_drive(HumanDrive {
+            theta_eq_rad: 0.785,
+            omega_eq_rad_s: 0.0,
+        });
+        let h = m.integration.step_s;
+        let omega = 6.0;
+        let (mut th, mut ts) = (Complex64::new(0.0, 0.0), Complex64::new(0.0, 0.0));
+        let (settle, n) = (80_000, 104_720); // 8 s, then 10 cycles of 6 rad/s
+        for k in 0..settle + n {
+            let tau_g = p.truth().tau_g_nm;
+            p.step(tau_g + 2.0 * (omega * k as f64 * h).sin());
+            if k >= settle {
+                let e = Complex64::from_polar(1.0, -omega * (k + 1) as f64 * h);
+                th += p.truth().theta_e_rad * e;
+                ts += p.truth().tau_s_nm * e;
+            }
+        }
+        ts / th
+    };
+    let plain = run(&m);
+    m.exo.backlash.lash_rad = 0.05;
+    m.validate("test").unwrap();
+    let lash = run(&m);
+    assert!(
+        ((lash - plain) / plain).norm() < 5e-3,
+        "S_he {lash} with backlash vs {plain}"
+    );
+}
+
+/// Without a preload the torque reverses every half cycle and the arm is
+/// cut off from the motor side (its torque and its inertia) while the
+/// motor side crosses the lash: the arm's response departs from the plain
+/// joint's, by more the wider the lash.
+#[test]
+fn backlash_without_a_preload_loses_torque_at_each_reversal() {
+    let m = quiet(default_model());
+    let response = |lash: f64| {
+        let mut m = m;
+        m.exo.backlash.lash_rad = lash;
+        m.validate("test").unwrap();
+        let mut p = Plant::new(&m);
+        let (_, s_he) = measure(&mut p, 6.0, 2.0);
+        1.0 / s_he.norm() // θ amplitude per Nm of SEA torque
+    };
+    let (plain, small, wide) = (response(0.0), response(0.02), response(0.1));
+    let (d_small, d_wide) = ((small - plain).abs(), (wide - plain).abs());
+    assert!(
+        d_small > 1e-3 * plain && d_wide > 2.0 * d_small,
+        "{plain} {small} {wide}"
+    );
+}
+
+/// `human.stiffness_drift_per_min`: a constant torque on the human joint
+/// deflects it by `τ / (K (1 + ρ t/60))` as the stiffness drifts (closed form, quasi-static).
+#[test]
+fn a_drifting_stiffness_follows_k_times_one_plus_rho_t() {
+    let mut m = quiet(default_model());
+    m.human.hysteretic_damping.enabled = false;
+    m.human.viscous_damping.enabled = true;
+    m.human.viscous_damping.b_nm_s_per_rad = 5.0; // well damped: quasi-static
+    m.human.stiffness_drift_per_min = 0.3;
+    m.validate("test").unwrap();
+    let mut p = Plant::new(&m);
+    p.start_experiment_clock();
+    let k = m.human.stiffness_nm_per_rad;
+    for t_s in [20.0, 40.0, 60.0] {
+        p.advance(20.0, 3.0);
+        let expect = 3.0 / (k * (1.0 + 0.3 * t_s / 60.0));
+        let got = p.truth().theta_e_rad;
+        assert!(
+            (got - expect).abs() < 2e-3 * expect,
+            "t = {t_s} s: θ = {got}, K(t) says {expect}"
+        );
+    }
+}
+
+/// With `exo.backlash.lash_rad` = 0 the term is off: its other keys (here
+/// absurd: a motor side of nearly the whole arm's inertia on a soft mesh)
+/// change nothing, bit for bit.
+#[test]
+fn backlash_off_ignores_its_other_keys() {
+    let m = default_model();
+    let mut odd = m;
+    odd.exo.backlash.motor_inertia_kg_m2 = 0.099;
+    odd.exo.backlash.mesh_stiffness_nm_per_rad = 10.0;
+    odd.exo.backlash.mesh_damping_nm_s_per_rad = 0.0;
+    let run = |m: &PlantModel| {
+        let mut p = Plant::new(m);
+        for k in 0..20_000 {
+            let tau_g = p.truth().tau_g_nm;
+            p.step(tau_g + 2.0 * (6.0 * k as f64 * 1e-4).sin());
+        }
+        p.truth()
+    };
+    assert_eq!(run(&m), run(&odd));
+}

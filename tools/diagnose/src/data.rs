@@ -150,7 +150,16 @@ pub struct Dataset {
     pub supported: Vec<Tf>,
     /// Sources read.
     pub sources: Vec<String>,
+    /// Per window, the noise power of one bin of `τ_c`'s residual spectrum
+    /// and the phasors of the fundamental, 2nd and 3rd harmonics of `θ_e`
+    /// and of `τ_c` ([`crate::signatures::window_harmonics`]): they depend
+    /// on the data only, so they are computed once, when first needed.
+    pub(crate) sh_harmonics: std::sync::OnceLock<Vec<Option<ShHarmonics>>>,
 }
+
+/// One window's `θ_e` and `τ_c` harmonics (see [`Dataset::sh_harmonics`]):
+/// `(noise power of τ_c per bin, θ_e phasors, τ_c phasors)`.
+pub(crate) type ShHarmonics = (f64, [Complex64; 3], [Complex64; 3]);
 
 impl Dataset {
     /// The experiments present, sorted.

@@ -945,6 +945,7 @@ fn amplitude_check(
     added: &[Param],
     must_confirm: bool,
     shows_in_balance: bool,
+    hold_shared: bool,
     level: f64,
 ) -> AmplitudeCheck {
     let mut fits = Vec::new();
@@ -963,6 +964,12 @@ fn amplitude_check(
             .copied()
             .filter(|q| match q {
                 Param::K(e) | Param::H(e) => present.contains(e),
+                // A form defined by its amplitude dependence: within one
+                // group the angle amplitude falls with ω², so its
+                // parameter trades with the shared ones (M_h above all);
+                // those stay at the whole fit's values and only the
+                // per-experiment K_h, H_h and the form's own are refitted.
+                q if hold_shared => added.contains(q),
                 _ => true,
             })
             .collect();
@@ -1347,6 +1354,7 @@ impl StepContext<'_> {
                         &added,
                         r.0.term.amplitude_dependent(),
                         r.0.term.shows_in().contains(&Tf::Balance),
+                        r.0.term.needs_two_amplitudes(),
                         level,
                     );
                     if check.inconsistent {

@@ -314,7 +314,7 @@ impl Physics {
             },
             k3: m.human.cubic_stiffness_nm_per_rad3,
             b3: 0.0,
-            k_drift_per_min: 0.0,
+            k_drift_per_min: m.human.stiffness_drift_per_min,
         }
     }
 
@@ -524,6 +524,9 @@ impl Physics {
         r.delay_s = self.reflex[1];
         r.cutoff_rad_s = self.reflex[2];
         m.human.cubic_stiffness_nm_per_rad3 = self.k3;
+        // The simulator's drift counts from the experiment's start, the
+        // form's from its first window: the same ρ up to the fitted K_h.
+        m.human.stiffness_drift_per_min = self.k_drift_per_min;
         m.joint_friction.coulomb.enabled = self.coulomb_nm > 0.0;
         m.joint_friction.coulomb.torque_nm = self.coulomb_nm;
         m.joint_friction.viscous.enabled = self.b_f > 0.0;

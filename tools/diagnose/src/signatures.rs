@@ -244,21 +244,29 @@ pub fn cubic_harmonic_check(
     if dk3 == 0.0 || !d.supported.contains(&Tf::Sh) {
         return None;
     }
+    let harmonics = d.sh_harmonics.get_or_init(|| {
+        d.signals
+            .iter()
+            .map(|s| {
+                let w = s.omega_rad_s;
+                if w <= 0.0 {
+                    return None;
+                }
+                let (_, th) = window_harmonics(&s.t_s, &s.theta_rad, w)?;
+                let (spec, tc) = window_harmonics(&s.t_s, &s.tau_c_nm, w)?;
+                Some((spec.noise_power, th, tc))
+            })
+            .collect()
+    });
     let (mut ym, mut mm, mut rows) = (0.0, 0.0, Vec::new());
-    for (i, s) in d.signals.iter().enumerate() {
+    for (i, (s, h)) in d.signals.iter().zip(harmonics).enumerate() {
         let w = s.omega_rad_s;
-        if w <= 0.0 {
-            continue;
-        }
-        let (Some((_, th)), Some((spec, tc))) = (
-            window_harmonics(&s.t_s, &s.theta_rad, w),
-            window_harmonics(&s.t_s, &s.tau_c_nm, w),
-        ) else {
+        let Some((noise_power, th, tc)) = *h else {
             continue;
         };
         let c = &d.conditions[i];
         // Per real component: E|X|² = 2σ².
-        let sd = (0.5 * spec.noise_power).sqrt();
+        let sd = (0.5 * noise_power).sqrt();
         let zero = Complex64::new(0.0, 0.0);
         let cube = th[0] * th[0] * th[0] * 0.25;
         let y = tc[2] - before.predict_tf(Tf::Sh, 3.0 * w, c, zero) * th[2] - before.k3 * cube;

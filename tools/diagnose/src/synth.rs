@@ -86,7 +86,13 @@ pub fn synthesize(model: &PlantModel, periods: &[SynthPeriod], s: &SynthSettings
     });
     let mut seq = 0u64;
     let mut t = 0.0f64;
+    let mut experiment = None;
     for p in periods {
+        if experiment != Some(p.experiment) {
+            // The origin of `human.stiffness_drift_per_min`.
+            plant.start_experiment_clock();
+            experiment = Some(p.experiment);
+        }
         plant.set_human_impedance(p.k_h, p.h_h);
         plant.set_load_kg(p.load_kg);
         plant.set_excitation_omega(p.omega_rad_s);

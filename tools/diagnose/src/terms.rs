@@ -137,7 +137,8 @@ impl Term {
             Term::TorqueSensorOffset => "sensors.sea_deflection.offset",
             Term::StretchReflex => "human.stretch_reflex",
             Term::CubicStiffness => "human.cubic_stiffness_nm_per_rad3",
-            Term::CubicDamping | Term::StiffnessDrift => "(none: the simulator has no such term)",
+            Term::StiffnessDrift => "human.stiffness_drift_per_min",
+            Term::CubicDamping => "(none: the simulator has no such term)",
         }
     }
 
