@@ -405,6 +405,25 @@ mod tests {
         assert_eq!(n.plant().human_impedance(), (99.0, 1.0));
     }
 
+    /// The human's stiffness drift counts from an experiment's start: the
+    /// protocol's other states within it (periods, phases) leave its
+    /// clock running; a new experiment restarts it.
+    #[test]
+    fn the_experiment_clock_restarts_only_with_a_new_experiment() {
+        let mut n = node(TimingMode::Lockstep);
+        n.on_protocol(&state(1, ProtocolPhase::RampIn, 2.0, 2.0, 2.5));
+        for _ in 0..100 {
+            n.advance();
+        }
+        let period_s = n.period_ns() as f64 * 1e-9;
+        let ran = n.plant().experiment_elapsed_s();
+        assert!((ran - 100.0 * period_s).abs() < 1e-9, "{ran} s");
+        n.on_protocol(&state(1, ProtocolPhase::Analysis, 4.0, 2.0, 2.5));
+        assert_eq!(n.plant().experiment_elapsed_s(), ran);
+        n.on_protocol(&state(7, ProtocolPhase::RampIn, 4.0, 2.0, 2.5));
+        assert_eq!(n.plant().experiment_elapsed_s(), 0.0);
+    }
+
     #[test]
     fn frames_carry_the_tick_and_the_stamp_and_an_injected_fault_from_its_tick() {
         let mut cfg =

@@ -313,6 +313,13 @@ impl Plant {
         self.drift_origin_s = self.t_s;
     }
 
+    /// Time (s) since the current experiment started
+    /// ([`start_experiment_clock`](Self::start_experiment_clock)): what
+    /// the human's stiffness drift has run for.
+    pub fn experiment_elapsed_s(&self) -> f64 {
+        self.t_s - self.drift_origin_s
+    }
+
     /// The model.
     pub fn model(&self) -> &PlantModel {
         &self.model

@@ -548,3 +548,21 @@ fn backlash_off_ignores_its_other_keys() {
     };
     assert_eq!(run(&m), run(&odd));
 }
+
+/// The mesh's stiffness is bounded by the integration step,
+/// √(k_g/J_m) · step ≤ 0.5: the bound itself, written out here as
+/// (0.5/step)² · J_m, is accepted, and anything above it is refused
+/// naming the key.
+#[test]
+fn the_mesh_stiffness_bound_is_inclusive_and_named() {
+    let mut m = default_model();
+    m.integration.step_s = 1e-4;
+    m.exo.backlash.lash_rad = 0.02;
+    m.exo.backlash.motor_inertia_kg_m2 = 0.02;
+    let bound = (0.5f64 / 1e-4).powi(2) * 0.02;
+    m.exo.backlash.mesh_stiffness_nm_per_rad = bound;
+    assert!(m.validate("plant.toml").is_ok(), "{bound} Nm/rad refused");
+    m.exo.backlash.mesh_stiffness_nm_per_rad = bound * 1.001;
+    let e = m.validate("plant.toml").unwrap_err().to_string();
+    assert!(e.contains("exo.backlash.mesh_stiffness_nm_per_rad"), "{e}");
+}
