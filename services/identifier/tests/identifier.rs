@@ -610,6 +610,13 @@ fn without_commands_gravity_stays_in_tau_s_and_a_warning_says_so() {
     let sink = &st.sinks[0];
     let p = sink.frf()[0];
     assert!(sink.warnings().iter().any(|w| w.contains("no command")));
+    // No command answers a sample: τ_s/τ_d is left unestimated (0), not
+    // tried on commands that answer nothing, and not warned about twice.
+    assert!(
+        sink.warnings().iter().all(|w| !w.contains("τ_s/τ_d")),
+        "{:?}",
+        sink.warnings()
+    );
     // Fitting the cuff's S_h needs no command: nothing to warn about.
     let w = st.sinks[1].warnings();
     assert!(
