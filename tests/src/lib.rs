@@ -63,6 +63,28 @@ pub fn python() -> String {
     String::from_utf8(out.stdout).unwrap().trim().to_string()
 }
 
+/// A command running `tools/python/SCRIPT` with the project's Python
+/// ([`python`]); add its arguments, then run it with [`stdout_of`].
+pub fn python_script(script: &str) -> Command {
+    let mut c = Command::new(python());
+    c.arg(workspace_root().join("tools/python").join(script));
+    c
+}
+
+/// Runs `cmd`, asserts that it succeeded (naming it, with its standard
+/// error), and returns its standard output.
+pub fn stdout_of(cmd: &mut Command) -> Vec<u8> {
+    let out = cmd
+        .output()
+        .unwrap_or_else(|e| panic!("starting {cmd:?}: {e}"));
+    assert!(
+        out.status.success(),
+        "{cmd:?}: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    out.stdout
+}
+
 /// The real human ankle recording beside the repository
 /// (`../shared/data/ankle-stiffness-reklab`), checked to be there.
 pub fn ankle_csv() -> PathBuf {

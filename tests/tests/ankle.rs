@@ -11,9 +11,8 @@
 //! too.
 
 use std::path::{Path, PathBuf};
-use std::process::Command;
 
-use exo_tests::{ankle_csv, exo, import_ankle, python, stderr, stdout, workspace_root};
+use exo_tests::{ankle_csv, exo, import_ankle, python_script, stderr, stdout, stdout_of};
 use serde_json::Value;
 
 fn scratch(tag: &str) -> PathBuf {
@@ -32,19 +31,13 @@ fn exo_fit(rec: &Path, extra: &[&str]) -> Value {
 
 /// The independent numpy fit of the CSV.
 fn numpy_fit(extra: &[&str]) -> Value {
-    let out = Command::new(python())
-        .arg(workspace_root().join("tools/python/fit_broadband.py"))
-        .arg(ankle_csv())
-        .arg("--flip-torque")
-        .args(extra)
-        .output()
-        .unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
+    let out = stdout_of(
+        python_script("fit_broadband.py")
+            .arg(ankle_csv())
+            .arg("--flip-torque")
+            .args(extra),
     );
-    serde_json::from_slice(&out.stdout).unwrap()
+    serde_json::from_slice(&out).unwrap()
 }
 
 /// `value` rounds to README's `printed` (the same number of decimals).

@@ -3,7 +3,6 @@
 //! script wrote, and the real ankle recording; bad input refused by name.
 
 use std::path::{Path, PathBuf};
-use std::process::Command;
 
 use exo_tests::*;
 use serde_json::Value;
@@ -102,20 +101,13 @@ fn the_bench_names_a_concealed_gravity_error_and_nothing_in_a_null_case() {
 #[test]
 fn a_python_written_recording_with_a_sensor_delay_and_complex_stiffness_is_diagnosed() {
     let dir = scratch("py");
-    let py = python();
     let write = |name: &str, extra: &[&str]| {
         let rec = dir.join(name);
-        let out = Command::new(&py)
-            .arg(workspace_root().join("tools/python/write_recording.py"))
-            .arg(&rec)
-            .args(["--k", "40", "--c", "0.4", "--noise", "0.02"])
-            .args(extra)
-            .output()
-            .unwrap();
-        assert!(
-            out.status.success(),
-            "{}",
-            String::from_utf8_lossy(&out.stderr)
+        stdout_of(
+            python_script("write_recording.py")
+                .arg(&rec)
+                .args(["--k", "40", "--c", "0.4", "--noise", "0.02"])
+                .args(extra),
         );
         rec
     };

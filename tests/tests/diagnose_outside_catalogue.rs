@@ -14,7 +14,6 @@
 //! physics" and never also "structure remains".
 
 use std::path::{Path, PathBuf};
-use std::process::Command;
 
 use exo_tests::*;
 use serde_json::Value;
@@ -33,17 +32,11 @@ fn scratch(case: &str) -> PathBuf {
 /// (the amplitude rises 10^0.2× at periods 8–10), seed 7.
 fn rig(dir: &Path, name: &str, extra: &[&str]) -> PathBuf {
     let rec = dir.join(name);
-    let out = Command::new(python())
-        .arg(workspace_root().join("tools/python/independent_rig.py"))
-        .arg(&rec)
-        .args(["--seed", "7", "--experiments", "1,4,7"])
-        .args(extra)
-        .output()
-        .unwrap();
-    assert!(
-        out.status.success(),
-        "independent_rig.py {extra:?}: {}",
-        String::from_utf8_lossy(&out.stderr)
+    stdout_of(
+        python_script("independent_rig.py")
+            .arg(&rec)
+            .args(["--seed", "7", "--experiments", "1,4,7"])
+            .args(extra),
     );
     rec
 }

@@ -10,9 +10,8 @@
 //! changes the fitter.
 
 use std::path::{Path, PathBuf};
-use std::process::Command;
 
-use exo_tests::{exo, python, stderr, stdout, workspace_root};
+use exo_tests::{exo, python_script, stderr, stdout, stdout_of};
 use serde_json::Value;
 
 fn scratch(tag: &str) -> PathBuf {
@@ -23,16 +22,7 @@ fn scratch(tag: &str) -> PathBuf {
 }
 
 fn rig(args: &[&str]) {
-    let out = Command::new(python())
-        .arg(workspace_root().join("tools/python/independent_rig.py"))
-        .args(args)
-        .output()
-        .expect("independent_rig.py");
-    assert!(
-        out.status.success(),
-        "independent_rig.py {args:?}: {}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    stdout_of(python_script("independent_rig.py").args(args));
 }
 
 fn read_json(p: &Path) -> Value {

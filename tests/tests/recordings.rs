@@ -99,17 +99,14 @@ fn a_recording_written_by_an_independent_python_script_is_fitted() {
     let dir = std::env::temp_dir().join(format!("exo-it-py-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     let rec = dir.join("py.mcap");
-    let out = Command::new(python())
-        .arg(workspace_root().join("tools/python/write_recording.py"))
-        .arg(&rec)
-        .args(["--k", "40", "--c", "0.4", "--subject", "PY"])
-        .output()
-        .unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    stdout_of(python_script("write_recording.py").arg(&rec).args([
+        "--k",
+        "40",
+        "--c",
+        "0.4",
+        "--subject",
+        "PY",
+    ]));
     let v = fit_json(&[&rec]);
     let m2 = model(&v, 0, 1, "M2");
     assert!((m2["K"].as_f64().unwrap() - 40.0).abs() < 0.1, "{m2}");
@@ -344,26 +341,16 @@ fn a_recording_played_back_is_identified_again() {
         ],
     );
     let original = sc.dir.join("original.mcap");
-    let out = Command::new(python())
-        .arg(workspace_root().join("tools/python/write_recording.py"))
-        .arg(&original)
-        .args([
-            "--k",
-            "40",
-            "--c",
-            "0.4",
-            "--periods",
-            "3",
-            "--subject",
-            "PY",
-        ])
-        .output()
-        .unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    stdout_of(python_script("write_recording.py").arg(&original).args([
+        "--k",
+        "40",
+        "--c",
+        "0.4",
+        "--periods",
+        "3",
+        "--subject",
+        "PY",
+    ]));
     sc.append(&format!(
         "\n[player]\nfile = \"{}\"\npace_hz = 20000.0\n",
         original.display()
