@@ -10,13 +10,15 @@
 //! at 34 dof times the standard error), checked to their printed precision
 //! too.
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
-use exo_tests::{ankle_csv, exo, import_ankle, python_script, stderr, stdout, stdout_of};
+use exo_tests::{
+    ankle_csv, exo, import_ankle, python_script, stderr, stdout, stdout_of, ScratchDir,
+};
 use serde_json::Value;
 
-fn scratch(tag: &str) -> PathBuf {
-    std::env::temp_dir().join(format!("exo-it-ankle-{tag}-{}", std::process::id()))
+fn scratch(tag: &str) -> ScratchDir {
+    ScratchDir::new(&format!("ankle-{tag}"))
 }
 
 /// `exo fit --json --joint ankle` of the record, with `extra` flags.

@@ -168,7 +168,6 @@ impl Bad {
             "{}: wrote outside output_dir: {new_in_tmp:?}",
             self.key
         );
-        std::fs::remove_dir_all(&self.sc.dir).ok();
     }
 }
 

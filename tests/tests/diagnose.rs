@@ -7,11 +7,8 @@ use std::path::{Path, PathBuf};
 use exo_tests::*;
 use serde_json::Value;
 
-fn scratch(tag: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("exo-it-diag-{tag}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
+fn scratch(tag: &str) -> ScratchDir {
+    ScratchDir::new(&format!("diag-{tag}"))
 }
 
 /// The default plant with some of its text replaced, written to `dir`.

@@ -20,12 +20,8 @@ use serde_json::Value;
 
 /// A scratch directory of its own for each test (`case`), which run in
 /// parallel in one process.
-fn scratch(case: &str) -> PathBuf {
-    let dir =
-        std::env::temp_dir().join(format!("exo-it-diag-outside-{}-{case}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
+fn scratch(case: &str) -> ScratchDir {
+    ScratchDir::new(&format!("diag-outside-{case}"))
 }
 
 /// Experiments 1, 4, 7 of Table I (α = 1; bias 0, 4, 8 Nm), ten periods
@@ -254,7 +250,6 @@ fn physics_outside_the_catalogue_is_reported_unexplained_not_named() {
         let a = &remains(&v, tf)["angle_amplitude"];
         assert!(a["significant"] == false, "exo spring {tf}: {a:#}");
     }
-    let _ = std::fs::remove_dir_all(&dir);
 }
 
 /// Backlash in the rig's joint (`--lash`: lost motion in the gear mesh
@@ -277,5 +272,4 @@ fn backlash_in_the_rigs_joint_under_gravity_names_nothing() {
         );
         assert_exclusive(&v);
     }
-    let _ = std::fs::remove_dir_all(&dir);
 }

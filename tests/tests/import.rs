@@ -11,11 +11,8 @@ use exo_recording::{read_recording, Recording};
 use exo_tests::*;
 
 /// A fresh scratch directory for one test.
-fn scratch(tag: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("exo-it-import-{tag}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
+fn scratch(tag: &str) -> ScratchDir {
+    ScratchDir::new(&format!("import-{tag}"))
 }
 
 /// The simulated joint's inertia (kg·m²).
@@ -534,7 +531,6 @@ fn csv_trials_are_fitted_as_one_study() {
     assert!(out.status.success(), "{}", stderr(&out));
     let v: serde_json::Value = serde_json::from_str(&stdout(&out)).unwrap();
     assert_eq!(v["phase_table"][0]["groups"][0]["experiments"], "1, 2");
-    let _ = std::fs::remove_dir_all(&dir);
 }
 
 /// A 20 s record at 1 kHz of a joint S_h = K − M ω² + j H (K = 30.08 Nm/rad,

@@ -11,14 +11,11 @@
 
 use std::path::{Path, PathBuf};
 
-use exo_tests::{exo, python_script, stderr, stdout, stdout_of};
+use exo_tests::{exo, python_script, stderr, stdout, stdout_of, ScratchDir};
 use serde_json::Value;
 
-fn scratch(tag: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("exo-it-indep-{tag}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
+fn scratch(tag: &str) -> ScratchDir {
+    ScratchDir::new(&format!("indep-{tag}"))
 }
 
 fn rig(args: &[&str]) {
@@ -91,7 +88,6 @@ fn exo_fit_recovers_an_independent_subject_in_every_experiment() {
         );
     }
     eprintln!("{}", report.join("\n"));
-    let _ = std::fs::remove_dir_all(&dir);
 }
 
 #[test]
@@ -159,5 +155,4 @@ fn ninety_five_percent_intervals_cover_the_independent_truth() {
             cover.join(", ")
         );
     }
-    let _ = std::fs::remove_dir_all(&dir);
 }

@@ -78,7 +78,7 @@ fn one_experiment_runs_end_to_end_through_the_launcher() {
         let mode = std::fs::metadata(path).unwrap().permissions().mode() & 0o777;
         assert_eq!(mode & 0o137, 0, "{path}: mode {mode:o}, at most 0640");
         let dir = std::path::Path::new(path).parent().unwrap();
-        if dir != sc.dir {
+        if dir != sc.dir.path() {
             let dmode = std::fs::metadata(dir).unwrap().permissions().mode() & 0o777;
             assert_eq!(dmode & 0o027, 0, "{}: mode {dmode:o}", dir.display());
         }

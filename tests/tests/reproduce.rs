@@ -9,11 +9,8 @@ use exo_config::Subject;
 use exo_tests::*;
 use serde_json::Value;
 
-fn scratch(tag: &str) -> std::path::PathBuf {
-    let dir = std::env::temp_dir().join(format!("exo-it-repro-{tag}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
+fn scratch(tag: &str) -> ScratchDir {
+    ScratchDir::new(&format!("repro-{tag}"))
 }
 
 #[test]
@@ -121,6 +118,4 @@ fn subject_b_is_recovered_and_a_wrong_input_is_caught() {
             e.hysteretic_damping_nm_per_rad
         );
     }
-    let _ = std::fs::remove_dir_all(&dir);
-    let _ = std::fs::remove_dir_all(&other);
 }

@@ -197,5 +197,4 @@ fn exo_run_identifies_the_simulated_human_behind_the_emulated_drive() {
         (k / k0 - 1.0).abs() < 0.05 && (h / h0 - 1.0).abs() < 0.05,
         "fitted K = {k}, H = {h}; the simulated subject has K = {k0}, H = {h0}\n{v:#}"
     );
-    let _ = std::fs::remove_dir_all(&sc.dir);
 }
