@@ -74,6 +74,10 @@ pub const PLANT_RANGES: Ranges = &[
         "human.cubic_stiffness_nm_per_rad3",
         Range::closed(-1e5, 1e5),
     ),
+    (
+        "human.cubic_damping_nm_s3_per_rad3",
+        Range::closed(0.0, 1e3),
+    ),
     ("human.stretch_reflex.cutoff_rad_s", Range::above(0.0, 1e4)),
     ("human.stiffness_drift_per_min", Range::closed(-0.5, 0.5)),
     (
@@ -300,6 +304,15 @@ pub struct Human {
     /// discovers a polynomial spring. Range [−1e5, 1e5].
     #[serde(default)]
     pub cubic_stiffness_nm_per_rad3: f64,
+    /// Cubic damping `B₃` of the joint (Nm·s³/rad³): a damper
+    /// `B₃ θ̇_h³` beside the linear terms, damping that grows with the
+    /// speed of the motion (its describing function adds
+    /// `j ¾ B₃ ω³ A²` to the joint's impedance at angle amplitude `A`).
+    /// `exo diagnose` writes it when it discovers a cubic damper. 0 (the
+    /// default when the key is absent) is off. Range [0, 1e3]: a negative
+    /// one would feed energy into the joint.
+    #[serde(default)]
+    pub cubic_damping_nm_s3_per_rad3: f64,
     /// Drift of the joint stiffness within each experiment (fraction of
     /// `K` per minute): the spring is `K (1 + ρ t/60)`, `t` (s) from the
     /// moment the experiment's impedance is set (the subject file's
@@ -761,6 +774,10 @@ impl PlantModel {
             (
                 "human.cubic_stiffness_nm_per_rad3".into(),
                 h.cubic_stiffness_nm_per_rad3,
+            ),
+            (
+                "human.cubic_damping_nm_s3_per_rad3".into(),
+                h.cubic_damping_nm_s3_per_rad3,
             ),
             (
                 "human.stiffness_drift_per_min".into(),

@@ -696,8 +696,10 @@ impl Plant {
         self.u[U_THETA_EQ] = self.drive.theta_eq_rad;
         self.u[U_OMEGA_EQ] = self.drive.omega_eq_rad_s;
         self.u[U_TAU_NL] = self.nonlinear_torque();
-        self.u[U_TAU_REFLEX] =
-            self.reflex_torque() + self.cubic_spring_torque() + self.drift_spring_torque();
+        self.u[U_TAU_REFLEX] = self.reflex_torque()
+            + self.cubic_spring_torque()
+            + self.cubic_damper_torque()
+            + self.drift_spring_torque();
         let (x, u) = (self.x.as_slice(), self.u.as_slice());
         let (cols, next) = (&self.phi_gamma_cols, self.x_next.as_mut_slice());
         // Up to 16 states (rigid cuff with the SEA: 4; compliant: 6; a
@@ -763,6 +765,19 @@ impl Plant {
         }
         let d = self.x[self.layout.th_h] - self.drive.theta_eq_rad;
         -k3 * d * d * d
+    }
+
+    /// The human's cubic damper on the human joint (Nm):
+    /// `−B₃ (ω_h − ω_eq)³` (about the drive's own motion, as the linear
+    /// damper), held over the step like the reflex; 0 when
+    /// `human.cubic_damping_nm_s3_per_rad3` is 0.
+    fn cubic_damper_torque(&self) -> f64 {
+        let b3 = self.model.human.cubic_damping_nm_s3_per_rad3;
+        if b3 == 0.0 {
+            return 0.0;
+        }
+        let w = self.x[self.layout.w_h] - self.drive.omega_eq_rad_s;
+        -b3 * w * w * w
     }
 
     /// The drifting part of the human's spring on the human joint (Nm):

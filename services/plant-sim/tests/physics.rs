@@ -31,16 +31,19 @@ fn measure(p: &mut Plant, omega: f64, amp: f64) -> (Complex64, Complex64) {
 
 /// [`measure`] after `settle_s` of settling.
 fn measure_after(p: &mut Plant, omega: f64, amp: f64, settle_s: f64) -> (Complex64, Complex64) {
+    let [th, tc, ts] = phasors(p, omega, amp, settle_s);
+    (tc / th, ts / th)
+}
+
+/// The complex amplitudes (fundamental phasors) of θ_e, τ_c and τ_s over
+/// ten whole cycles of τ_d = A sin(ωt) after `settle_s` of settling.
+fn phasors(p: &mut Plant, omega: f64, amp: f64, settle_s: f64) -> [Complex64; 3] {
     let h = p.model().integration.step_s;
     let period_steps = (std::f64::consts::TAU / omega / h).round() as usize;
     let omega = std::f64::consts::TAU / (period_steps as f64 * h);
     let settle = ((settle_s / h) as usize).div_ceil(period_steps) * period_steps;
     let cycles = 10 * period_steps;
-    let (mut th, mut tc, mut ts) = (
-        Complex64::new(0.0, 0.0),
-        Complex64::new(0.0, 0.0),
-        Complex64::new(0.0, 0.0),
-    );
+    let mut sums = [Complex64::new(0.0, 0.0); 3];
     for k in 0..settle + cycles {
         let t = k as f64 * h;
         p.step(amp * (omega * t).sin());
@@ -48,12 +51,12 @@ fn measure_after(p: &mut Plant, omega: f64, amp: f64, settle_s: f64) -> (Complex
             let t_end = (k + 1) as f64 * h;
             let e = Complex64::from_polar(1.0, -omega * t_end);
             let truth = p.truth();
-            th += truth.theta_e_rad * e;
-            tc += truth.tau_c_nm * e;
-            ts += truth.tau_s_nm * e;
+            sums[0] += truth.theta_e_rad * e;
+            sums[1] += truth.tau_c_nm * e;
+            sums[2] += truth.tau_s_nm * e;
         }
     }
-    (tc / th, ts / th)
+    sums.map(|z| z * (2.0 / cycles as f64))
 }
 
 #[test]
@@ -501,6 +504,39 @@ fn backlash_without_a_preload_loses_torque_at_each_reversal() {
     assert!(
         d_small > 1e-3 * plain && d_wide > 2.0 * d_small,
         "{plain} {small} {wide}"
+    );
+}
+
+/// `human.cubic_damping_nm_s3_per_rad3`: a damper `B₃ θ̇³` moved at
+/// `θ = A cos ωt` puts `¾ B₃ A³ ω³` into the fundamental of its torque, in
+/// quadrature with θ (the textbook describing function, from
+/// `cos³ x = ¾ cos x + ¼ cos 3x`): the cuff's `S_h` gains `j ¾ B₃ ω³ A²` and
+/// nothing real, the 3rd harmonic of `τ_c` carries the rest,
+/// `¼ B₃ ω³ A³`.
+#[test]
+fn a_cubic_damper_adds_its_describing_function_to_s_h() {
+    let mut m = quiet(default_model());
+    m.human.hysteretic_damping.enabled = false;
+    m.human.viscous_damping.enabled = true;
+    m.human.viscous_damping.b_nm_s_per_rad = 1.0;
+    let w = 6.0;
+    let [th0, tc0, _] = phasors(&mut Plant::new(&m), w, 2.0, 8.0);
+    let b3 = 2.0;
+    m.human.cubic_damping_nm_s3_per_rad3 = b3;
+    m.validate("test").unwrap();
+    let [th, tc, _] = phasors(&mut Plant::new(&m), w, 2.0, 8.0);
+    let w = std::f64::consts::TAU / ((std::f64::consts::TAU / w / 1e-4).round() * 1e-4);
+    let a = th.norm();
+    let added = tc / th - tc0 / th0;
+    let expect = 0.75 * b3 * w.powi(3) * a * a;
+    assert!(
+        a < th0.norm(),
+        "the damper must reduce the motion: {a} vs {}",
+        th0.norm()
+    );
+    assert!(
+        (added.im - expect).abs() < 0.03 * expect && added.re.abs() < 0.03 * expect,
+        "S_h gained {added}; the describing function says j{expect} at A = {a} rad"
     );
 }
 

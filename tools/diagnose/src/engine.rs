@@ -230,8 +230,8 @@ pub struct Candidate {
     /// Whether the change within a window that it predicts (a drift does)
     /// is in the data; `None` when it predicts none.
     pub within_window_check: Option<WindowCheck>,
-    /// Whether the 3rd harmonic of `τ_c` it predicts (a polynomial spring
-    /// does, [`crate::signatures::cubic_harmonic_check`]) is in the data, by
+    /// Whether the 3rd harmonic of `τ_c` it predicts (a cubic spring or
+    /// damper does, [`crate::signatures::cubic_harmonic_check`]) is in the data, by
     /// the same rule; `None` when it predicts none.
     pub harmonic_check: Option<WindowCheck>,
     /// Its F-test is significant after Holm's correction.

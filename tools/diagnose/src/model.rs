@@ -180,8 +180,9 @@ impl Param {
             | Param::GravityError
             | Param::TorqueOffset
             | Param::CubicStiffness
-            | Param::CubicDamping
             | Param::StiffnessDrift => f64::NEG_INFINITY,
+            // A cubic damper is passive (the simulator's range is [0, 1e3]):
+            // one that fed energy into the joint would not be a damper.
             _ => 0.0,
         }
     }
@@ -313,7 +314,7 @@ impl Physics {
                 ]
             },
             k3: m.human.cubic_stiffness_nm_per_rad3,
-            b3: 0.0,
+            b3: m.human.cubic_damping_nm_s3_per_rad3,
             k_drift_per_min: m.human.stiffness_drift_per_min,
         }
     }
@@ -524,6 +525,7 @@ impl Physics {
         r.delay_s = self.reflex[1];
         r.cutoff_rad_s = self.reflex[2];
         m.human.cubic_stiffness_nm_per_rad3 = self.k3;
+        m.human.cubic_damping_nm_s3_per_rad3 = self.b3;
         // The simulator's drift counts from the experiment's start, the
         // form's from its first window: the same ρ up to the fitted K_h.
         m.human.stiffness_drift_per_min = self.k_drift_per_min;

@@ -224,24 +224,25 @@ pub fn window_harmonics(t: &[f64], y: &[f64], w: f64) -> Option<(WindowSpectrum,
     ))
 }
 
-/// What a polynomial spring predicts beyond the fundamental, checked where
-/// it predicts it: the cubic term `K₃ θ³` of the human's spring puts
-/// `¼ K₃ Θ₁³` into the 3rd harmonic of `τ_c` (`Θ₁` the angle's
-/// fundamental phasor), on top of the linear response `S_h(3ω) Θ₃` to the
-/// angle's own 3rd harmonic. With `y = T₃ − S_h(3ω) Θ₃ − ¼ K₃⁰ Θ₁³` the
-/// current model's 3rd-harmonic residual and `m = ¼ ΔK₃ Θ₁³` the change the
+/// What a cubic spring or damper predicts beyond the fundamental, checked
+/// where it predicts it: the cubic terms `K₃ θ³ + B₃ θ̇³` of the human's
+/// impedance put `¼ Θ₁³ (K₃ + B₃ (jω)³)` into the 3rd harmonic of `τ_c`
+/// (`Θ₁` the angle's fundamental phasor; `cos³ x = ¾ cos x + ¼ cos 3x`), on
+/// top of the linear response `S_h(3ω) Θ₃` to the angle's own 3rd harmonic.
+/// With `y = T₃ − S_h(3ω) Θ₃ − ¼ Θ₁³ (K₃⁰ + B₃⁰ (jω)³)` the current model's
+/// 3rd-harmonic residual and `m = ¼ Θ₁³ (ΔK₃ + ΔB₃ (jω)³)` the change the
 /// candidate makes, both whitened by the noise of `τ_c`'s spectrum in the
 /// window, `β = Re Σ m̄ y/|m|²` is the fraction of the predicted harmonic the
 /// data show, its standard error `1/|m|` scaled by the scatter. Returns
-/// `(|m|², β, se, windows)`, `None` when the candidate changes no `K₃` or no
-/// window has the harmonics.
+/// `(|m|², β, se, windows)`, `None` when the candidate changes neither `K₃`
+/// nor `B₃` or no window has the harmonics.
 pub fn cubic_harmonic_check(
     d: &Dataset,
     before: &crate::model::Physics,
     after: &crate::model::Physics,
 ) -> Option<(f64, f64, f64, usize)> {
-    let dk3 = after.k3 - before.k3;
-    if dk3 == 0.0 || !d.supported.contains(&Tf::Sh) {
+    let (dk3, db3) = (after.k3 - before.k3, after.b3 - before.b3);
+    if (dk3 == 0.0 && db3 == 0.0) || !d.supported.contains(&Tf::Sh) {
         return None;
     }
     let harmonics = d.sh_harmonics.get_or_init(|| {
@@ -269,8 +270,11 @@ pub fn cubic_harmonic_check(
         let sd = (0.5 * noise_power).sqrt();
         let zero = Complex64::new(0.0, 0.0);
         let cube = th[0] * th[0] * th[0] * 0.25;
-        let y = tc[2] - before.predict_tf(Tf::Sh, 3.0 * w, c, zero) * th[2] - before.k3 * cube;
-        let m = dk3 * cube;
+        let jw3 = Complex64::new(0.0, -w * w * w); // (jω)³
+        let y = tc[2]
+            - before.predict_tf(Tf::Sh, 3.0 * w, c, zero) * th[2]
+            - (before.k3 + before.b3 * jw3) * cube;
+        let m = (dk3 + db3 * jw3) * cube;
         let (y, m) = (y / sd, m / sd);
         ym += (m.conj() * y).re;
         mm += m.norm_sqr();

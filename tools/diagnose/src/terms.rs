@@ -138,7 +138,7 @@ impl Term {
             Term::StretchReflex => "human.stretch_reflex",
             Term::CubicStiffness => "human.cubic_stiffness_nm_per_rad3",
             Term::StiffnessDrift => "human.stiffness_drift_per_min",
-            Term::CubicDamping => "(none: the simulator has no such term)",
+            Term::CubicDamping => "human.cubic_damping_nm_s3_per_rad3",
         }
     }
 

@@ -116,6 +116,54 @@ fn our_simulators_drifting_stiffness_is_discovered() {
     }
 }
 
+/// The simulator's cubic damper of the human joint
+/// (`human.cubic_damping_nm_s3_per_rad3`, `B₃ θ̇³`) at two sizes: the
+/// library's cubic damper is discovered with `B₃` near the simulator's
+/// (and written where the simulator runs it), or the misfit is left
+/// unexplained; a catalogue term (viscous damping, a reflex, the SEA's
+/// bandwidth: each also adds phase with the frequency) is at most a
+/// partial answer.
+#[test]
+fn our_simulators_cubic_damper_is_discovered_or_left_unexplained() {
+    let nominal = default_plant();
+    for b3 in [0.5, 2.0] {
+        let mut truth = default_plant();
+        truth.human.cubic_damping_nm_s3_per_rad3 = b3;
+        let r = diagnose_against(&truth, &nominal);
+        let text = r.verdict.join("\n");
+        eprintln!("B₃ = {b3}:\n{text}");
+        for f in r.found.iter().filter(|f| !f.term.generic()) {
+            assert!(
+                f.partial,
+                "B₃ = {b3}: {:?} named as the answer\n{text}",
+                f.term
+            );
+        }
+        let forms: Vec<Term> = r
+            .found
+            .iter()
+            .filter(|f| f.term.generic())
+            .map(|f| f.term)
+            .collect();
+        assert!(
+            forms.is_empty() || forms == vec![Term::CubicDamping],
+            "B₃ = {b3}: {forms:?}\n{text}"
+        );
+        if forms.is_empty() {
+            assert!(text.contains("unexplained"), "B₃ = {b3}:\n{text}");
+        } else {
+            let fitted = r.final_physics.b3;
+            assert!(
+                (fitted - b3).abs() < 0.2 * b3,
+                "B₃ = {b3}: fitted {fitted}\n{text}"
+            );
+            let updated = r.updated_plant(&nominal);
+            assert_eq!(updated.human.cubic_damping_nm_s3_per_rad3, fitted);
+            assert!(updated.validate("updated-plant.toml").is_ok());
+        }
+    }
+}
+
 /// Backlash in the joint's drive (`[exo.backlash]`) behind the default
 /// plant: the arm is held up against gravity, the SEA's torque never
 /// reverses, the mesh never opens, so there is nothing to find; the
