@@ -252,6 +252,57 @@ fn physics_outside_the_catalogue_is_reported_unexplained_not_named() {
     }
 }
 
+/// A cubic damper in the rig's human joint (`--b3`: `B₃ θ̇³` beside its
+/// linear damping) at 0.5 and 2 Nm·s³/rad³. The library's cubic damper
+/// may be named as discovered physics, with `B₃` near the generator's;
+/// otherwise the verdict says the misfit is unexplained, and every term
+/// added (catalogue or another form) is only a partial answer. Either way
+/// the 3rd harmonic of τ_c the damper predicts, `¼ B₃ (jωΘ)³`, is in the
+/// rig's data: the candidate's harmonic check confirms it.
+#[test]
+fn a_cubic_damper_in_the_rigs_human_is_discovered_or_left_unexplained() {
+    let dir = scratch("b3");
+    for (b3, arg) in [(0.5, "0.5"), (2.0, "2")] {
+        let v = diagnose(&rig(&dir, &format!("b3-{arg}.mcap"), &["--b3", arg]));
+        let text = verdict(&v).join("\n");
+        let f = found(&v);
+        for (term, partial) in &f {
+            assert!(
+                *partial || term == "cubic_damping",
+                "B₃ = {b3}: {term} named as the answer:\n{text}"
+            );
+        }
+        if f.iter().any(|(t, _)| t == "cubic_damping") {
+            let fitted = final_value(&v, "b3");
+            assert!(
+                (fitted - b3).abs() < 0.2 * b3,
+                "B₃ = {b3}: fitted {fitted}\n{text}"
+            );
+        } else {
+            assert!(text.contains("unexplained"), "B₃ = {b3}:\n{text}");
+        }
+        let checks: Vec<&Value> = v["steps"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .flat_map(|s| s["candidates"].as_array().unwrap())
+            .filter(|c| c["term"] == "cubic_damping")
+            .map(|c| &c["harmonic_check"])
+            .collect();
+        assert!(
+            !checks.is_empty(),
+            "B₃ = {b3}: the damper never tried\n{text}"
+        );
+        for h in checks {
+            assert!(
+                h["confirmed"].as_f64().unwrap() > 0.5 && h["contradicts"] == false,
+                "B₃ = {b3} harmonic check: {h:#}"
+            );
+        }
+        assert_exclusive(&v);
+    }
+}
+
 /// Backlash in the rig's joint (`--lash`: lost motion in the gear mesh
 /// between the SEA's output and the arm, written by the rig's own physics)
 /// at 0.02 and 0.1 rad. The arm is held up against gravity, so the SEA's
