@@ -185,6 +185,7 @@ fn fit_recovers_the_written_human_from_either_side() {
     ] {
         fits_the_written_human(&path, source, name);
     }
+    let _ = std::fs::remove_dir_all(&dir);
 }
 
 fn fits_the_written_human(path: &Path, source: FitSource, name: &str) {
@@ -317,6 +318,7 @@ fn each_defect_of_a_recording_is_named_and_the_rest_still_fits() {
             .any(|w| w.contains("topic exo/protocol is missing or empty")),
         "{w:?}"
     );
+    let _ = std::fs::remove_dir_all(&dir);
 }
 
 #[test]

@@ -132,6 +132,13 @@ pub fn cases() -> Vec<Case> {
             nominal: same,
         },
         Case {
+            name: "cubic-damper",
+            what: "outside the catalogue: a cubic human damper, B₃ = 2 Nm·s³/rad³ (the library's cubic damper)",
+            expected: vec![Term::CubicDamping],
+            truth: |m, _, scale| m.human.cubic_damping_nm_s3_per_rad3 = 2.0 * scale,
+            nominal: same,
+        },
+        Case {
             name: "drift",
             what: "outside the catalogue: the human's stiffness drifting by 5 % per minute within each experiment (the library's drift)",
             expected: vec![Term::StiffnessDrift],

@@ -246,5 +246,6 @@ mod tests {
         assert_eq!(started, [0, 1, 2]);
         let b = exo_recording::read_recording(&dir.join("b.mcap")).unwrap();
         assert_eq!(b.meta("subject"), Some("B"));
+        let _ = std::fs::remove_dir_all(&dir);
     }
 }
