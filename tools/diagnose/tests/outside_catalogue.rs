@@ -205,3 +205,37 @@ fn backlash_without_a_preload_is_never_answered_by_a_catalogue_term() {
         );
     }
 }
+
+/// Where the cubic damper predicts beyond the fundamental: `B₃ θ̇³` puts
+/// `¼ B₃ (jω)³ Θ₁³` into the 3rd harmonic of `τ_c`, in quadrature with the
+/// `¼ K₃ Θ₁³` of a cubic spring (`cos³ x = ¾ cos x + ¼ cos 3x`, and
+/// `(jω)³ = −jω³`). On our simulator's damper (B₃ = 2, integrated as a
+/// torque, not as this formula) the check finds the whole predicted
+/// harmonic for the damper (β ≈ 1), its negative for a damper of the
+/// opposite sign, and nothing in phase for a spring.
+#[test]
+fn a_cubic_dampers_third_harmonic_is_in_quadrature_where_it_predicts() {
+    use exo_diagnose::signatures::cubic_harmonic_check;
+    let mut truth = default_plant();
+    truth.human.cubic_damping_nm_s3_per_rad3 = 2.0;
+    let periods = common::protocol(&[(1, 20.0, 8.0, 4.5, 0.0), (2, 40.0, 16.0, 4.5, 4.0)]);
+    let rec = synthesize(&truth, &periods, &SynthSettings::default());
+    let d = reduce(&[rec], &Reduction::default());
+    let mut before = exo_diagnose::Physics::from_plant(&default_plant(), &[1, 2]);
+    before.k = [(1, 20.0), (2, 40.0)].into();
+    before.h = [(1, 8.0), (2, 16.0)].into();
+    let beta = |b3: f64, k3: f64| {
+        let mut after = before.clone();
+        after.b3 = b3;
+        after.k3 = k3;
+        let (_, beta, se, windows) = cubic_harmonic_check(&d, &before, &after).expect("check");
+        assert_eq!(windows, 20);
+        (beta, se)
+    };
+    let (b, se) = beta(2.0, 0.0);
+    assert!((b - 1.0).abs() < 0.1 && se < 0.05, "damper: β = {b} ± {se}");
+    let (b, _) = beta(-2.0, 0.0);
+    assert!((b + 1.0).abs() < 0.1, "opposite damper: β = {b}");
+    let (b, _) = beta(0.0, 1000.0);
+    assert!(b.abs() < 0.1, "spring: β = {b}");
+}
