@@ -540,6 +540,68 @@ fn a_cubic_damper_adds_its_describing_function_to_s_h() {
     );
 }
 
+/// `human.cubic_stiffness_nm_per_rad3`: a spring `K₃ θ³` moved at
+/// `θ = A cos ωt` puts `¾ K₃ A³` into the fundamental of its torque, in
+/// phase with θ: the cuff's `S_h` gains `¾ K₃ A²` and nothing imaginary.
+#[test]
+fn a_cubic_spring_adds_its_describing_function_to_s_h() {
+    let mut m = quiet(default_model());
+    m.human.hysteretic_damping.enabled = false;
+    m.human.viscous_damping.enabled = true;
+    m.human.viscous_damping.b_nm_s_per_rad = 1.0;
+    let w = 6.0;
+    let [th0, tc0, _] = phasors(&mut Plant::new(&m), w, 2.0, 8.0);
+    let k3 = 400.0;
+    m.human.cubic_stiffness_nm_per_rad3 = k3;
+    m.validate("test").unwrap();
+    let [th, tc, _] = phasors(&mut Plant::new(&m), w, 2.0, 8.0);
+    let a = th.norm();
+    let added = tc / th - tc0 / th0;
+    let expect = 0.75 * k3 * a * a;
+    assert!(
+        (added.re - expect).abs() < 0.03 * expect && added.im.abs() < 0.03 * expect,
+        "S_h gained {added}; the describing function says {expect} at A = {a} rad"
+    );
+}
+
+/// The cubic damper acts on the human's motion relative to the drive's
+/// own (`ω_h − ω_eq`, as the linear damper): with the drive moving at a
+/// constant 0.3 rad/s and the joint following it, the damper adds no
+/// torque once the motion is steady, so the joint lags the drive's posture
+/// by the same angle with or without it (on the absolute speed it would
+/// add `B₃ · 0.3³` = 0.054 Nm, a lag of 0.054/K more).
+#[test]
+fn a_cubic_damper_acts_on_the_motion_relative_to_the_drive() {
+    let mut m = quiet(default_model());
+    m.human.hysteretic_damping.enabled = false;
+    m.human.viscous_damping.enabled = true;
+    m.human.viscous_damping.b_nm_s_per_rad = 2.0;
+    let lag = |m: &PlantModel| {
+        let mut p = Plant::new(m);
+        let h = m.integration.step_s;
+        let rate = 0.3;
+        let mut theta_eq = 0.0;
+        for k in 0..30_000 {
+            theta_eq = rate * k as f64 * h;
+            p.set_drive(HumanDrive {
+                theta_eq_rad: theta_eq,
+                omega_eq_rad_s: rate,
+            });
+            p.step(0.0);
+        }
+        theta_eq - p.truth().theta_h_rad
+    };
+    let plain = lag(&m);
+    m.human.cubic_damping_nm_s3_per_rad3 = 2.0;
+    m.validate("test").unwrap();
+    let cubic = lag(&m);
+    let k = m.human.stiffness_nm_per_rad;
+    assert!(
+        (cubic - plain).abs() < 0.05 * 0.054 / k,
+        "lag {cubic} rad with the damper against {plain} rad without"
+    );
+}
+
 /// `human.stiffness_drift_per_min`: a constant torque on the human joint
 /// deflects it by `τ / (K (1 + ρ t/60))` as the stiffness drifts (closed form, quasi-static).
 #[test]
