@@ -83,7 +83,8 @@ fn param(v: &Value, model: &str, name: &str) -> f64 {
 
 #[test]
 fn the_readmes_fit_of_the_real_ankle_record_holds() {
-    let rec = import_ankle(&scratch("readme"));
+    let dir = scratch("readme");
+    let rec = import_ankle(&dir);
     // README, "Real data", weighted by each band's noise (the default).
     let v = exo_fit(&rec, &[]);
     let e = &v["subjects"][0]["experiments"][0];
@@ -140,7 +141,8 @@ fn assert_agrees(a: f64, b: f64, floor: f64, what: &str) {
 
 #[test]
 fn an_independent_numpy_fit_of_the_ankle_csv_agrees() {
-    let rec = import_ankle(&scratch("numpy"));
+    let dir = scratch("numpy");
+    let rec = import_ankle(&dir);
     for extra in [&[][..], &["--unweighted"][..]] {
         let v = exo_fit(&rec, extra);
         let n = numpy_fit(extra);

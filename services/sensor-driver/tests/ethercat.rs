@@ -616,9 +616,9 @@ fn an_interface_that_is_down_is_refused() {
 }
 
 /// The shipped run file with its relative paths made absolute, `edit`ed,
-/// written to a scratch directory.
-fn run_file(tag: &str, replacements: &[(&str, &str)]) -> PathBuf {
-    Scenario::of("ethercat-kickcat.toml", tag, replacements).config
+/// written to a scratch directory (removed with the returned scenario).
+fn run_file(tag: &str, replacements: &[(&str, &str)]) -> Scenario {
+    Scenario::of("ethercat-kickcat.toml", tag, replacements)
 }
 
 #[test]
@@ -637,7 +637,7 @@ fn the_driver_process_refuses_another_drive_and_brings_this_one_up_and_down() {
     );
     let out = Command::new(driver)
         .arg("--config")
-        .arg(&wrong)
+        .arg(&wrong.config)
         .output()
         .unwrap();
     let text =
@@ -662,7 +662,7 @@ fn the_driver_process_refuses_another_drive_and_brings_this_one_up_and_down() {
     );
     let mut child = Command::new(driver)
         .arg("--config")
-        .arg(&right)
+        .arg(&right.config)
         .stdout(Stdio::piped())
         .stderr(Stdio::piped())
         .spawn()
@@ -708,8 +708,6 @@ fn the_driver_process_refuses_another_drive_and_brings_this_one_up_and_down() {
         log.contains("powered down at exit: statusword 0x0040 (SwitchOnDisabled)"),
         "{log}"
     );
-    let _ = std::fs::remove_dir_all(wrong.parent().unwrap());
-    let _ = std::fs::remove_dir_all(right.parent().unwrap());
 }
 
 extern "C" {
