@@ -4,24 +4,10 @@
 //! from the construction (the noise power of a DFT bin of white noise is
 //! `4σ²/n`), not from the function under test.
 
-use exo_diagnose::signatures::window_spectrum;
+mod common;
 
-/// Deterministic standard normal samples (xorshift64* and Box–Muller).
-fn normals(seed: u64, n: usize) -> Vec<f64> {
-    let mut x = seed;
-    let mut uniform = || {
-        x ^= x >> 12;
-        x ^= x << 25;
-        x ^= x >> 27;
-        ((x.wrapping_mul(0x2545_F491_4F6C_DD1D) >> 11) as f64 + 0.5) / (1u64 << 53) as f64
-    };
-    (0..n)
-        .map(|_| {
-            let (u, v) = (uniform(), uniform());
-            (-2.0 * u.ln()).sqrt() * (std::f64::consts::TAU * v).cos()
-        })
-        .collect()
-}
+use common::normals;
+use exo_diagnose::signatures::window_spectrum;
 
 /// 5 s at 500 Hz, ω = 4 rad/s (whole cycles: 3), fundamental 2 Nm, noise σ.
 fn window(sigma: f64, third: f64, ringing: f64, seed: u64) -> (Vec<f64>, Vec<f64>) {

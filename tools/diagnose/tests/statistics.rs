@@ -15,7 +15,8 @@
 //! - the critical value at the candidate's Holm level `α/(m − i + 1)`;
 //!
 //! And for the term found, its F statistic from the two models' residual
-//! sums, `F = ((RSS₀ − RSS₁)/Δp) / (RSS₁/(n − p₁))`.
+//! sums, `F = ((RSS₀ − RSS₁)/Δp) / (RSS₁/(n − p₁))`; and each transfer
+//! function's R² from its definition.
 
 mod common;
 use common::default_plant;
@@ -146,4 +147,33 @@ fn f_test_degrees_of_freedom_and_holm_match_the_hand_computation() {
     assert_eq!(r.final_score.parameters as f64, p1);
     let f = ((rss0 - rss1) / dp) / (rss1 / (n - p1));
     close("F of the term found", r.found[0].f, f, 1e-9);
+
+    // R² of each transfer function, nominal, refitted and final, from its
+    // definition 1 − Σ|Ŝ − S|² / Σ|S − S̄|² over that function's points.
+    for (what, score, phys) in [
+        ("nominal", &r.nominal, &r.nominal_physics),
+        ("refit", &r.refit, &r.refit_physics),
+        ("final", &r.final_score, &r.final_physics),
+    ] {
+        assert!(!score.per_tf.is_empty());
+        for t in &score.per_tf {
+            let obs: Vec<_> = d.observations.iter().filter(|o| o.tf == t.tf).collect();
+            assert_eq!(t.points, obs.len(), "{what} {:?} points", t.tf);
+            let mean =
+                obs.iter().map(|o| o.value).sum::<num_complex::Complex64>() / obs.len() as f64;
+            let ss_res: f64 = obs
+                .iter()
+                .map(|o| (phys.predict(o, &d.conditions[o.window]) - o.value).norm_sqr())
+                .sum();
+            let ss_tot: f64 = obs.iter().map(|o| (o.value - mean).norm_sqr()).sum();
+            eprintln!("{what} {:?}: R² {:.4}", t.tf, t.r2);
+            close(
+                &format!("{what} {:?} R²", t.tf),
+                t.r2,
+                1.0 - ss_res / ss_tot,
+                1e-9,
+            );
+            assert!(t.r2 <= 1.0, "{what} {:?}: R² {} above 1", t.tf, t.r2);
+        }
+    }
 }
