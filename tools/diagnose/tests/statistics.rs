@@ -23,6 +23,7 @@ use common::default_plant;
 
 use exo_diagnose::data::{reduce, Reduction};
 use exo_diagnose::fit::rss;
+use exo_diagnose::remains::{characterise, within_window_rates};
 use exo_diagnose::synth::{synthesize, SynthPeriod, SynthSettings};
 use exo_diagnose::{diagnose, Settings, Term, Tf};
 use exo_impedance::ftest::{f_critical, f_survival};
@@ -194,6 +195,43 @@ fn f_test_degrees_of_freedom_and_holm_match_the_hand_computation() {
             t.harmonics
         );
     }
+    // What remains of the final model: each band's χ² per component is the
+    // mean of z² over the band's components, so the bands' means weighted
+    // by their points give the transfer function's (measured: 0.075 for
+    // S_h from bands of 12, 9 and 9 points).
+    for rem in characterise(&d, &r.final_physics, s.level) {
+        if !rem.tf.is_dynamic() || rem.bands.is_empty() {
+            continue;
+        }
+        let points: usize = rem.bands.iter().map(|b| b.points).sum();
+        let pooled = rem
+            .bands
+            .iter()
+            .map(|b| b.chi2_per_component * b.points as f64)
+            .sum::<f64>()
+            / points as f64;
+        close(
+            &format!("{:?}: the bands' χ² pooled", rem.tf),
+            pooled,
+            rem.chi2_per_component,
+            1e-9,
+        );
+    }
+    // The plant does not drift: the change of S_h between the halves of a
+    // window is noise, rate/σ standard normal (mean z² 1.29 over 36
+    // components measured; its standard deviation is √(2/36) = 0.24).
+    let rates = within_window_rates(&d, Tf::Sh);
+    assert!(rates.len() >= 10, "{} windows with a rate", rates.len());
+    let z2 = rates
+        .iter()
+        .map(|x| (x.rate[0] / x.sd).powi(2) + (x.rate[1] / x.sd).powi(2))
+        .sum::<f64>()
+        / (2 * rates.len()) as f64;
+    assert!(
+        (0.3..3.0).contains(&z2),
+        "S_h's within-window rates: mean z² {z2} is not noise"
+    );
+
     // R² of each transfer function, nominal, refitted and final, from its
     // definition 1 − Σ|Ŝ − S|² / Σ|S − S̄|² over that function's points.
     for (what, score, phys) in [
