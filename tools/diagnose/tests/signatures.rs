@@ -50,6 +50,37 @@ fn the_noise_floor_is_the_noise_not_the_ringing() {
 }
 
 #[test]
+fn a_ringing_in_any_phase_is_kept_out_of_the_harmonics() {
+    // A ringing at 10.5 rad/s, between the 2nd (8) and the 3rd harmonic
+    // (12 rad/s) of ω = 4, and no harmonic: fitted out (its cosine and sine
+    // parts), the harmonics are the noise's, about a bin's amplitude.
+    let sigma: f64 = 0.05;
+    let bin = (4.0 * sigma * sigma / 2356.0).sqrt();
+    let w = 4.0;
+    let t: Vec<f64> = (0..2500).map(|i| i as f64 / 500.0).collect();
+    for phase in [0.0, std::f64::consts::FRAC_PI_2, 1.0] {
+        let e = normals(11, t.len());
+        let y: Vec<f64> = t
+            .iter()
+            .zip(&e)
+            .map(|(t, e)| {
+                2.0 * (w * t).sin() + 0.4 * (-0.8 * t).exp() * (10.5 * t + phase).cos() + sigma * e
+            })
+            .collect();
+        let s = window_spectrum(&t, &y, w).expect("spectrum");
+        // A bin's noise amplitude is Rayleigh, E|X|² = bin²: P(|X| > 4 bins)
+        // = e^{−16}. Measured: at most 2.0 bins; with the ringing's cosine
+        // part not fitted, the 3rd harmonic's is 21–43 bins.
+        for (h, a) in [2, 3].iter().zip(s.harmonics) {
+            assert!(
+                a < 4.0 * bin,
+                "φ = {phase}: harmonic {h} amplitude {a} is not noise (a bin: {bin})"
+            );
+        }
+    }
+}
+
+#[test]
 fn a_third_harmonic_stands_out_of_the_noise_and_noise_alone_does_not() {
     let sigma: f64 = 0.05;
     let n = 2356.0;
