@@ -7,7 +7,10 @@
 mod common;
 
 use common::normals;
-use exo_diagnose::signatures::window_spectrum;
+use exo_diagnose::data::{reduce, Reduction};
+use exo_diagnose::signatures::{cubic_harmonic_check, window_spectrum};
+use exo_diagnose::synth::{synthesize, SynthSettings};
+use exo_diagnose::Physics;
 
 /// 5 s at 500 Hz, ω = 4 rad/s (whole cycles: 3), fundamental 2 Nm, noise σ.
 fn window(sigma: f64, third: f64, ringing: f64, seed: u64) -> (Vec<f64>, Vec<f64>) {
@@ -101,4 +104,31 @@ fn a_third_harmonic_stands_out_of_the_noise_and_noise_alone_does_not() {
         .sum();
     // Mean 40, standard deviation √40 ≈ 6.3 (plus the floor's own error).
     assert!((total - 40.0).abs() < 20.0, "summed ratio {total}");
+}
+
+#[test]
+fn a_polynomial_springs_third_harmonic_is_found_at_its_predicted_size() {
+    // Our simulator's human with K₃ = 120 Nm/rad³ (two experiments, K_h, H_h
+    // 20, 8 and 40, 16): a model with the true linear part and K₃ = 0
+    // against one with K₃ = 120. The data show the whole predicted 3rd
+    // harmonic ¼ K₃ Θ₁³: β = 1 within its standard error.
+    let periods = common::protocol(&[(1, 20.0, 8.0, 4.5, 0.0), (2, 40.0, 16.0, 4.5, 4.0)]);
+    let mut truth = common::default_plant();
+    truth.human.cubic_stiffness_nm_per_rad3 = 120.0;
+    let d = reduce(
+        &[synthesize(&truth, &periods, &SynthSettings::default())],
+        &Reduction::default(),
+    );
+    let mut before = Physics::from_plant(&common::default_plant(), &[1, 2]);
+    before.k = [(1, 20.0), (2, 40.0)].into_iter().collect();
+    before.h = [(1, 8.0), (2, 16.0)].into_iter().collect();
+    let mut after = before.clone();
+    after.k3 = 120.0;
+    let (mm, beta, se, windows) = cubic_harmonic_check(&d, &before, &after).expect("a check");
+    eprintln!("|m|² {mm}, β {beta} ± {se}, {windows} windows");
+    assert_eq!(windows, 20, "every single-sine window has its harmonics");
+    assert!(se > 0.0 && se < 0.2, "β's standard error {se}");
+    assert!((beta - 1.0).abs() < 3.0 * se, "β = {beta} ± {se}, truth 1");
+    // No change of K₃, no check.
+    assert!(cubic_harmonic_check(&d, &before, &before).is_none());
 }
