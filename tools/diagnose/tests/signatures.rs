@@ -7,8 +7,8 @@
 mod common;
 
 use common::normals;
-use exo_diagnose::data::{reduce, Reduction};
-use exo_diagnose::signatures::{cubic_harmonic_check, window_spectrum};
+use exo_diagnose::data::{reduce, Condition, Dataset, Reduction, Tf, WindowSignals};
+use exo_diagnose::signatures::{cubic_harmonic_check, harmonics, window_spectrum};
 use exo_diagnose::synth::{synthesize, SynthSettings};
 use exo_diagnose::Physics;
 
@@ -131,4 +131,65 @@ fn a_polynomial_springs_third_harmonic_is_found_at_its_predicted_size() {
     assert!((beta - 1.0).abs() < 3.0 * se, "β = {beta} ± {se}, truth 1");
     // No change of K₃, no check.
     assert!(cubic_harmonic_check(&d, &before, &before).is_none());
+}
+
+#[test]
+fn a_steady_non_harmonic_tone_is_sized_against_the_fundamental() {
+    // Four windows of τ_c = 2 sin 4t + 0.3 sin(ω_b t) + noise, ω_b =
+    // 16π/4.712 = 10.667 rad/s, near the 8th DFT bin of the 3-cycle window
+    // (3·2π/4 = 4.712 s), between the 2nd and 3rd harmonics: found at its
+    // bin (within 0.01 rad/s), its size 0.3/2 = 15 % of the fundamental
+    // (within 0.5 %: the bin's scalloping), not decaying (second half over
+    // first 1).
+    let w = 4.0;
+    let wb = 16.0 * std::f64::consts::PI / 4.712;
+    let mut d = Dataset::default();
+    d.supported = vec![Tf::Sh];
+    for k in 0..4u32 {
+        let t: Vec<f64> = (0..2500).map(|i| i as f64 / 500.0).collect();
+        let e = normals(40 + u64::from(k), t.len());
+        let y: Vec<f64> = t
+            .iter()
+            .zip(&e)
+            .map(|(t, e)| 2.0 * (w * t).sin() + 0.3 * (wb * t).sin() + 0.05 * e)
+            .collect();
+        d.signals.push(WindowSignals {
+            omega_rad_s: w,
+            theta_rad: y.iter().map(|v| 0.01 * v).collect(),
+            tau_s_net_nm: y.clone(),
+            tau_c_nm: y,
+            t_s: t,
+            ..Default::default()
+        });
+        d.conditions.push(Condition {
+            experiment: 1,
+            period: k + 1,
+            load_kg: 0.0,
+            bias_nm: 0.0,
+            alpha: 1.0,
+            amplitude_nm: 2.0,
+            theta0_rad: 0.0,
+            theta_amp_rad: 0.02,
+            sin_theta_mean: 0.0,
+            sample_period_s: 0.002,
+            start_s: 5.0 * f64::from(k),
+            elapsed_s: 5.0 * f64::from(k),
+        });
+    }
+    let h = harmonics(&d, 0.05);
+    assert_eq!(h.len(), 1, "one experiment, one supported channel");
+    let nh = h[0].non_harmonic.as_ref().expect("the tone is found");
+    eprintln!("{nh:?}");
+    assert_eq!((nh.windows, nh.of), (4, 4));
+    assert!(
+        (nh.omega_rad_s - wb).abs() < 0.01,
+        "at {} rad/s",
+        nh.omega_rad_s
+    );
+    assert!((nh.size_pct - 15.0).abs() < 0.5, "size {} %", nh.size_pct);
+    assert!(
+        (nh.decay - 1.0).abs() < 0.1 && !nh.transient,
+        "decay {}",
+        nh.decay
+    );
 }
