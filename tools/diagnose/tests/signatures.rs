@@ -159,7 +159,6 @@ fn a_steady_non_harmonic_tone_is_sized_against_the_fundamental() {
             tau_s_net_nm: y.clone(),
             tau_c_nm: y,
             t_s: t,
-            ..Default::default()
         });
         d.conditions.push(Condition {
             experiment: 1,
