@@ -2,7 +2,8 @@
 //! named as moved when its change exceeds twice its relative standard
 //! error, and at least 2 % (the rule, applied here to the diagnosis's own
 //! parameter changes), and a parameter the nominal model got wrong is found
-//! back at the truth.
+//! back at the truth. And the amplitude groups of a found term's amplitude
+//! check at the 5 % margin.
 
 mod common;
 
@@ -63,3 +64,47 @@ fn a_parameter_is_named_moved_by_the_rule() {
 /// Between the rule's 2 % floor and 3 %: M_h's relative standard error is
 /// well below 1 % here (measured), so its threshold is the floor.
 const OFF_PCT: f64 = 2.5;
+
+#[test]
+fn an_amplitude_at_the_five_percent_margin_counts_with_the_lowest() {
+    // Hysteresis behind a viscous nominal model (as in tests/statistics.rs),
+    // the protocol's amplitudes 2 Nm (periods 1–7), 2·1.05 Nm (period 8:
+    // exactly at the 5 % margin) and 2·10^0.2 Nm (periods 9–10). The
+    // amplitude groups put an amplitude within 5 % of the lowest, the margin
+    // included, with the lowest (as no groups are formed when the highest is
+    // within it): the found term's amplitude check compares periods 1–8
+    // with periods 9–10.
+    let truth = common::default_plant();
+    let mut nominal = truth;
+    nominal.human.hysteretic_damping.enabled = false;
+    nominal.human.viscous_damping.enabled = true;
+    nominal.human.viscous_damping.b_nm_s_per_rad = 1.0;
+    let mut periods = common::protocol(&[(1, 15.0, 5.0, 0.0, 0.0), (2, 30.0, 10.0, 4.5, 0.0)]);
+    for p in &mut periods {
+        if p.period == 8 {
+            p.amplitude_nm = 2.0 * 1.05;
+        }
+    }
+    let d = reduce(
+        &[synthesize(&truth, &periods, &SynthSettings::default())],
+        &Reduction::default(),
+    );
+    let r = diagnose(&d, &nominal, &Settings::default()).expect("diagnosis");
+    let chosen = r
+        .steps
+        .iter()
+        .flat_map(|s| &s.candidates)
+        .find(|c| c.chosen)
+        .expect("a term found");
+    let check = chosen
+        .amplitude_check
+        .as_ref()
+        .expect("its amplitude check");
+    eprintln!(
+        "{:?}: {:?} {:?}",
+        chosen.term, check.periods, check.amplitudes_nm
+    );
+    assert_eq!(check.periods, ["1–8".to_string(), "9–10".to_string()]);
+    // Mean of seven 2 Nm windows and one 2.1 Nm window per experiment.
+    assert!((check.amplitudes_nm[0] - (7.0 * 2.0 + 2.1) / 8.0).abs() < 1e-12);
+}
