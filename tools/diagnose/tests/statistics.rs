@@ -15,8 +15,12 @@
 //! - the critical value at the candidate's Holm level `α/(m − i + 1)`;
 //!
 //! And for the term found, its F statistic from the two models' residual
-//! sums, `F = ((RSS₀ − RSS₁)/Δp) / (RSS₁/(n − p₁))`; and each transfer
-//! function's R² from its definition.
+//! sums, `F = ((RSS₀ − RSS₁)/Δp) / (RSS₁/(n − p₁))`, and its held-out
+//! change. Then the location and what remains: each transfer function's R²
+//! from its definition, the sign of the residual phase's correlation with
+//! ω (the physics of hysteresis behind a viscous model), the 2.5ω floor at
+//! the noise level of the harmonics, the bands' χ² pooling to the whole,
+//! and the within-window rates of a non-drifting plant as noise.
 
 mod common;
 use common::default_plant;
