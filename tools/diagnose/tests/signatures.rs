@@ -4,24 +4,13 @@
 //! from the construction (the noise power of a DFT bin of white noise is
 //! `4σ²/n`), not from the function under test.
 
-use exo_diagnose::signatures::window_spectrum;
+mod common;
 
-/// Deterministic standard normal samples (xorshift64* and Box–Muller).
-fn normals(seed: u64, n: usize) -> Vec<f64> {
-    let mut x = seed;
-    let mut uniform = || {
-        x ^= x >> 12;
-        x ^= x << 25;
-        x ^= x >> 27;
-        ((x.wrapping_mul(0x2545_F491_4F6C_DD1D) >> 11) as f64 + 0.5) / (1u64 << 53) as f64
-    };
-    (0..n)
-        .map(|_| {
-            let (u, v) = (uniform(), uniform());
-            (-2.0 * u.ln()).sqrt() * (std::f64::consts::TAU * v).cos()
-        })
-        .collect()
-}
+use common::normals;
+use exo_diagnose::data::{reduce, Condition, Dataset, Reduction, Tf, WindowSignals};
+use exo_diagnose::signatures::{cubic_harmonic_check, harmonics, window_spectrum};
+use exo_diagnose::synth::{synthesize, SynthSettings};
+use exo_diagnose::Physics;
 
 /// 5 s at 500 Hz, ω = 4 rad/s (whole cycles: 3), fundamental 2 Nm, noise σ.
 fn window(sigma: f64, third: f64, ringing: f64, seed: u64) -> (Vec<f64>, Vec<f64>) {
@@ -64,6 +53,37 @@ fn the_noise_floor_is_the_noise_not_the_ringing() {
 }
 
 #[test]
+fn a_ringing_in_any_phase_is_kept_out_of_the_harmonics() {
+    // A ringing at 10.5 rad/s, between the 2nd (8) and the 3rd harmonic
+    // (12 rad/s) of ω = 4, and no harmonic: fitted out (its cosine and sine
+    // parts), the harmonics are the noise's, about a bin's amplitude.
+    let sigma: f64 = 0.05;
+    let bin = (4.0 * sigma * sigma / 2356.0).sqrt();
+    let w = 4.0;
+    let t: Vec<f64> = (0..2500).map(|i| i as f64 / 500.0).collect();
+    for phase in [0.0, std::f64::consts::FRAC_PI_2, 1.0] {
+        let e = normals(11, t.len());
+        let y: Vec<f64> = t
+            .iter()
+            .zip(&e)
+            .map(|(t, e)| {
+                2.0 * (w * t).sin() + 0.4 * (-0.8 * t).exp() * (10.5 * t + phase).cos() + sigma * e
+            })
+            .collect();
+        let s = window_spectrum(&t, &y, w).expect("spectrum");
+        // A bin's noise amplitude is Rayleigh, E|X|² = bin²: P(|X| > 4 bins)
+        // = e^{−16}. Measured: at most 2.0 bins; with the ringing's cosine
+        // part not fitted, the 3rd harmonic's is 21–43 bins.
+        for (h, a) in [2, 3].iter().zip(s.harmonics) {
+            assert!(
+                a < 4.0 * bin,
+                "φ = {phase}: harmonic {h} amplitude {a} is not noise (a bin: {bin})"
+            );
+        }
+    }
+}
+
+#[test]
 fn a_third_harmonic_stands_out_of_the_noise_and_noise_alone_does_not() {
     let sigma: f64 = 0.05;
     let n = 2356.0;
@@ -84,4 +104,91 @@ fn a_third_harmonic_stands_out_of_the_noise_and_noise_alone_does_not() {
         .sum();
     // Mean 40, standard deviation √40 ≈ 6.3 (plus the floor's own error).
     assert!((total - 40.0).abs() < 20.0, "summed ratio {total}");
+}
+
+#[test]
+fn a_polynomial_springs_third_harmonic_is_found_at_its_predicted_size() {
+    // Our simulator's human with K₃ = 120 Nm/rad³ (two experiments, K_h, H_h
+    // 20, 8 and 40, 16): a model with the true linear part and K₃ = 0
+    // against one with K₃ = 120. The data show the whole predicted 3rd
+    // harmonic ¼ K₃ Θ₁³: β = 1 within its standard error.
+    let periods = common::protocol(&[(1, 20.0, 8.0, 4.5, 0.0), (2, 40.0, 16.0, 4.5, 4.0)]);
+    let mut truth = common::default_plant();
+    truth.human.cubic_stiffness_nm_per_rad3 = 120.0;
+    let d = reduce(
+        &[synthesize(&truth, &periods, &SynthSettings::default())],
+        &Reduction::default(),
+    );
+    let mut before = Physics::from_plant(&common::default_plant(), &[1, 2]);
+    before.k = [(1, 20.0), (2, 40.0)].into_iter().collect();
+    before.h = [(1, 8.0), (2, 16.0)].into_iter().collect();
+    let mut after = before.clone();
+    after.k3 = 120.0;
+    let (mm, beta, se, windows) = cubic_harmonic_check(&d, &before, &after).expect("a check");
+    eprintln!("|m|² {mm}, β {beta} ± {se}, {windows} windows");
+    assert_eq!(windows, 20, "every single-sine window has its harmonics");
+    assert!(se > 0.0 && se < 0.2, "β's standard error {se}");
+    assert!((beta - 1.0).abs() < 3.0 * se, "β = {beta} ± {se}, truth 1");
+    // No change of K₃, no check.
+    assert!(cubic_harmonic_check(&d, &before, &before).is_none());
+}
+
+#[test]
+fn a_steady_non_harmonic_tone_is_sized_against_the_fundamental() {
+    // Four windows of τ_c = 2 sin 4t + 0.3 sin(ω_b t) + noise, ω_b =
+    // 16π/4.712 = 10.667 rad/s, near the 8th DFT bin of the 3-cycle window
+    // (3·2π/4 = 4.712 s), between the 2nd and 3rd harmonics: found at its
+    // bin (within 0.01 rad/s), its size 0.3/2 = 15 % of the fundamental
+    // (within 0.5 %: the bin's scalloping), not decaying (second half over
+    // first 1).
+    let w = 4.0;
+    let wb = 16.0 * std::f64::consts::PI / 4.712;
+    let mut d = Dataset::default();
+    d.supported = vec![Tf::Sh];
+    for k in 0..4u32 {
+        let t: Vec<f64> = (0..2500).map(|i| i as f64 / 500.0).collect();
+        let e = normals(40 + u64::from(k), t.len());
+        let y: Vec<f64> = t
+            .iter()
+            .zip(&e)
+            .map(|(t, e)| 2.0 * (w * t).sin() + 0.3 * (wb * t).sin() + 0.05 * e)
+            .collect();
+        d.signals.push(WindowSignals {
+            omega_rad_s: w,
+            theta_rad: y.iter().map(|v| 0.01 * v).collect(),
+            tau_s_net_nm: y.clone(),
+            tau_c_nm: y,
+            t_s: t,
+        });
+        d.conditions.push(Condition {
+            experiment: 1,
+            period: k + 1,
+            load_kg: 0.0,
+            bias_nm: 0.0,
+            alpha: 1.0,
+            amplitude_nm: 2.0,
+            theta0_rad: 0.0,
+            theta_amp_rad: 0.02,
+            sin_theta_mean: 0.0,
+            sample_period_s: 0.002,
+            start_s: 5.0 * f64::from(k),
+            elapsed_s: 5.0 * f64::from(k),
+        });
+    }
+    let h = harmonics(&d, 0.05);
+    assert_eq!(h.len(), 1, "one experiment, one supported channel");
+    let nh = h[0].non_harmonic.as_ref().expect("the tone is found");
+    eprintln!("{nh:?}");
+    assert_eq!((nh.windows, nh.of), (4, 4));
+    assert!(
+        (nh.omega_rad_s - wb).abs() < 0.01,
+        "at {} rad/s",
+        nh.omega_rad_s
+    );
+    assert!((nh.size_pct - 15.0).abs() < 0.5, "size {} %", nh.size_pct);
+    assert!(
+        (nh.decay - 1.0).abs() < 0.1 && !nh.transient,
+        "decay {}",
+        nh.decay
+    );
 }

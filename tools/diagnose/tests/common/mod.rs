@@ -1,5 +1,7 @@
 //! Set-up the diagnosis tests share: the default plant and the protocol's
-//! periods for a list of experiments.
+//! periods for a list of experiments, and deterministic normal samples.
+//! Each test file uses some of them.
+#![allow(dead_code)]
 
 use std::path::PathBuf;
 
@@ -32,4 +34,21 @@ pub fn protocol(experiments: &[(u32, f64, f64, f64, f64)]) -> Vec<SynthPeriod> {
         }
     }
     v
+}
+
+/// Deterministic standard normal samples (xorshift64* and Box–Muller).
+pub fn normals(seed: u64, n: usize) -> Vec<f64> {
+    let mut x = seed;
+    let mut uniform = || {
+        x ^= x >> 12;
+        x ^= x << 25;
+        x ^= x >> 27;
+        ((x.wrapping_mul(0x2545_F491_4F6C_DD1D) >> 11) as f64 + 0.5) / (1u64 << 53) as f64
+    };
+    (0..n)
+        .map(|_| {
+            let (u, v) = (uniform(), uniform());
+            (-2.0 * u.ln()).sqrt() * (std::f64::consts::TAU * v).cos()
+        })
+        .collect()
 }
