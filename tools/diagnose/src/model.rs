@@ -612,3 +612,39 @@ pub fn coulomb_describing(f_nm: f64, smoothing_rad_s: f64, a_rad: f64, w: f64) -
     b1 *= 2.0 / N as f64;
     f_nm * b1 / a_rad
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The fit's bounds, by what each parameter means: errors and offsets
+    /// and the polynomial spring and the drift take either sign; a
+    /// stiffness stays positive; the cubic damper stays passive (B₃ ≥ 0,
+    /// the simulator's range); delays and dampings are non-negative.
+    #[test]
+    fn each_parameter_is_clamped_to_what_it_can_physically_be() {
+        let plant = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("../../configs/plants/default.toml");
+        let mut p = Physics::from_plant(&PlantModel::from_file(&plant).unwrap(), &[1]);
+        for (q, v) in [
+            (Param::InertiaError, -0.01),
+            (Param::GravityError, -0.5),
+            (Param::TorqueOffset, -0.2),
+            (Param::CubicStiffness, -50.0),
+            (Param::StiffnessDrift, -0.02),
+        ] {
+            p.set(q, v);
+            assert_eq!(p.get(q), v, "{q:?} may be negative");
+        }
+        for (q, v, floor) in [
+            (Param::CubicDamping, -1.0, 0.0),
+            (Param::K(1), -5.0, 1e-3),
+            (Param::Bh, -0.1, 0.0),
+            (Param::DelayTheta, -1e-3, 0.0),
+            (Param::SeaWn, 0.5, 1.0),
+        ] {
+            p.set(q, v);
+            assert_eq!(p.get(q), floor, "{q:?} set to {v}");
+        }
+    }
+}
