@@ -238,4 +238,11 @@ fn a_cubic_dampers_third_harmonic_is_in_quadrature_where_it_predicts() {
     assert!((b + 1.0).abs() < 0.1, "opposite damper: β = {b}");
     let (b, _) = beta(0.0, 1000.0);
     assert!(b.abs() < 0.1, "spring: β = {b}");
+    // From a model that already has half the damper, the other half is
+    // what remains of the harmonic, and the step to B₃ = 2 explains it.
+    before.b3 = 1.0;
+    let mut after = before.clone();
+    after.b3 = 2.0;
+    let (_, b, _, _) = cubic_harmonic_check(&d, &before, &after).expect("check");
+    assert!((b - 1.0).abs() < 0.1, "B₃ 1 → 2: β = {b}");
 }
