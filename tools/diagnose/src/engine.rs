@@ -403,9 +403,20 @@ pub struct Found {
     pub partial: bool,
     /// A generic form outside the catalogue (discovered physics).
     pub discovered: bool,
+    /// Significant at the search's level but with a Holm-adjusted p-value
+    /// of at least [`MARGINAL_P`]: a step another recording of the same
+    /// joint may well not confirm, and the sentence says so.
+    pub marginal: bool,
     /// The sentence.
     pub sentence: String,
 }
+
+/// The Holm-adjusted p-value at and above which an accepted term is
+/// reported as marginal ([`Found::marginal`]): significant at the usual
+/// 0.05, not at 0.001. (The real ankle record's hysteresis step, F = 8.6
+/// against a critical 7.0, is one; every concealed effect of
+/// `exo diagnose-bench` is far below it.)
+pub const MARGINAL_P: f64 = 1e-3;
 
 /// The whole result.
 #[derive(Debug, Clone, Serialize)]
@@ -1559,11 +1570,17 @@ pub fn diagnose(
         .map(|(t, c, partial)| {
             let se = |q: Param| current.std_error(q);
             let description = t.describe(&current.physics, &se);
+            let marginal = c.p_holm >= MARGINAL_P;
             let stats = format!(
-                "F = {:.1} against a critical {:.2} (Holm-adjusted p = {:.2e}); held-out RSS {:+.0} %",
+                "F = {:.1} against a critical {:.2} (Holm-adjusted p = {:.2e}{}); held-out RSS {:+.0} %",
                 c.f,
                 c.f_critical,
                 c.p_holm,
+                if marginal {
+                    ", marginal: not significant at 0.001, another recording may not confirm it"
+                } else {
+                    ""
+                },
                 100.0 * c.heldout_change
             );
             let sentence = if t.generic() {
@@ -1604,6 +1621,7 @@ pub fn diagnose(
                 explained_share: c.explained_share,
                 partial,
                 discovered: t.generic(),
+                marginal,
             }
         })
         .collect();

@@ -44,6 +44,13 @@ fn run(truth: &PlantModel, nominal: &PlantModel, s: SynthSettings) -> Vec<Term> 
     for v in &r.verdict {
         eprintln!("  => {v}");
     }
+    // Every concealed effect here is large against the noise (Holm-adjusted
+    // p far below 0.001): none may be reported as marginal, and the flag
+    // is the p-value's.
+    for f in &r.found {
+        assert_eq!(f.marginal, f.p_holm >= 1e-3, "{}", f.sentence);
+        assert!(!f.marginal, "{}", f.sentence);
+    }
     r.found.iter().map(|f| f.term).collect()
 }
 
