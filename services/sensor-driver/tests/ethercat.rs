@@ -668,17 +668,19 @@ fn the_driver_process_refuses_another_drive_and_brings_this_one_up_and_down() {
         .spawn()
         .unwrap();
     let stderr = child.stderr.take().unwrap();
-    let lines = std::thread::spawn(move || {
-        use std::io::BufRead;
-        let mut seen = Vec::new();
-        for line in std::io::BufReader::new(stderr)
-            .lines()
-            .map_while(Result::ok)
-        {
-            seen.push(line);
-        }
-        seen
-    });
+    let seen = std::sync::Arc::new(std::sync::Mutex::new(Vec::<String>::new()));
+    let lines = {
+        let seen = seen.clone();
+        std::thread::spawn(move || {
+            use std::io::BufRead;
+            for line in std::io::BufReader::new(stderr)
+                .lines()
+                .map_while(Result::ok)
+            {
+                seen.lock().unwrap().push(line);
+            }
+        })
+    };
     let stdout = child.stdout.take().unwrap();
     let out_lines = std::thread::spawn(move || {
         use std::io::BufRead;
@@ -687,12 +689,24 @@ fn the_driver_process_refuses_another_drive_and_brings_this_one_up_and_down() {
             .map_while(Result::ok)
             .collect::<Vec<_>>()
     });
-    // Give it time to come up (settling of its ports takes 0.5-0.7 s).
-    std::thread::sleep(Duration::from_secs(4));
+    // Hand-shake, not a sleep: wait (bounded) until the driver says the
+    // drive is in Operation Enabled, or has exited, then stop it.
+    let t = Instant::now();
+    while !seen
+        .lock()
+        .unwrap()
+        .iter()
+        .any(|l| l.contains("Operation Enabled"))
+        && child.try_wait().unwrap().is_none()
+        && t.elapsed() < Duration::from_secs(60)
+    {
+        std::thread::sleep(Duration::from_millis(20));
+    }
     // SAFETY: signalling our own child.
     unsafe { libc_kill(child.id() as i32, 15) };
     let status = child.wait().unwrap();
-    let mut log = lines.join().unwrap();
+    lines.join().unwrap();
+    let mut log = std::mem::take(&mut *seen.lock().unwrap());
     log.extend(out_lines.join().unwrap());
     let log = log.join("\n");
     if log.contains("CycleMissed") || log.contains("FrameLost { os_error: 0 }") {
