@@ -568,9 +568,19 @@ fn exo_run_restarts_a_killed_recorder_and_in_lockstep_loses_no_sample() {
     // Issue 22: the lockstep main job, its recorder killed -9 at experiment
     // 1 period 4: the run's recordings together hold every exo/sensor seq
     // from the first to the last, none missing, and the restart is named.
+    // The hold while the new recorder connects lasts at most half the
+    // lockstep timeout: 10 s here, so that how long a loaded machine takes
+    // to start a process never decides the test (at the default 500 ms a
+    // CI run under load went on without it, named, exit 3).
     let sc = Scenario::new(
         "recrestart",
-        &[("experiments = [1, 7]", "experiments = [1]")],
+        &[
+            ("experiments = [1, 7]", "experiments = [1]"),
+            (
+                "command_deadline_ms = 5.0",
+                "command_deadline_ms = 5.0\nlockstep_timeout_ms = 20000.0",
+            ),
+        ],
     );
     let protocol = sc.collect(PROTOCOL);
     let samples = sc.collect(SENSOR);
