@@ -305,8 +305,9 @@ pub struct Human {
     #[serde(default)]
     pub cubic_stiffness_nm_per_rad3: f64,
     /// Cubic damping `B₃` of the joint (Nm·s³/rad³): a damper
-    /// `B₃ θ̇_h³` beside the linear terms, damping that grows with the
-    /// speed of the motion (its describing function adds
+    /// `B₃ (θ̇_h − ω_eq)³` beside the linear terms (about the drive's own
+    /// motion, as the linear damper), damping that grows with the speed of
+    /// the motion (its describing function adds
     /// `j ¾ B₃ ω³ A²` to the joint's impedance at angle amplitude `A`).
     /// `exo diagnose` writes it when it discovers a cubic damper. 0 (the
     /// default when the key is absent) is off. Range [0, 1e3]: a negative
