@@ -278,6 +278,20 @@ impl Scenario {
         std::fs::read_to_string(self.dir.join(format!("{bin}.log"))).unwrap_or_default()
     }
 
+    /// The control path through the whole protocol: starts the plant, the
+    /// sensor driver and the controller, waits (at most 600 s) for the
+    /// controller to finish the protocol and requires it to exit cleanly,
+    /// then stops the driver and the plant.
+    pub fn run_control_path(&self) {
+        let mut plant = self.spawn("exo-plant-sim", &[]);
+        let mut driver = self.spawn("exo-sensor-driver", &[]);
+        let mut controller = self.spawn("exo-controller", &[]);
+        let status = wait_exit(&mut controller, Duration::from_secs(600), "controller");
+        assert!(status.success(), "{}", self.log("exo-controller"));
+        terminate(&mut driver);
+        terminate(&mut plant);
+    }
+
     /// A background subscriber collecting every sample of `topic`.
     pub fn collect<T: Message>(&self, topic: Topic<T>) -> Collector<T> {
         Collector::start(&self.instance, topic)

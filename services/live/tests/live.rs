@@ -171,14 +171,8 @@ fn a_real_client_sees_every_sample_of_the_recording() {
     let client = start_client(&sc, &url, "client", &["--float-bits"]);
     let mut identifier = sc.spawn("exo-identifier", &[]);
     wait_for_identifier(&sc);
-    let mut plant = sc.spawn("exo-plant-sim", &[]);
-    let mut driver = sc.spawn("exo-sensor-driver", &[]);
-    let mut controller = sc.spawn("exo-controller", &[]);
-    let status = wait_exit(&mut controller, Duration::from_secs(600), "controller");
-    assert!(status.success(), "{}", sc.log("exo-controller"));
     // The identifier's last window is published before it stops.
-    terminate(&mut driver);
-    terminate(&mut plant);
+    sc.run_control_path();
     terminate(&mut identifier);
     terminate(&mut recorder);
     let r = exo_recording::read_recording(&rec).unwrap();
@@ -252,13 +246,7 @@ fn a_client_sending_garbage_gets_errors_and_the_run_goes_on() {
     let (mut live, url) = start_live(&sc);
     let samples = sc.collect(SENSOR);
     let client = start_client(&sc, &url, "bad", &["--bad-input", "--idle", "5"]);
-    let mut plant = sc.spawn("exo-plant-sim", &[]);
-    let mut driver = sc.spawn("exo-sensor-driver", &[]);
-    let mut controller = sc.spawn("exo-controller", &[]);
-    let status = wait_exit(&mut controller, Duration::from_secs(600), "controller");
-    assert!(status.success(), "{}", sc.log("exo-controller"));
-    terminate(&mut driver);
-    terminate(&mut plant);
+    sc.run_control_path();
     let samples = samples.finish();
     let n = samples.len();
     let got = client.finish(&[("exo/sensor".to_string(), n)].into_iter().collect());

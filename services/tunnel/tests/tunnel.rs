@@ -19,13 +19,7 @@ fn another_host_receives_every_sample_over_zenoh() {
     let here_samples = exo.collect(SENSOR);
     let here_commands = exo.collect(COMMAND);
 
-    let mut plant = exo.spawn("exo-plant-sim", &[]);
-    let mut driver = exo.spawn("exo-sensor-driver", &[]);
-    let mut controller = exo.spawn("exo-controller", &[]);
-    let status = wait_exit(&mut controller, Duration::from_secs(600), "controller");
-    assert!(status.success(), "{}", exo.log("exo-controller"));
-    terminate(&mut driver);
-    terminate(&mut plant);
+    exo.run_control_path();
     let here_samples = here_samples.finish();
     let here_commands = here_commands.finish();
     assert!(here_samples.len() > 5000);
