@@ -9,7 +9,8 @@
 # Usage: tools/scripts/bench_ethercat.sh [SECONDS=20]   (from the workspace root)
 #   WARMUP=s   round trips left out at the start (default 0.5)
 #   RATE=Hz    the cycle (default 1000; an integer)
-# Needs: unshare -rn (user namespaces), ip, and chrt -f where permitted.
+# Needs: unshare -n as root (else unshare -rn: a user namespace, where the
+# processes' own SCHED_FIFO and mlock requests are refused), ip, chrt -f.
 # Three rows: `ethercat-kickcat`, KickCAT's own motor with torque scale 0 (a
 # drive that holds still: a free KickCAT motor under the protocol's torques
 # runs away past the controller's angle limits within a second);
@@ -70,6 +71,9 @@ sed -e 's|backend = "ethercat"|backend = "simulator"|' -e 's|plant_sim = false|p
     -e 's|instance = "exoplantecat"|instance = "exoplantsim"|' -e 's|^sensor_driver_cpu = 1|plant_sim_cpu = 1\nsensor_driver_cpu = 1|' \
     "$out/plant.toml" > "$out/sim.toml"
 fifo=; chrt -f 40 true 2>/dev/null && fifo="chrt -f 40"
+# As root a network namespace alone: the processes' SCHED_FIFO 80 and
+# mlockall are then granted (inside a user namespace they are refused).
+ns="unshare -rn"; [ "$(id -u)" = 0 ] && ns="unshare -n"
 
 run() { # run NAME CONFIG WITH_PLANT
   local name=$1 cfg=$2 plant=$3 pids=()
@@ -88,12 +92,13 @@ if not r: print("no round trip recorded"); sys.exit()
 l = r; us = lambda k: l[k] / 1000
 print(f"n={l['count']:6d}  p50 {us('p50_ns'):7.1f} us  p99 {us('p99_ns'):7.1f} us  p99.9 {us('p999_ns'):7.1f} us  max {us('max_ns'):8.1f} us")
 PY
-  grep -h "safe state latched\|EtherCAT fault\|EtherCAT exchange\|EtherCAT wake-up\|EtherCAT [0-9]* cycles" "$out/$name-driver.log" | head -6 | sed 's/^ *[A-Z]* sensor-driver: /    /' || true
+  grep -h "real-time settings\|not permitted\|safe state latched\|EtherCAT fault\|EtherCAT exchange\|EtherCAT wake-up\|EtherCAT [0-9]* cycles" "$out/$name-driver.log" | head -9 | sed 's/^ *[A-Z]* sensor-driver: /    /' || true
 }
 
 export -f run 2>/dev/null || true
 echo "machine: $(nproc) CPUs, $(uname -r), load $(cut -d' ' -f1-3 /proc/loadavg); $secs s per row, $rate Hz, $profile build, warm-up $warmup s"
-$fifo unshare -rn bash -c "
+echo "namespace: $ns; scheduling of the namespace: ${fifo:-normal}"
+$fifo $ns bash -c "
   set -e
   for c in 'ecm0 type veth peer name ecm0b' 'ecs0 type veth peer name ecs0b' 'br0 type bridge'; do ip link add \$c; done
   ip link set ecm0b master br0; ip link set ecs0b master br0
