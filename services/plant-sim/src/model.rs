@@ -78,6 +78,10 @@ pub const PLANT_RANGES: Ranges = &[
         "human.cubic_damping_nm_s3_per_rad3",
         Range::closed(0.0, 1e3),
     ),
+    (
+        "human.quadratic_stiffness_nm_per_rad2",
+        Range::closed(-1e5, 1e5),
+    ),
     ("human.stretch_reflex.cutoff_rad_s", Range::above(0.0, 1e4)),
     ("human.stiffness_drift_per_min", Range::closed(-0.5, 0.5)),
     (
@@ -304,6 +308,17 @@ pub struct Human {
     /// discovers a polynomial spring. Range [−1e5, 1e5].
     #[serde(default)]
     pub cubic_stiffness_nm_per_rad3: f64,
+    /// Quadratic stiffness `K₂` of the joint (Nm/rad²): a stiffness that
+    /// depends on posture, the spring `K d + ½ K₂ d²` with `d = θ_h − θ_eq`
+    /// about the posture the human holds, so that `dτ/dθ = K + K₂ d` (stiffer
+    /// on one side of the posture, softer on the other). It leaves the
+    /// fundamental of a sine about the posture as it is and puts `¼ K₂ Θ₁²`
+    /// into the 2nd harmonic of the joint torque (`Θ₁` the angle's
+    /// fundamental phasor). `exo diagnose` writes it when it discovers a
+    /// posture-dependent stiffness. 0 (the default when the key is absent)
+    /// is off. Range [−1e5, 1e5].
+    #[serde(default)]
+    pub quadratic_stiffness_nm_per_rad2: f64,
     /// Cubic damping `B₃` of the joint (Nm·s³/rad³): a damper
     /// `B₃ (θ̇_h − ω_eq)³` beside the linear terms (about the drive's own
     /// motion, as the linear damper), damping that grows with the speed of
@@ -779,6 +794,10 @@ impl PlantModel {
             (
                 "human.cubic_damping_nm_s3_per_rad3".into(),
                 h.cubic_damping_nm_s3_per_rad3,
+            ),
+            (
+                "human.quadratic_stiffness_nm_per_rad2".into(),
+                h.quadratic_stiffness_nm_per_rad2,
             ),
             (
                 "human.stiffness_drift_per_min".into(),

@@ -698,6 +698,7 @@ impl Plant {
         self.u[U_TAU_NL] = self.nonlinear_torque();
         self.u[U_TAU_REFLEX] = self.reflex_torque()
             + self.cubic_spring_torque()
+            + self.quadratic_spring_torque()
             + self.cubic_damper_torque()
             + self.drift_spring_torque();
         let (x, u) = (self.x.as_slice(), self.u.as_slice());
@@ -765,6 +766,19 @@ impl Plant {
         }
         let d = self.x[self.layout.th_h] - self.drive.theta_eq_rad;
         -k3 * d * d * d
+    }
+
+    /// The quadratic part of the human's spring on the human joint (Nm):
+    /// `−½ K₂ (θ_h − θ_eq)²` (a stiffness `K + K₂ (θ_h − θ_eq)` that depends
+    /// on posture), held over the step like the reflex; 0 when
+    /// `human.quadratic_stiffness_nm_per_rad2` is 0.
+    fn quadratic_spring_torque(&self) -> f64 {
+        let k2 = self.model.human.quadratic_stiffness_nm_per_rad2;
+        if k2 == 0.0 {
+            return 0.0;
+        }
+        let d = self.x[self.layout.th_h] - self.drive.theta_eq_rad;
+        -0.5 * k2 * d * d
     }
 
     /// The human's cubic damper on the human joint (Nm):

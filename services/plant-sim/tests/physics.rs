@@ -38,25 +38,35 @@ fn measure_after(p: &mut Plant, omega: f64, amp: f64, settle_s: f64) -> (Complex
 /// The complex amplitudes (fundamental phasors) of θ_e, τ_c and τ_s over
 /// ten whole cycles of τ_d = A sin(ωt) after `settle_s` of settling.
 fn phasors(p: &mut Plant, omega: f64, amp: f64, settle_s: f64) -> [Complex64; 3] {
+    harmonics(p, omega, amp, settle_s)[0]
+}
+
+/// [`phasors`] of the fundamental and of the 2nd harmonic
+/// (`x ≈ X_0 + Re Σ X_h e^{j h ω t}`), and the means `X_0` (real), from one run.
+fn harmonics(p: &mut Plant, omega: f64, amp: f64, settle_s: f64) -> [[Complex64; 3]; 3] {
     let h = p.model().integration.step_s;
     let period_steps = (std::f64::consts::TAU / omega / h).round() as usize;
     let omega = std::f64::consts::TAU / (period_steps as f64 * h);
     let settle = ((settle_s / h) as usize).div_ceil(period_steps) * period_steps;
     let cycles = 10 * period_steps;
-    let mut sums = [Complex64::new(0.0, 0.0); 3];
+    let mut sums = [[Complex64::new(0.0, 0.0); 3]; 3];
     for k in 0..settle + cycles {
         let t = k as f64 * h;
         p.step(amp * (omega * t).sin());
         if k >= settle {
             let t_end = (k + 1) as f64 * h;
-            let e = Complex64::from_polar(1.0, -omega * t_end);
             let truth = p.truth();
-            sums[0] += truth.theta_e_rad * e;
-            sums[1] += truth.tau_c_nm * e;
-            sums[2] += truth.tau_s_nm * e;
+            for (n, row) in sums.iter_mut().enumerate() {
+                let e = Complex64::from_polar(1.0, -(((n + 1) % 3) as f64) * omega * t_end);
+                row[0] += truth.theta_e_rad * e;
+                row[1] += truth.tau_c_nm * e;
+                row[2] += truth.tau_s_nm * e;
+            }
         }
     }
-    sums.map(|z| z * (2.0 / cycles as f64))
+    let mut out = sums.map(|row| row.map(|z| z * (2.0 / cycles as f64)));
+    out[2] = out[2].map(|z| z * 0.5);
+    out
 }
 
 #[test]
@@ -553,6 +563,53 @@ fn a_cubic_spring_adds_its_describing_function_to_s_h() {
     assert!(
         (added.re - expect).abs() < 0.03 * expect && added.im.abs() < 0.03 * expect,
         "S_h gained {added}; the describing function says {expect} at A = {a} rad"
+    );
+}
+
+/// `human.quadratic_stiffness_nm_per_rad2`: a spring `½ K₂ d²` moved at
+/// `d = δ + Re(Θ₁ e^{jωt} + Θ₂ e^{2jωt})` adds `K₂ δ Θ₁ + ½ K₂ Θ̄₁ Θ₂` to
+/// the fundamental and `¼ K₂ Θ₁²` to the 2nd harmonic (`cos² x = ½ + ½ cos
+/// 2x`). Its mean torque `¼ K₂ |Θ₁|²` shifts the posture by `δ` (measured),
+/// so the cuff's `S_h` is the linear human's plus `K₂ (δ + ½ Θ̄₁ Θ₂ / Θ₁)`
+/// (second order in `K₂`), and its
+/// 2nd harmonic is `¼ K₂ Θ₁²` on top of the linear human's response to the
+/// angle's own 2nd harmonic, `S_h(2ω) Θ₂`, with `S_h(jω) = K − M_h ω² +
+/// j B ω` (closed form; rigid cuff, no gravity, posture 0).
+#[test]
+fn a_quadratic_spring_puts_a_quarter_k2_theta_squared_into_the_2nd_harmonic() {
+    let mut m = quiet(default_model());
+    m.human.hysteretic_damping.enabled = false;
+    m.human.viscous_damping.enabled = true;
+    m.human.viscous_damping.b_nm_s_per_rad = 1.0;
+    m.cuff.compliance.enabled = false;
+    let w = 6.0;
+    let [[th0, tc0, _], _, _] = harmonics(&mut Plant::new(&m), w, 1.0, 8.0);
+    // K₂ A = 3 Nm/rad at A ≈ 0.03 rad: the stiffness stays positive over the swing.
+    let k2 = 100.0;
+    m.human.quadratic_stiffness_nm_per_rad2 = k2;
+    m.validate("test").unwrap();
+    let [[th1, tc1, _], [th2, tc2, _], [mean, _, _]] = harmonics(&mut Plant::new(&m), w, 1.0, 8.0);
+    let w = std::f64::consts::TAU / ((std::f64::consts::TAU / w / 1e-4).round() * 1e-4);
+    let s_h = |w: f64| {
+        Complex64::new(
+            m.human.stiffness_nm_per_rad - m.human.inertia_kg_m2 * w * w,
+            w,
+        )
+    };
+    let (before, after) = (tc0 / th0, tc1 / th1);
+    let shift = k2 * mean.re + 0.5 * k2 * th1.conj() * th2 / th1;
+    assert!(
+        (before - s_h(w)).norm() < 2e-3 * s_h(w).norm()
+            && (after - before - shift).norm() < 0.05 * shift.norm()
+            && shift.norm() > 1e-3 * before.norm(),
+        "S_h {after} with K₂ against {before} without, {} in closed form, K₂ δ = {shift} (δ = {mean})",
+        s_h(w)
+    );
+    let second = tc2 - s_h(2.0 * w) * th2;
+    let expect = 0.25 * k2 * th1 * th1;
+    assert!(
+        (second - expect).norm() < 0.02 * expect.norm(),
+        "2nd harmonic of τ_c beyond S_h(2ω)Θ₂: {second}; ¼ K₂ Θ₁² = {expect} (Θ₁ = {th1})"
     );
 }
 
