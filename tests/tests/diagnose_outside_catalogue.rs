@@ -324,3 +324,44 @@ fn backlash_in_the_rigs_joint_under_gravity_names_nothing() {
         assert_exclusive(&v);
     }
 }
+
+/// A stiffness that depends on posture in the rig's human joint (`--k2`:
+/// `½ K₂ (θ − θ_plan)²` beside its linear spring, so `dK/dθ = K₂`) at two
+/// sizes: the transfer functions do not see it to first order; the 2nd
+/// harmonic of `τ_c` does. It is discovered there with K₂ near the
+/// generator's, the same at both amplitudes; no catalogue term is the
+/// answer. (The rig's softest human, experiment 1, loses its equilibrium
+/// at K₂ = 20: the quadratic's mean torque outgrows its static spring.)
+#[test]
+fn a_posture_dependent_stiffness_is_discovered_in_the_2nd_harmonic() {
+    let dir = scratch("k2");
+    for (k2, arg) in [(8.0, "8"), (15.0, "15")] {
+        let v = diagnose(&rig(&dir, &format!("k2-{arg}.mcap"), &["--k2", arg]));
+        let text = verdict(&v).join("\n");
+        assert_exclusive(&v);
+        let forms: Vec<String> = found(&v)
+            .into_iter()
+            .filter(|(t, partial)| {
+                assert!(
+                    *partial || t == "posture_stiffness",
+                    "K₂ = {k2}: {t} named as the answer:\n{text}"
+                );
+                t == "posture_stiffness"
+            })
+            .map(|(t, _)| t)
+            .collect();
+        assert_eq!(forms.len(), 1, "K₂ = {k2}:\n{text}");
+        let fitted = final_value(&v, "k2");
+        assert!(
+            (fitted - k2).abs() < 0.1 * k2,
+            "K₂ = {k2}: fitted {fitted}\n{text}"
+        );
+        let p = &v["posture"];
+        assert_eq!(p["accepted"], true, "K₂ = {k2}: {p:#}");
+        let [lo, hi] = [0, 1].map(|i| p["per_amplitude"][i][0].as_f64().unwrap());
+        assert!(
+            (lo - k2).abs() < 0.1 * k2 && (hi - k2).abs() < 0.5 * k2,
+            "K₂ = {k2}: {lo} at the low amplitude, {hi} at the high one"
+        );
+    }
+}

@@ -11,7 +11,7 @@ Rust simulator, not fit_frf.py, not write_recording.py. It exists so that
     independent_rig.py OUT.mcap --seed N [--subject NAME] [--experiments 1,2,...]
         [--periods 10] [--truth TRUTH.json] [--noise-scale X] [--random-subject]
         [--params PARAMS.json] [--damping viscous|two-point] [--twitch S] [--pre-window S]
-        [--writer own|mcap] [--k3 K3] [--b3 B3] [--exo-spring K] [--k-drift RHO] [--lash RAD]
+        [--writer own|mcap] [--k3 K3] [--k2 K2] [--b3 B3] [--exo-spring K] [--k-drift RHO] [--lash RAD]
     independent_rig.py --monte-carlo N --out-dir DIR --seed S0 [--experiments 1,3]
         (N recordings DIR/mc000.mcap, ... with seeds S0+i, plus DIR/truth.json)
 
@@ -39,7 +39,8 @@ Model (linear about the operating point except gravity; rad, Nm, s, kg m^2):
   tau_g = g (1.5 kg * 0.2 m + load * 0.45 m) sin th (th = 0 hanging down).
 * SEA: tau_s follows tau_d through a 10 Hz, zeta 0.7 second-order low pass.
 * concealed physics outside exo's catalogue (off by default): --k3 a cubic
-  human spring, --b3 a cubic human damper (B3 th'^3), --exo-spring a spring in the exoskeleton joint, --k-drift
+  human spring, --k2 a stiffness that depends on posture (K2/2 (th - plan)^2),
+  --b3 a cubic human damper (B3 th'^3), --exo-spring a spring in the exoskeleton joint, --k-drift
   the human's stiffness drifting within each experiment, --lash backlash in
   the joint's gear mesh (tau_s then drives a motor side of 0.02 kg m^2,
   part of the arm's inertia, which pushes the arm only beyond the lost
@@ -291,7 +292,7 @@ def mesh(lead, lead_rate, lash):
 
 
 def simulate(specs, pre_window_s=PRE_WINDOW_S, k_cubic=0.0, k_exo_spring=0.0, k_drift=0.0, lash=0.0,
-             b_cubic=0.0):
+             b_cubic=0.0, k_quad=0.0):
     """Simulates the periods side by side (vectorised over periods), RK4 with
     the controller's torque held over each 2 ms tick, from rest at the start
     of the ramp-in to the end of the analysis window. Returns the recorded
@@ -301,6 +302,9 @@ def simulate(specs, pre_window_s=PRE_WINDOW_S, k_cubic=0.0, k_exo_spring=0.0, k_
     K (theta - theta_p) (theta_p: the subject's reference posture).
     b_cubic (Nm s^3/rad^3): a cubic damper of the human joint, B3 omega^3
     added to the human's viscous damping b omega.
+    k_quad (Nm/rad^2): a stiffness that depends on posture, K2/2 (theta -
+    plan)^2 added to the human's spring (its slope dK/dtheta = K2 about the
+    planned arm angle: the rest posture, the ramp, then the goal).
     k_exo_spring (Nm/rad): a spring in the exoskeleton joint centred at the
     period's posture goal, -k (theta - theta_goal) on the arm (a cable or
     harness; no term of exo's catalogue): it stiffens S_h-e by k without
@@ -375,6 +379,8 @@ def simulate(specs, pre_window_s=PRE_WINDOW_S, k_cubic=0.0, k_exo_spring=0.0, k_
             f_h = f_h + k_cubic * (th - th_p[:, n]) ** 3
         if b_cubic:
             f_h = f_h + b_cubic * om ** 3
+        if k_quad:
+            f_h = f_h + 0.5 * k_quad * (th - plan[:, n]) ** 2
         drive = mesh(mot - th, om_mot - om, lash) if lash else ts
         acc = (drive - g_true * np.sin(th) - k_exo_spring * (th - th_goal) - f_h) * inv_m
         tau_c = m_h * acc + f_h
@@ -403,9 +409,11 @@ def simulate(specs, pre_window_s=PRE_WINDOW_S, k_cubic=0.0, k_exo_spring=0.0, k_
             break
         # --- plant: RK4 over [t, t + h] with tau_d and u held
         thp = th_p[:, n]
+        pln = plan[:, n]
 
         def f(th_, om_, ts_, dts_, q_):
-            cubic = (k_cubic * (th_ - thp) ** 3 if k_cubic else 0.0) + (b_cubic * om_ ** 3 if b_cubic else 0.0)
+            cubic = ((k_cubic * (th_ - thp) ** 3 if k_cubic else 0.0) + (b_cubic * om_ ** 3 if b_cubic else 0.0)
+                     + (0.5 * k_quad * (th_ - pln) ** 2 if k_quad else 0.0))
             spring = k_exo_spring * (th_ - th_goal)
             return (om_, (ts_ - g_true * np.sin(th_) - spring - b * om_ - kn * th_ - km * (th_ - q_) - cubic + un)
                     * inv_m,
@@ -413,7 +421,8 @@ def simulate(specs, pre_window_s=PRE_WINDOW_S, k_cubic=0.0, k_exo_spring=0.0, k_
         if lash:
             def f(th_, om_, ts_, dts_, q_, mot_, om_mot_):
                 cubic = ((k_cubic * (th_ - thp) ** 3 if k_cubic else 0.0)
-                         + (b_cubic * om_ ** 3 if b_cubic else 0.0))
+                         + (b_cubic * om_ ** 3 if b_cubic else 0.0)
+                         + (0.5 * k_quad * (th_ - pln) ** 2 if k_quad else 0.0))
                 spring = k_exo_spring * (th_ - th_goal)
                 tm = mesh(mot_ - th_, om_mot_ - om_, lash)
                 return (om_, (tm - g_true * np.sin(th_) - spring - b * om_ - kn * th_ - km * (th_ - q_) - cubic
@@ -836,6 +845,9 @@ def main(argv=None):
                     help="seconds of samples written before each analysis window (0-5)")
     ap.add_argument("--k3", type=float, default=0.0, metavar="K3",
                     help="stiffening spring of the human joint: K3 (theta - theta_p)^3, Nm/rad^3 (0 = linear)")
+    ap.add_argument("--k2", type=float, default=0.0, metavar="K2",
+                    help="a stiffness that depends on posture: K2/2 (theta - planned angle)^2 in the human's spring, Nm/rad^2 "
+                         "(0 = none)")
     ap.add_argument("--b3", type=float, default=0.0, metavar="B3",
                     help="cubic damper of the human joint: B3 omega^3, Nm s^3/rad^3 (0 = none)")
     ap.add_argument("--exo-spring", type=float, default=0.0, metavar="K",
@@ -910,11 +922,11 @@ def main(argv=None):
         raise SystemExit("--lash must be in [0, 0.2] rad")
     if not 0.0 <= a.b3 <= 1e3:
         raise SystemExit("--b3 must be in [0, 1000] Nm s^3/rad^3")
-    sim = simulate(specs, a.pre_window, a.k3, a.exo_spring, a.k_drift, a.lash, a.b3)
+    sim = simulate(specs, a.pre_window, a.k3, a.exo_spring, a.k_drift, a.lash, a.b3, a.k2)
     write_recording(a.out, name, a.seed, specs, sim, a.noise_scale, a.writer)
     if a.truth:
         t = subject_truth(name, a.seed, subj, specs)
-        t.update(rig=rig_truth(), k3_nm_per_rad3=a.k3, b3_nm_s3_per_rad3=a.b3, exo_spring_nm_per_rad=a.exo_spring,
+        t.update(rig=rig_truth(), k3_nm_per_rad3=a.k3, k2_nm_per_rad2=a.k2, b3_nm_s3_per_rad3=a.b3, exo_spring_nm_per_rad=a.exo_spring,
                  k_drift_per_min=a.k_drift, lash_rad=a.lash, noise_scale=a.noise_scale, twitch_sigma_nms=a.twitch, damping=a.damping,
                  experiments_written=experiments,
                  periods=a.periods)

@@ -451,6 +451,9 @@ pub struct Diagnosis {
     pub final_physics: Physics,
     /// What remains of the final model's misfit, per transfer function.
     pub remains: Vec<crate::remains::Remains>,
+    /// The posture-dependent stiffness's fit in the 2nd harmonic of `τ_c`
+    /// (taken or not, with why), when the windows have the harmonics.
+    pub posture: Option<crate::posture::PostureFit>,
 }
 
 impl Diagnosis {
@@ -1459,10 +1462,12 @@ pub fn diagnose(
         });
     }
 
+    let amp_groups = amplitude_groups(d);
     // Stepwise search.
     let mut current: Fitted = base.clone();
     let mut current_start = p0.clone();
     let mut current_ho = refit_score.heldout_rss;
+    let mut lack_p = refit_score.lack_of_fit_p;
     let mut in_model: Vec<Term> = Term::ALL
         .iter()
         .chain(Term::FORMS.iter())
@@ -1471,11 +1476,9 @@ pub fn diagnose(
         .collect();
     let mut steps = Vec::new();
     let mut found: Vec<(Term, Candidate, bool)> = Vec::new();
-    let mut lack_p = refit_score.lack_of_fit_p;
     // One-sided critical value of the per-transfer-function checks,
     // Bonferroni over the supported transfer functions.
     let z_tf = normal_quantile(1.0 - s.level / d.supported.len().max(1) as f64);
-    let amp_groups = amplitude_groups(d);
     for step in 1..=s.max_terms {
         // Nothing left to explain: the model is within the measured noise
         // and its own accuracy.
@@ -1563,9 +1566,35 @@ pub fn diagnose(
             (cand.explained_share.is_nan() || cand.explained_share < 0.5) && lack_p < s.level;
         found.push((cand.term, cand, partial));
     }
+    // The form the transfer functions cannot see: a posture-dependent
+    // stiffness in the 2nd harmonic of τ_c, with the same criteria, on the
+    // model the search ended with. Taken, its K₂ goes into the model and
+    // the model's own parameters are refitted with it: its second-order
+    // shift of the stiffness with the amplitude (`−K₂² A²/4K`) is then
+    // predicted, nothing fitted for it.
+    let posture = crate::posture::fit(
+        d,
+        &current.physics,
+        s.level,
+        amp_groups.as_ref().map(|g| g.group.as_slice()),
+        normal_quantile(1.0 - s.level / 2.0),
+    );
+    let posture_taken = posture.as_ref().filter(|p| p.accepted);
+    let mut posture_chi2 = None;
+    if let Some(p) = posture_taken {
+        let before = score(d, &current_start, &current.physics, &current.free);
+        current_start.k2 = p.k2_nm_per_rad2;
+        let mut start = current.physics.clone();
+        start.k2 = p.k2_nm_per_rad2;
+        let free = current.free.clone();
+        current = fit(d, &start, &free, &|_, _| true);
+        let after = score(d, &current_start, &current.physics, &current.free);
+        posture_chi2 = Some((before.chi2_per_dof, after.chi2_per_dof));
+    }
     let final_score = score(d, &current_start, &current.physics, &current.free);
 
-    let found: Vec<Found> = found
+    let tf_found = found.len();
+    let mut found: Vec<Found> = found
         .into_iter()
         .map(|(t, c, partial)| {
             let se = |q: Param| current.std_error(q);
@@ -1626,6 +1655,79 @@ pub fn diagnose(
         })
         .collect();
 
+    if let Some(p) = posture_taken {
+        let t = Term::PostureStiffness;
+        let se = |q: Param| {
+            if q == Param::QuadraticStiffness {
+                Some(p.std_error)
+            } else {
+                current.std_error(q)
+            }
+        };
+        let partial =
+            (p.explained_share.is_nan() || p.explained_share < 0.5) && p.lack_of_fit_p < s.level;
+        let marginal = p.p_holm >= MARGINAL_P;
+        let description = t.describe(&current.physics, &se);
+        let amplitude = match p.per_amplitude {
+            Some([(lo, s_lo), (hi, s_hi)]) => format!(
+                "the same at both amplitudes (K₂ {} and {}: its harmonic grows as A²)",
+                plain_pm(lo, s_lo),
+                plain_pm(hi, s_hi)
+            ),
+            None => "one amplitude: its growth as A² not checked".into(),
+        };
+        let second_order = posture_chi2.map_or(String::new(), |(a, b)| {
+            format!(
+                "; the shift of the stiffness with the amplitude it predicts (−K₂² A²/4K, nothing fitted for it) takes the transfer functions' χ²/dof from {a:.2} to {b:.2}"
+            )
+        });
+        found.push(Found {
+            term: t,
+            toml_key: t.toml_key(),
+            words: t.words(),
+            sentence: format!(
+                "{}: {}, {description}; in the 2nd harmonic of τ_c, which the transfer functions do not see: it {}{}; {amplitude}; F = {:.1} against a critical {:.2} (Holm-adjusted p = {:.2e}{}); held-out {:+.0} %{second_order}",
+                if partial {
+                    "partly explained by a form outside the catalogue"
+                } else {
+                    "discovered outside the catalogue"
+                },
+                t.words(),
+                share_words(p.explained_share),
+                if partial { ", most of it remains" } else { "" },
+                p.f,
+                p.f_critical,
+                p.p_holm,
+                if marginal {
+                    ", marginal: not significant at 0.001, another recording may not confirm it"
+                } else {
+                    ""
+                },
+                100.0 * p.heldout_change
+            ),
+            description,
+            f: p.f,
+            f_critical: p.f_critical,
+            p_holm: p.p_holm,
+            heldout_change: p.heldout_change,
+            explained_share: p.explained_share,
+            partial,
+            discovered: true,
+            marginal,
+        });
+    }
+    // Structure in the 2nd harmonic that the form does not account for.
+    let harmonic_unexplained = posture
+        .as_ref()
+        .filter(|p| !p.accepted && p.p_holm < s.level && p.f > p.f_critical)
+        .map(|p| {
+            format!(
+                "unexplained in the 2nd harmonic of τ_c: {}; a posture-dependent stiffness not taken: {}",
+                p.finding,
+                p.rejected_because.join("; ")
+            )
+        });
+
     let nominal_cells = cells(d, &p0, s.level);
     let refit_cells = cells(d, &base.physics, s.level);
     let mut summary = summary_of(&nominal_cells, "against the nominal model");
@@ -1685,27 +1787,39 @@ pub fn diagnose(
     // Exclusive verdicts: "no missing physics" only when nothing beyond the
     // noise remains; otherwise what remains is said, never both.
     let beyond_noise = |p: f64| p < s.level;
-    if found.is_empty() {
-        if beyond_noise(refit_score.lack_of_fit_p) {
+    let harmonic_words: Vec<String> = found[tf_found..]
+        .iter()
+        .map(|f| f.sentence.clone())
+        .chain(harmonic_unexplained)
+        .collect();
+    let found_tf = &found[..tf_found];
+    if found_tf.is_empty() {
+        if beyond_noise(final_score.lack_of_fit_p) {
             verdict.push(format!(
                 "unexplained: structure beyond the measured noise remains after the refit (χ²/dof {:.2}, lack-of-fit p = {:.1e}) and no term of the catalogue nor generic form of the library explains it without the data contradicting it",
-                refit_score.chi2_per_dof, refit_score.lack_of_fit_p
+                final_score.chi2_per_dof, final_score.lack_of_fit_p
             ));
             verdict.extend(not_named(&steps));
             verdict.extend(remains_words.iter().cloned());
         } else {
             verdict.push(format!(
-                "no missing physics: after the refit the model is within the measured noise (χ²/dof {:.2}, lack-of-fit p = {:.2})",
-                refit_score.chi2_per_dof, refit_score.lack_of_fit_p
+                "no missing physics{}: after the refit the model is within the measured noise (χ²/dof {:.2}, lack-of-fit p = {:.2})",
+                if harmonic_words.is_empty() {
+                    ""
+                } else {
+                    " in the transfer functions"
+                },
+                final_score.chi2_per_dof,
+                final_score.lack_of_fit_p
             ));
         }
     } else {
-        for f in &found {
+        for f in found_tf {
             verdict.push(f.sentence.clone());
         }
         verdict.push(format!(
             "with {} added: RSS {:.1} → {:.1} ({:+.0} %), held-out {:+.0} %, χ²/dof {:.2} → {:.2}; {}",
-            found
+            found_tf
                 .iter()
                 .map(|f| f.words)
                 .collect::<Vec<_>>()
@@ -1730,6 +1844,7 @@ pub fn diagnose(
             verdict.extend(remains_words.iter().cloned());
         }
     }
+    verdict.extend(harmonic_words);
 
     Ok(Diagnosis {
         sources: d.sources.clone(),
@@ -1747,5 +1862,6 @@ pub fn diagnose(
         refit_physics: base.physics,
         remains,
         final_physics: current.physics,
+        posture,
     })
 }

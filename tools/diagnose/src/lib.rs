@@ -17,7 +17,9 @@
 //!    harmonics), refits the nominal model's own parameters, then tries the
 //!    [`terms::Term`] catalogue one term at a time with nested F-tests,
 //!    Holm's correction, Akaike's criterion and two-fold held-out
-//!    validation, and writes the updated plant model.
+//!    validation, then the library of generic forms with the same criteria
+//!    (a posture-dependent stiffness in the 2nd harmonic: [`posture`]), and
+//!    writes the updated plant model.
 //!
 //! [`bench`](mod@bench) holds the cases `exo diagnose-bench` proves it on: concealed
 //! effects (and null cases) in a true plant behind a nominal model.
@@ -27,6 +29,7 @@ pub mod data;
 pub mod engine;
 pub mod fit;
 pub mod model;
+pub mod posture;
 pub mod remains;
 pub mod signatures;
 pub mod synth;

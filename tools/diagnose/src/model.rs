@@ -100,6 +100,12 @@ pub enum Param {
     /// minute), a generic form: `K(t) = K_e (1 + ρ t)`, `t` from the
     /// experiment's first window.
     StiffnessDrift,
+    /// Quadratic stiffness `K₂` of the human joint (Nm/rad²), a generic
+    /// form: `τ = K θ + ½ K₂ θ²`, a stiffness `K + K₂ θ` that depends on
+    /// posture. It leaves the fundamental (to first order) and puts
+    /// `¼ K₂ Θ₁²` into the 2nd harmonic of `τ_c`: fitted there
+    /// ([`crate::posture`]), not from the transfer functions.
+    QuadraticStiffness,
 }
 
 impl Param {
@@ -130,6 +136,7 @@ impl Param {
             Param::CubicStiffness => "cubic stiffness K₃ (Nm/rad³)".into(),
             Param::CubicDamping => "cubic damping B₃ (Nm·s³/rad³)".into(),
             Param::StiffnessDrift => "stiffness drift ρ (1/min)".into(),
+            Param::QuadraticStiffness => "posture stiffness slope K₂ (Nm/rad²)".into(),
         }
     }
 
@@ -156,6 +163,7 @@ impl Param {
             Param::CubicStiffness => 50.0,
             Param::CubicDamping => 1.0,
             Param::StiffnessDrift => 0.01,
+            Param::QuadraticStiffness => 50.0,
         }
     }
 
@@ -180,6 +188,7 @@ impl Param {
             | Param::GravityError
             | Param::TorqueOffset
             | Param::CubicStiffness
+            | Param::QuadraticStiffness
             | Param::StiffnessDrift => f64::NEG_INFINITY,
             // A cubic damper is passive (the simulator's range is [0, 1e3]):
             // one that fed energy into the joint would not be a damper.
@@ -239,6 +248,10 @@ pub struct Physics {
     pub b3: f64,
     /// Stiffness drift within an experiment (fraction per minute; generic form).
     pub k_drift_per_min: f64,
+    /// Quadratic stiffness `K₂` of the human joint (Nm/rad²; generic form,
+    /// the posture dependence `dK/dθ`): no effect on [`Physics::predict_tf`]'s
+    /// fundamental; its 2nd harmonic is [`crate::posture`]'s.
+    pub k2: f64,
 }
 
 impl Physics {
@@ -316,6 +329,7 @@ impl Physics {
             k3: m.human.cubic_stiffness_nm_per_rad3,
             b3: m.human.cubic_damping_nm_s3_per_rad3,
             k_drift_per_min: m.human.stiffness_drift_per_min,
+            k2: m.human.quadratic_stiffness_nm_per_rad2,
         }
     }
 
@@ -346,6 +360,7 @@ impl Physics {
             Param::CubicStiffness => self.k3,
             Param::CubicDamping => self.b3,
             Param::StiffnessDrift => self.k_drift_per_min,
+            Param::QuadraticStiffness => self.k2,
         }
     }
 
@@ -387,6 +402,7 @@ impl Physics {
             Param::CubicStiffness => self.k3 = v,
             Param::CubicDamping => self.b3 = v,
             Param::StiffnessDrift => self.k_drift_per_min = v,
+            Param::QuadraticStiffness => self.k2 = v,
         }
     }
 
@@ -476,8 +492,19 @@ impl Physics {
         // a compliant cuff the exoskeleton's stands in for it).
         let a_h = c.theta_amp_rad / self.gain[0];
         let a2 = a_h * a_h;
+        // A posture-dependent stiffness `½ K₂ θ²` has no fundamental of its
+        // own; its mean torque `¼ K₂ A²` moves the posture by `−K₂ A²/4K`
+        // (the human's spring holds the mean: with the exoskeleton's gravity
+        // compensated and amplification α, the cuff's mean torque is fixed
+        // by the bias), where the stiffness is `K − K₂² A²/4K` (second order
+        // in K₂; `services/plant-sim/tests/physics.rs`).
+        let posture_shift = if self.k2 != 0.0 && k > 0.0 {
+            self.k2 * self.k2 * a2 / (4.0 * k)
+        } else {
+            0.0
+        };
         let mut z_h = Complex64::new(
-            k + 0.75 * self.k3 * a2 - self.m_h * w * w,
+            k + 0.75 * self.k3 * a2 - posture_shift - self.m_h * w * w,
             h + w * self.b_h + 0.75 * self.b3 * w * w * w * a2,
         );
         let [g, delay, wc] = self.reflex;
@@ -526,6 +553,7 @@ impl Physics {
         r.cutoff_rad_s = self.reflex[2];
         m.human.cubic_stiffness_nm_per_rad3 = self.k3;
         m.human.cubic_damping_nm_s3_per_rad3 = self.b3;
+        m.human.quadratic_stiffness_nm_per_rad2 = self.k2;
         // The simulator's drift counts from the experiment's start, the
         // form's from its first window: the same ρ up to the fitted K_h.
         m.human.stiffness_drift_per_min = self.k_drift_per_min;

@@ -245,20 +245,7 @@ pub fn cubic_harmonic_check(
     if (dk3 == 0.0 && db3 == 0.0) || !d.supported.contains(&Tf::Sh) {
         return None;
     }
-    let harmonics = d.sh_harmonics.get_or_init(|| {
-        d.signals
-            .iter()
-            .map(|s| {
-                let w = s.omega_rad_s;
-                if w <= 0.0 {
-                    return None;
-                }
-                let (_, th) = window_harmonics(&s.t_s, &s.theta_rad, w)?;
-                let (spec, tc) = window_harmonics(&s.t_s, &s.tau_c_nm, w)?;
-                Some((spec.noise_power, th, tc))
-            })
-            .collect()
-    });
+    let harmonics = sh_harmonics(d);
     let (mut ym, mut mm, mut rows) = (0.0, 0.0, Vec::new());
     for (i, (s, h)) in d.signals.iter().zip(harmonics).enumerate() {
         let w = s.omega_rad_s;
@@ -291,6 +278,26 @@ pub fn cubic_harmonic_check(
         .sum::<f64>()
         / dof;
     Some((mm, beta, (scatter.max(1.0) / mm).sqrt(), rows.len()))
+}
+
+/// Every window's `θ_e` and `τ_c` harmonics with `τ_c`'s noise power per
+/// bin ([`window_harmonics`]; `None` for a broadband window or one too
+/// short), computed once per dataset.
+pub(crate) fn sh_harmonics(d: &Dataset) -> &[Option<crate::data::ShHarmonics>] {
+    d.sh_harmonics.get_or_init(|| {
+        d.signals
+            .iter()
+            .map(|s| {
+                let w = s.omega_rad_s;
+                if w <= 0.0 {
+                    return None;
+                }
+                let (_, th) = window_harmonics(&s.t_s, &s.theta_rad, w)?;
+                let (spec, tc) = window_harmonics(&s.t_s, &s.tau_c_nm, w)?;
+                Some((spec.noise_power, th, tc))
+            })
+            .collect()
+    })
 }
 
 /// Non-harmonic content of an experiment's windows beyond their noise.

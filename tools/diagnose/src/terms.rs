@@ -52,6 +52,10 @@ pub enum Term {
     /// Generic form: the human's stiffness drifting within an experiment,
     /// `K_e (1 + ρ t)`.
     StiffnessDrift,
+    /// Generic form: a stiffness that depends on posture, the spring
+    /// `K θ + ½ K₂ θ²` (`dK/dθ = K₂`), seen in the 2nd harmonic of `τ_c`
+    /// ([`crate::posture`]), not in the transfer functions.
+    PostureStiffness,
 }
 
 impl Term {
@@ -83,9 +87,14 @@ impl Term {
         Term::StiffnessDrift,
     ];
 
+    /// The generic forms that leave the transfer functions as they are and
+    /// show in the harmonics of the excitation: fitted there, after the
+    /// search over the transfer functions ([`crate::posture`]).
+    pub const HARMONIC_FORMS: [Term; 1] = [Term::PostureStiffness];
+
     /// A generic form (not a named term of the catalogue).
     pub fn generic(self) -> bool {
-        Term::FORMS.contains(&self)
+        Term::FORMS.contains(&self) || Term::HARMONIC_FORMS.contains(&self)
     }
 
     /// Plain words.
@@ -114,6 +123,9 @@ impl Term {
                 "an amplitude-dependent damping of the human joint (cubic damper B₃ θ̇³)"
             }
             Term::StiffnessDrift => "the human's stiffness drifting within each experiment",
+            Term::PostureStiffness => {
+                "a stiffness of the human joint that depends on posture (spring K θ + ½ K₂ θ², dK/dθ = K₂)"
+            }
         }
     }
 
@@ -139,6 +151,7 @@ impl Term {
             Term::CubicStiffness => "human.cubic_stiffness_nm_per_rad3",
             Term::StiffnessDrift => "human.stiffness_drift_per_min",
             Term::CubicDamping => "human.cubic_damping_nm_s3_per_rad3",
+            Term::PostureStiffness => "human.quadratic_stiffness_nm_per_rad2",
         }
     }
 
@@ -164,6 +177,7 @@ impl Term {
             Term::CubicStiffness => vec![Param::CubicStiffness],
             Term::CubicDamping => vec![Param::CubicDamping],
             Term::StiffnessDrift => vec![Param::StiffnessDrift],
+            Term::PostureStiffness => vec![Param::QuadraticStiffness],
         }
     }
 
@@ -186,6 +200,9 @@ impl Term {
             Term::SeaSensorDelay => &[Tf::She, Tf::Sea],
             Term::SeaSensorGain => &[Tf::She, Tf::Sea, Tf::Balance],
             Term::ActuatorDelay | Term::SeaBandwidth => &[Tf::Sea],
+            // Its 2nd harmonic, not a transfer function: never tried by the
+            // search over them.
+            Term::PostureStiffness => &[],
         }
     }
 
@@ -214,6 +231,7 @@ impl Term {
             Term::CubicStiffness => p.k3 != 0.0,
             Term::CubicDamping => p.b3 != 0.0,
             Term::StiffnessDrift => p.k_drift_per_min != 0.0,
+            Term::PostureStiffness => p.k2 != 0.0,
         }
     }
 
@@ -261,6 +279,7 @@ impl Term {
             Term::CubicStiffness => p.k3 = 0.0,
             Term::CubicDamping => p.b3 = 0.0,
             Term::StiffnessDrift => p.k_drift_per_min = 0.0,
+            Term::PostureStiffness => p.k2 = 0.0,
         }
     }
 
@@ -390,6 +409,10 @@ impl Term {
             Term::StiffnessDrift => format!(
                 "ρ = {} of K_h per minute",
                 pm(Param::StiffnessDrift, 100.0, 2, " %")
+            ),
+            Term::PostureStiffness => format!(
+                "dK/dθ = K₂ = {}",
+                pm(Param::QuadraticStiffness, 1.0, 0, " Nm/rad²")
             ),
         }
     }

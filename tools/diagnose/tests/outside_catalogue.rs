@@ -78,6 +78,12 @@ fn a_linear_plant_gets_no_generic_form() {
     assert!(r.found.is_empty(), "{:#?}", r.verdict);
     assert_eq!(r.final_physics.k3, 0.0);
     assert_eq!(r.final_physics.k_drift_per_min, 0.0);
+    assert_eq!(r.final_physics.k2, 0.0);
+    let p = r
+        .posture
+        .as_ref()
+        .expect("the harmonics of single-sine windows");
+    assert!(!p.accepted, "{p:#?}");
 }
 
 /// Runs the protocol of two experiments (K_h 20 and 40 Nm/rad, bias 0 and
@@ -245,4 +251,43 @@ fn a_cubic_dampers_third_harmonic_is_in_quadrature_where_it_predicts() {
     after.b3 = 2.0;
     let (_, b, _, _) = cubic_harmonic_check(&d, &before, &after).expect("check");
     assert!((b - 1.0).abs() < 0.1, "B₃ 1 → 2: β = {b}");
+}
+
+/// The simulator's posture-dependent stiffness
+/// (`human.quadratic_stiffness_nm_per_rad2`, `K θ + ½ K₂ θ²`) at two sizes:
+/// the transfer functions do not see it (to first order), the 2nd harmonic
+/// of `τ_c` does. It is discovered there with K₂ near the simulator's and
+/// written where the simulator runs it; no catalogue term is the answer.
+#[test]
+fn our_simulators_posture_dependent_stiffness_is_discovered_in_the_2nd_harmonic() {
+    for k2 in [15.0, 50.0] {
+        let mut truth = default_plant();
+        truth.human.quadratic_stiffness_nm_per_rad2 = k2;
+        let nominal = default_plant();
+        let r = diagnose_against(&truth, &nominal);
+        let text = r.verdict.join("\n");
+        eprintln!("K₂ = {k2}:\n{text}");
+        let forms: Vec<Term> = r
+            .found
+            .iter()
+            .filter(|f| f.term.generic())
+            .map(|f| f.term)
+            .collect();
+        assert_eq!(forms, vec![Term::PostureStiffness], "K₂ = {k2}:\n{text}");
+        for f in r.found.iter().filter(|f| !f.term.generic()) {
+            assert!(
+                f.partial,
+                "K₂ = {k2}: {:?} named as the answer\n{text}",
+                f.term
+            );
+        }
+        let fitted = r.final_physics.k2;
+        assert!(
+            (fitted - k2).abs() < 0.1 * k2,
+            "K₂ = {k2}: fitted {fitted}\n{text}"
+        );
+        let updated = r.updated_plant(&nominal);
+        assert_eq!(updated.human.quadratic_stiffness_nm_per_rad2, fitted);
+        assert!(updated.validate("updated-plant.toml").is_ok());
+    }
 }
