@@ -139,6 +139,20 @@ pub fn cases() -> Vec<Case> {
             nominal: same,
         },
         Case {
+            name: "posture",
+            what: "outside the catalogue: a stiffness that depends on posture, dK/dθ = K₂ = 15 Nm/rad² (the library's posture form, in the 2nd harmonic of τ_c)",
+            expected: vec![Term::PostureStiffness],
+            truth: |m, _, scale| m.human.quadratic_stiffness_nm_per_rad2 = 15.0 * scale,
+            nominal: same,
+        },
+        Case {
+            name: "posture-strong",
+            what: "outside the catalogue: a stiffness that depends on posture, K₂ = 50 Nm/rad²",
+            expected: vec![Term::PostureStiffness],
+            truth: |m, _, scale| m.human.quadratic_stiffness_nm_per_rad2 = 50.0 * scale,
+            nominal: same,
+        },
+        Case {
             name: "drift",
             what: "outside the catalogue: the human's stiffness drifting by 5 % per minute within each experiment (the library's drift)",
             expected: vec![Term::StiffnessDrift],
