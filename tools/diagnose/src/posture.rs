@@ -278,10 +278,11 @@ pub(crate) fn fit(
             "not significant: F = {f:.1} against a critical {f_critical:.2} (Holm over the library's {forms} forms)"
         ));
     }
-    if !(bic_change < 0.0) {
+    // NaN counts as not falling.
+    if bic_change.is_nan() || bic_change >= 0.0 {
         why.push(format!("the BIC does not fall ({bic_change:+.1})"));
     }
-    if !(heldout_change < 0.0) {
+    if heldout_change.is_nan() || heldout_change >= 0.0 {
         why.push(format!(
             "fitted on odd periods it does not predict the even ones (held-out {:+.0} %)",
             100.0 * heldout_change
