@@ -11,7 +11,7 @@ Rust simulator, not fit_frf.py, not write_recording.py. It exists so that
     independent_rig.py OUT.mcap --seed N [--subject NAME] [--experiments 1,2,...]
         [--periods 10] [--truth TRUTH.json] [--noise-scale X] [--random-subject]
         [--params PARAMS.json] [--damping viscous|two-point] [--twitch S] [--pre-window S]
-        [--writer own|mcap] [--k3 K3] [--k2 K2] [--b3 B3] [--exo-spring K] [--k-drift RHO] [--lash RAD]
+        [--writer own|mcap] [--k3 K3] [--k2 K2] [--b3 B3] [--horizontal] [--exo-spring K] [--k-drift RHO] [--lash RAD]
     independent_rig.py --monte-carlo N --out-dir DIR --seed S0 [--experiments 1,3]
         (N recordings DIR/mc000.mcap, ... with seeds S0+i, plus DIR/truth.json)
 
@@ -292,7 +292,7 @@ def mesh(lead, lead_rate, lash):
 
 
 def simulate(specs, pre_window_s=PRE_WINDOW_S, k_cubic=0.0, k_exo_spring=0.0, k_drift=0.0, lash=0.0,
-             b_cubic=0.0, k_quad=0.0):
+             b_cubic=0.0, k_quad=0.0, horizontal=False):
     """Simulates the periods side by side (vectorised over periods), RK4 with
     the controller's torque held over each 2 ms tick, from rest at the start
     of the ramp-in to the end of the analysis window. Returns the recorded
@@ -305,6 +305,9 @@ def simulate(specs, pre_window_s=PRE_WINDOW_S, k_cubic=0.0, k_exo_spring=0.0, k_
     k_quad (Nm/rad^2): a stiffness that depends on posture, K2/2 (theta -
     plan)^2 added to the human's spring (its slope dK/dtheta = K2 about the
     planned arm angle: the rest posture, the ramp, then the goal).
+    horizontal: the joint's axis vertical, so no gravity acts on the arm and
+    the controller compensates none (the SEA's torque then reverses with
+    the sine where no bias holds it: backlash shows).
     k_exo_spring (Nm/rad): a spring in the exoskeleton joint centred at the
     period's posture goal, -k (theta - theta_goal) on the arm (a cable or
     harness; no term of exo's catalogue): it stiffens S_h-e by k without
@@ -332,6 +335,8 @@ def simulate(specs, pre_window_s=PRE_WINDOW_S, k_cubic=0.0, k_exo_spring=0.0, k_
     inv_m = 1.0 / m_tot
     g_true = G * (ARM_MASS * ARM_COM + load * LEVER)
     g_comp = G * (COMP_ARM_MASS_FACTOR * ARM_MASS * ARM_COM + COMP_LOAD_MASS_FACTOR * load * LEVER)
+    if horizontal:
+        g_true, g_comp = 0.0 * g_true, 0.0 * g_comp
     w_s = 2.0 * math.pi * SEA_HZ
     w2, z2 = w_s * w_s, 2.0 * SEA_ZETA * w_s
 
@@ -848,6 +853,8 @@ def main(argv=None):
     ap.add_argument("--k2", type=float, default=0.0, metavar="K2",
                     help="a stiffness that depends on posture: K2/2 (theta - planned angle)^2 in the human's spring, Nm/rad^2 "
                          "(0 = none)")
+    ap.add_argument("--horizontal", action="store_true",
+                    help="a horizontal rig: no gravity on the arm and none compensated")
     ap.add_argument("--b3", type=float, default=0.0, metavar="B3",
                     help="cubic damper of the human joint: B3 omega^3, Nm s^3/rad^3 (0 = none)")
     ap.add_argument("--exo-spring", type=float, default=0.0, metavar="K",
@@ -922,11 +929,11 @@ def main(argv=None):
         raise SystemExit("--lash must be in [0, 0.2] rad")
     if not 0.0 <= a.b3 <= 1e3:
         raise SystemExit("--b3 must be in [0, 1000] Nm s^3/rad^3")
-    sim = simulate(specs, a.pre_window, a.k3, a.exo_spring, a.k_drift, a.lash, a.b3, a.k2)
+    sim = simulate(specs, a.pre_window, a.k3, a.exo_spring, a.k_drift, a.lash, a.b3, a.k2, a.horizontal)
     write_recording(a.out, name, a.seed, specs, sim, a.noise_scale, a.writer)
     if a.truth:
         t = subject_truth(name, a.seed, subj, specs)
-        t.update(rig=rig_truth(), k3_nm_per_rad3=a.k3, k2_nm_per_rad2=a.k2, b3_nm_s3_per_rad3=a.b3, exo_spring_nm_per_rad=a.exo_spring,
+        t.update(rig=rig_truth(), k3_nm_per_rad3=a.k3, k2_nm_per_rad2=a.k2, horizontal=a.horizontal, b3_nm_s3_per_rad3=a.b3, exo_spring_nm_per_rad=a.exo_spring,
                  k_drift_per_min=a.k_drift, lash_rad=a.lash, noise_scale=a.noise_scale, twitch_sigma_nms=a.twitch, damping=a.damping,
                  experiments_written=experiments,
                  periods=a.periods)

@@ -92,6 +92,10 @@ pub struct Condition {
     pub theta_amp_rad: f64,
     /// Mean of `sin θ_e` over the window's whole cycles (the plant's gravity is `m g l sin θ`).
     pub sin_theta_mean: f64,
+    /// Mean SEA torque `τ_s` over the window's whole cycles (Nm; NaN when
+    /// not measured): the torque the joint's drive holds on average, the
+    /// preload of a gear mesh behind it.
+    pub tau_s_mean_nm: f64,
     /// Control period of the recording (s).
     pub sample_period_s: f64,
     /// Start of the window (s from the recording's first sensor sample).
@@ -390,6 +394,7 @@ pub fn reduce(recordings: &[Recording], s: &Reduction) -> Dataset {
                 theta0_rad: theta0,
                 theta_amp_rad: 0.0,
                 sin_theta_mean: theta0.sin(),
+                tau_s_mean_nm: f64::NAN,
                 sample_period_s: dt,
                 start_s: t0.saturating_sub(r.sensor[0].stamp_ns) as f64 * 1e-9,
                 elapsed_s: 0.0,
@@ -566,6 +571,8 @@ fn balance(
     let g_mean = tau_g[..n].iter().sum::<f64>() / nf;
     let c_mean = sig.tau_c_nm[..n].iter().sum::<f64>() / nf;
     cond.sin_theta_mean = sig.theta_rad[..n].iter().map(|t| t.sin()).sum::<f64>() / nf;
+    // τ_s = its net part + the controller's gravity compensation.
+    cond.tau_s_mean_nm = sig.tau_s_net_nm[..n].iter().sum::<f64>() / nf + g_mean;
     let Ok(a) = exo_impedance::frf::sine_amplitude(&sig.t_s[..n], &y, w, true) else {
         return;
     };

@@ -106,6 +106,10 @@ pub enum Param {
     /// `¼ K₂ Θ₁²` into the 2nd harmonic of `τ_c`: fitted there
     /// ([`crate::posture`]), not from the transfer functions.
     QuadraticStiffness,
+    /// Half the lost motion `δ` of a gear mesh between the drive's output
+    /// (motor side, inertia `J_m`) and the arm (rad), a generic form: a
+    /// backlash whose describing function is [`backlash_describing`].
+    Backlash,
 }
 
 impl Param {
@@ -137,6 +141,7 @@ impl Param {
             Param::CubicDamping => "cubic damping B₃ (Nm·s³/rad³)".into(),
             Param::StiffnessDrift => "stiffness drift ρ (1/min)".into(),
             Param::QuadraticStiffness => "posture stiffness slope K₂ (Nm/rad²)".into(),
+            Param::Backlash => "backlash half lost motion δ (rad)".into(),
         }
     }
 
@@ -164,6 +169,7 @@ impl Param {
             Param::CubicDamping => 1.0,
             Param::StiffnessDrift => 0.01,
             Param::QuadraticStiffness => 50.0,
+            Param::Backlash => 0.01,
         }
     }
 
@@ -252,6 +258,13 @@ pub struct Physics {
     /// the posture dependence `dK/dθ`): no effect on [`Physics::predict_tf`]'s
     /// fundamental; its 2nd harmonic is [`crate::posture`]'s.
     pub k2: f64,
+    /// Half the lost motion `δ` of the joint's gear mesh (rad; 0 = none;
+    /// generic form).
+    pub lash_half_rad: f64,
+    /// The motor side's inertia `J_m` behind the mesh (kg·m²), from the
+    /// plant model's `exo.backlash.motor_inertia_kg_m2` (a drive's
+    /// datasheet value: not fitted).
+    pub motor_inertia: f64,
 }
 
 impl Physics {
@@ -330,6 +343,8 @@ impl Physics {
             b3: m.human.cubic_damping_nm_s3_per_rad3,
             k_drift_per_min: m.human.stiffness_drift_per_min,
             k2: m.human.quadratic_stiffness_nm_per_rad2,
+            lash_half_rad: 0.5 * m.exo.backlash.lash_rad,
+            motor_inertia: m.exo.backlash.motor_inertia_kg_m2,
         }
     }
 
@@ -361,6 +376,7 @@ impl Physics {
             Param::CubicDamping => self.b3,
             Param::StiffnessDrift => self.k_drift_per_min,
             Param::QuadraticStiffness => self.k2,
+            Param::Backlash => self.lash_half_rad,
         }
     }
 
@@ -403,6 +419,7 @@ impl Physics {
             Param::CubicDamping => self.b3 = v,
             Param::StiffnessDrift => self.k_drift_per_min = v,
             Param::QuadraticStiffness => self.k2 = v,
+            Param::Backlash => self.lash_half_rad = v,
         }
     }
 
@@ -446,7 +463,7 @@ impl Physics {
                 let mgl = self.gravity_arm_nm
                     + self.g_load * c.load_kg * self.lever_m
                     + self.gravity_error;
-                let s_exo = -m_e * w * w
+                let mut s_exo = -m_e * w * w
                     + self.s_cuff(w, c)
                     + mgl * theta0.cos()
                     + j * w * self.b_f
@@ -456,6 +473,23 @@ impl Physics {
                         a_true,
                         w,
                     );
+                if self.lash_half_rad > 0.0 {
+                    // The arm's side of the mesh: all but the motor side's inertia.
+                    let z_arm = s_exo + self.motor_inertia * w * w;
+                    let preload = if c.tau_s_mean_nm.is_finite() {
+                        c.tau_s_mean_nm
+                    } else {
+                        mgl * c.sin_theta_mean + c.bias_nm
+                    };
+                    s_exo += backlash_describing(
+                        self.lash_half_rad,
+                        self.motor_inertia,
+                        z_arm,
+                        preload,
+                        a_true,
+                        w,
+                    );
+                }
                 // An ideal actuator's torque is the held command: the sample
                 // reads the previous hold, half a control period behind
                 // the torque acting on average over the period.
@@ -554,6 +588,7 @@ impl Physics {
         m.human.cubic_stiffness_nm_per_rad3 = self.k3;
         m.human.cubic_damping_nm_s3_per_rad3 = self.b3;
         m.human.quadratic_stiffness_nm_per_rad2 = self.k2;
+        m.exo.backlash.lash_rad = 2.0 * self.lash_half_rad;
         // The simulator's drift counts from the experiment's start, the
         // form's from its first window: the same ρ up to the fitted K_h.
         m.human.stiffness_drift_per_min = self.k_drift_per_min;
@@ -675,4 +710,46 @@ mod tests {
             assert_eq!(p.get(q), floor, "{q:?} set to {v}");
         }
     }
+}
+
+/// What backlash in the joint's drive adds to `S_h-e` (Nm/rad): a gear mesh
+/// with lost motion `2δ` between the drive's output (motor side, inertia
+/// `J_m`, where the SEA's torque acts) and the arm, whose impedance on the
+/// arm's side is `Z_arm` (so the mesh passes `Z_arm Θ`, amplitude
+/// `T = |Z_arm| A`, on top of its mean `P`, the preload). Exactly, `τ_s =
+/// Z_arm θ + J_m θ̈_m` with `θ_m = θ + Δ`, `Δ` the motor side's angle
+/// relative to the arm. Where the torque reverses (`|P| < T`), `Δ` flips
+/// between `−δ` and `+δ` at each reversal: the motor side, on its own,
+/// crosses the lost motion under the torque's ramp through zero (slope
+/// `s = T ω √(1 − (P/T)²)`), `J_m Δ̈ ≈ s t`, and reaches the middle after
+/// `t½ = (6 J_m δ / s)^{1/3}`. As a square wave of height `δ` whose edges lag
+/// the torque's zero crossings by `t½`, its fundamental is
+/// `(4/π) δ √(1 − (P/T)²) e^{−jωt½}` in phase with the mesh torque, and
+///
+/// `ΔS_h-e = −J_m ω² (4/π) (δ/A) √(1 − (P/T)²) e^{j(∠Z_arm − ω t½)}`
+///
+/// (the lag capped at π/2); nothing where the preload holds the mesh closed
+/// (`|P| ≥ T`). Assumptions: the crossing is short against half a cycle
+/// (its shape is left out, only its middle's lag kept); the impacts' losses
+/// and the mesh's own compliance are left out.
+pub fn backlash_describing(
+    half_lash_rad: f64,
+    motor_inertia: f64,
+    z_arm: Complex64,
+    preload_nm: f64,
+    amplitude_rad: f64,
+    w: f64,
+) -> Complex64 {
+    let t = z_arm.norm() * amplitude_rad;
+    if !(t > preload_nm.abs()) || amplitude_rad <= 0.0 || half_lash_rad <= 0.0 {
+        return Complex64::new(0.0, 0.0);
+    }
+    let open = (1.0 - (preload_nm / t).powi(2)).sqrt();
+    let slope = t * w * open;
+    let lag =
+        (w * (6.0 * motor_inertia * half_lash_rad / slope).cbrt()).min(std::f64::consts::FRAC_PI_2);
+    let size = motor_inertia * w * w * std::f64::consts::FRAC_2_PI * 2.0 * half_lash_rad
+        / amplitude_rad
+        * open;
+    -size * z_arm / z_arm.norm() * Complex64::from_polar(1.0, -lag)
 }

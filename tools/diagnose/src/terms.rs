@@ -56,6 +56,10 @@ pub enum Term {
     /// `K θ + ½ K₂ θ²` (`dK/dθ = K₂`), seen in the 2nd harmonic of `τ_c`
     /// ([`crate::posture`]), not in the transfer functions.
     PostureStiffness,
+    /// Generic form: backlash (lost motion `2δ`) in the gear mesh between
+    /// the drive's output and the arm, seen where the joint's torque
+    /// reverses ([`crate::model::backlash_describing`]).
+    Backlash,
 }
 
 impl Term {
@@ -81,10 +85,11 @@ impl Term {
 
     /// The library of generic forms outside the catalogue, tried when no
     /// catalogue term explains the structure that remains at a step.
-    pub const FORMS: [Term; 3] = [
+    pub const FORMS: [Term; 4] = [
         Term::CubicStiffness,
         Term::CubicDamping,
         Term::StiffnessDrift,
+        Term::Backlash,
     ];
 
     /// The generic forms that leave the transfer functions as they are and
@@ -126,6 +131,7 @@ impl Term {
             Term::PostureStiffness => {
                 "a stiffness of the human joint that depends on posture (spring K θ + ½ K₂ θ², dK/dθ = K₂)"
             }
+            Term::Backlash => "backlash (lost motion) in the exoskeleton joint's drive",
         }
     }
 
@@ -152,6 +158,7 @@ impl Term {
             Term::StiffnessDrift => "human.stiffness_drift_per_min",
             Term::CubicDamping => "human.cubic_damping_nm_s3_per_rad3",
             Term::PostureStiffness => "human.quadratic_stiffness_nm_per_rad2",
+            Term::Backlash => "exo.backlash.lash_rad",
         }
     }
 
@@ -178,6 +185,7 @@ impl Term {
             Term::CubicDamping => vec![Param::CubicDamping],
             Term::StiffnessDrift => vec![Param::StiffnessDrift],
             Term::PostureStiffness => vec![Param::QuadraticStiffness],
+            Term::Backlash => vec![Param::Backlash],
         }
     }
 
@@ -194,7 +202,10 @@ impl Term {
             | Term::StiffnessDrift => &[Tf::Sh, Tf::She],
             Term::CuffSensorDelay => &[Tf::Sh],
             Term::CuffSensorGain => &[Tf::Sh, Tf::Balance],
-            Term::CoulombFriction | Term::JointViscousFriction | Term::InertiaError => &[Tf::She],
+            Term::CoulombFriction
+            | Term::JointViscousFriction
+            | Term::InertiaError
+            | Term::Backlash => &[Tf::She],
             Term::GravityError => &[Tf::She, Tf::Balance],
             Term::TorqueSensorOffset => &[Tf::Balance],
             Term::SeaSensorDelay => &[Tf::She, Tf::Sea],
@@ -232,6 +243,7 @@ impl Term {
             Term::CubicDamping => p.b3 != 0.0,
             Term::StiffnessDrift => p.k_drift_per_min != 0.0,
             Term::PostureStiffness => p.k2 != 0.0,
+            Term::Backlash => p.lash_half_rad > 0.0,
         }
     }
 
@@ -240,7 +252,7 @@ impl Term {
     /// the amplitude check must confirm its parameters at each amplitude,
     /// not merely fail to refute them.
     pub fn amplitude_dependent(self) -> bool {
-        matches!(self, Term::CoulombFriction)
+        matches!(self, Term::CoulombFriction | Term::Backlash)
     }
 
     /// A generic form defined by how it changes with the excitation's
@@ -280,6 +292,7 @@ impl Term {
             Term::CubicDamping => p.b3 = 0.0,
             Term::StiffnessDrift => p.k_drift_per_min = 0.0,
             Term::PostureStiffness => p.k2 = 0.0,
+            Term::Backlash => p.lash_half_rad = 0.005,
         }
     }
 
@@ -413,6 +426,11 @@ impl Term {
             Term::PostureStiffness => format!(
                 "dK/dθ = K₂ = {}",
                 pm(Param::QuadraticStiffness, 1.0, 0, " Nm/rad²")
+            ),
+            Term::Backlash => format!(
+                "lost motion 2δ = {} (motor side J_m = {:.3} kg·m², the model's)",
+                pm(Param::Backlash, 2.0, 4, " rad"),
+                p.motor_inertia
             ),
         }
     }
