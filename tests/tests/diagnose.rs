@@ -47,6 +47,37 @@ fn found(v: &Value) -> Vec<String> {
         .collect()
 }
 
+/// A case whose true plant has no gravity is a horizontal rig: its run
+/// file compensates none (`rig.gravity_m_s2 = 0`), the SEA's torque
+/// reverses where no bias holds it, and the backlash form finds the lost
+/// motion; the horizontal null case gets nothing.
+#[test]
+fn the_bench_runs_a_horizontal_rig_and_finds_its_backlash() {
+    let dir = scratch("bench-horizontal");
+    let out = exo(&[
+        "diagnose-bench",
+        "--cases",
+        "backlash-horizontal-wide,null-horizontal",
+        "-o",
+        dir.to_str().unwrap(),
+        "--json",
+    ]);
+    assert!(
+        out.status.success(),
+        "exo diagnose-bench failed:\n{}\n{}",
+        stdout(&out),
+        stderr(&out)
+    );
+    let v: Value = serde_json::from_str(&stdout(&out)).unwrap();
+    let cases = v.as_array().unwrap();
+    assert_eq!(cases[0]["named"], serde_json::json!(["backlash"]), "{v:#}");
+    assert_eq!(cases[1]["named"], serde_json::json!([]), "{v:#}");
+    for case in ["backlash-horizontal-wide", "null-horizontal"] {
+        let run = std::fs::read_to_string(dir.join(format!("{case}.toml"))).unwrap();
+        assert!(run.contains("gravity_m_s2 = 0.0"), "{case}:\n{run}");
+    }
+}
+
 #[test]
 fn the_bench_names_a_concealed_gravity_error_and_nothing_in_a_null_case() {
     let dir = scratch("bench");

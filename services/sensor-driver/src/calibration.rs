@@ -93,6 +93,7 @@ mod tests {
             sea_stiffness_nm_per_rad: 350.0,
             sea_counts_per_rev: 4096.0,
             velocity_cutoff_hz: 50.0,
+            gravity_m_s2: exo_config::GRAVITY_M_S2,
         }
     }
 

@@ -81,6 +81,7 @@ pub const RUN_RANGES: Ranges = &[
     ("rig.arm_mass_kg", Range::closed(0.0, 50.0)),
     ("rig.arm_com_m", Range::closed(0.0, 2.0)),
     ("rig.load_lever_arm_m", Range::closed(0.0, 2.0)),
+    ("rig.gravity_m_s2", Range::closed(0.0, 20.0)),
     ("rig.encoder_counts_per_rev", Range::closed(1.0, 1e12)),
     ("rig.cuff_lever_arm_m", Range::above(0.0, 2.0)),
     ("rig.sea_stiffness_nm_per_rad", Range::above(0.0, 1e6)),
@@ -584,6 +585,17 @@ pub struct RigSettings {
     /// Velocity filter cut-off (Hz) of the driver's angle differentiator.
     /// Range (0, 50 000], and below half of `run.rate_hz`.
     pub velocity_cutoff_hz: f64,
+    /// Gravity in the arm's plane of motion (m/s²) for the compensation and
+    /// the gravity-only safe state: standard gravity for a joint whose axis
+    /// is horizontal (the arm swings in a vertical plane, as the paper's),
+    /// 0 for a horizontal rig (axis vertical: gravity does not turn the
+    /// joint). Default (the key absent) [`GRAVITY_M_S2`]. Range [0, 20].
+    #[serde(default = "standard_gravity")]
+    pub gravity_m_s2: f64,
+}
+
+fn standard_gravity() -> f64 {
+    GRAVITY_M_S2
 }
 
 fn range_of_run(key: &str) -> Range {
@@ -595,11 +607,12 @@ pub const GRAVITY_M_S2: f64 = 9.80665;
 
 impl RigSettings {
     /// Gravity torque (Nm) on the exoskeleton arm and its load at joint angle
-    /// `theta_rad` (0 = hanging straight down): `g (m_a l_a + m_L l_L) sin θ`.
+    /// `theta_rad` (0 = hanging straight down): `g (m_a l_a + m_L l_L) sin θ`,
+    /// `g` = `rig.gravity_m_s2`.
     /// The controller adds it to cancel gravity; the driver uses it for the
     /// gravity-only safe state.
     pub fn gravity_torque_nm(&self, theta_rad: f64, load_kg: f64) -> f64 {
-        GRAVITY_M_S2
+        self.gravity_m_s2
             * (self.arm_mass_kg * self.arm_com_m + load_kg * self.load_lever_arm_m)
             * theta_rad.sin()
     }
@@ -1131,6 +1144,7 @@ impl RunConfig {
         c.key("rig.arm_mass_kg", r.arm_mass_kg);
         c.key("rig.arm_com_m", r.arm_com_m);
         c.key("rig.load_lever_arm_m", r.load_lever_arm_m);
+        c.key("rig.gravity_m_s2", r.gravity_m_s2);
         c.key("rig.encoder_counts_per_rev", r.encoder_counts_per_rev);
         c.key("rig.cuff_lever_arm_m", r.cuff_lever_arm_m);
         c.key("rig.sea_stiffness_nm_per_rad", r.sea_stiffness_nm_per_rad);

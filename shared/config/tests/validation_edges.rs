@@ -129,6 +129,41 @@ fn the_gravity_torque_is_the_arm_and_load_moments_times_g_sin_theta() {
     assert_eq!(rig.gravity_torque_nm(0.0, 1.5), 0.0);
 }
 
+/// `rig.gravity_m_s2`: standard gravity when the key is absent, none on a
+/// horizontal rig (`0`), and a negative or NaN one refused naming the key.
+#[test]
+fn the_rigs_gravity_defaults_to_standard_and_zero_is_a_horizontal_rig() {
+    let c = accepted("grav-default", &[]);
+    assert_eq!(c.rig.gravity_m_s2, 9.80665);
+    let flat = accepted(
+        "grav-zero",
+        &[(
+            "velocity_cutoff_hz = 50.0",
+            "velocity_cutoff_hz = 50.0\ngravity_m_s2 = 0.0",
+        )],
+    );
+    assert_eq!(flat.rig.gravity_torque_nm(0.7, 4.5), 0.0);
+    let moon = accepted(
+        "grav-moon",
+        &[(
+            "velocity_cutoff_hz = 50.0",
+            "velocity_cutoff_hz = 50.0\ngravity_m_s2 = 1.62",
+        )],
+    );
+    let ratio = moon.rig.gravity_torque_nm(0.7, 4.5) / c.rig.gravity_torque_nm(0.7, 4.5);
+    assert!((ratio - 1.62 / 9.80665).abs() < 1e-12, "{ratio}");
+    for bad in ["-1.0", "nan"] {
+        refused_naming(
+            &format!("grav-{bad}"),
+            &[(
+                "velocity_cutoff_hz = 50.0",
+                &format!("velocity_cutoff_hz = 50.0\ngravity_m_s2 = {bad}"),
+            )],
+            "rig.gravity_m_s2",
+        );
+    }
+}
+
 /// Without `f_bounds` the documented default [0, 0.9] holds.
 #[test]
 fn f_bounds_default_to_zero_and_nine_tenths() {

@@ -37,6 +37,12 @@ fn same(_: &mut PlantModel, _: &Subject) {}
 
 fn same_truth(_: &mut PlantModel, _: &Subject, _: f64) {}
 
+/// A horizontal rig: no gravity turns the joint (`exo diagnose-bench` runs
+/// a case whose true plant has none with `rig.gravity_m_s2 = 0`).
+fn horizontal(m: &mut PlantModel, _: &Subject) {
+    m.gravity.enabled = false;
+}
+
 fn viscous_truth(m: &mut PlantModel, s: &Subject, _: f64) {
     viscous_tuned(m, s)
 }
@@ -179,6 +185,36 @@ pub fn cases() -> Vec<Case> {
             expected: vec![],
             truth: |m, _, scale| m.exo.backlash.lash_rad = 0.1 * scale,
             nominal: same,
+        },
+        Case {
+            name: "backlash-horizontal",
+            what: "outside the catalogue: 0.05 rad of lost motion in the joint's gear mesh of a horizontal rig (no gravity, none compensated: the mesh opens where no bias holds it; the library's backlash form)",
+            expected: vec![Term::Backlash],
+            truth: |m, _, scale| {
+                m.gravity.enabled = false;
+                m.exo.backlash.lash_rad = 0.05 * scale;
+            },
+            nominal: horizontal,
+        },
+        Case {
+            name: "backlash-horizontal-wide",
+            what: "outside the catalogue: 0.1 rad of lost motion in the joint's gear mesh of a horizontal rig",
+            expected: vec![Term::Backlash],
+            truth: |m, _, scale| {
+                m.gravity.enabled = false;
+                m.exo.backlash.lash_rad = 0.1 * scale;
+            },
+            nominal: horizontal,
+        },
+        Case {
+            name: "null-horizontal",
+            what: "no missing physics: a horizontal rig (no gravity, none compensated) and its nominal model, another seed",
+            expected: vec![],
+            truth: |m, _, _| {
+                m.gravity.enabled = false;
+                m.integration.seed = 13;
+            },
+            nominal: horizontal,
         },
         Case {
             name: "null-seed",

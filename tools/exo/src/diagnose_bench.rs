@@ -110,6 +110,9 @@ pub fn run(a: &BenchArgs) -> Result<()> {
             subject: base.subject_file.clone(),
             name: c.name.to_string(),
             plant: Some(truth_file),
+            // A true plant without gravity is a horizontal rig: its
+            // controller compensates none.
+            rig_gravity_m_s2: (!truth.gravity.enabled).then_some(0.0),
         });
         nominals.push(nominal);
     }

@@ -73,6 +73,7 @@ pub fn run(a: &ReproduceArgs) -> Result<()> {
             subject: file,
             name: subject.name.clone(),
             plant: None,
+            rig_gravity_m_s2: None,
         });
         subjects.push(subject);
     }

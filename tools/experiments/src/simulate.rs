@@ -15,16 +15,14 @@ fn absolute(p: &Path) -> Result<PathBuf> {
 
 /// Simulates one subject through the base configuration (with another
 /// plant model if `plant` is given); returns the recording.
-pub fn simulate(
-    base: &RunConfig,
-    subject: &Path,
-    plant: Option<&Path>,
-    name: &str,
-    dir: &Path,
-) -> Result<PathBuf> {
+pub fn simulate(base: &RunConfig, job: &Job, dir: &Path) -> Result<PathBuf> {
+    let name = job.name.as_str();
     let mut cfg = base.clone();
-    cfg.subject_file = absolute(subject)?;
-    cfg.plant_model = absolute(plant.unwrap_or(&cfg.plant_model))?;
+    cfg.subject_file = absolute(&job.subject)?;
+    cfg.plant_model = absolute(job.plant.as_deref().unwrap_or(&cfg.plant_model))?;
+    if let Some(g) = job.rig_gravity_m_s2 {
+        cfg.rig.gravity_m_s2 = g;
+    }
     cfg.protocol.experiments_file = absolute(&cfg.protocol.experiments_file)?;
     cfg.run.output_dir = absolute(dir)?;
     cfg.run.instance = format!("{}-{name}-{}", cfg.run.instance, std::process::id());
@@ -81,6 +79,9 @@ pub struct Job {
     pub name: String,
     /// Another plant model than the base configuration's.
     pub plant: Option<PathBuf>,
+    /// Another `rig.gravity_m_s2` than the base configuration's (0: a
+    /// horizontal rig, whose controller compensates no gravity).
+    pub rig_gravity_m_s2: Option<f64>,
 }
 
 /// [`simulate`] for each job, `workers` at a time (each on its own
@@ -102,7 +103,7 @@ pub fn simulate_each(
                 let i = next.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
                 let Some(job) = jobs.get(i) else { break };
                 on_start(i);
-                let r = simulate(base, &job.subject, job.plant.as_deref(), &job.name, dir);
+                let r = simulate(base, job, dir);
                 *results[i]
                     .lock()
                     .unwrap_or_else(std::sync::PoisonError::into_inner) = Some(r);
@@ -227,6 +228,7 @@ mod tests {
             subject: subjects.join(s),
             name: name.into(),
             plant: None,
+            rig_gravity_m_s2: None,
         };
         let jobs = [
             job("B.toml", "b"),
