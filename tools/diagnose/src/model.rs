@@ -741,7 +741,9 @@ pub fn backlash_describing(
     w: f64,
 ) -> Complex64 {
     let t = z_arm.norm() * amplitude_rad;
-    if !(t > preload_nm.abs()) || amplitude_rad <= 0.0 || half_lash_rad <= 0.0 {
+    // The mesh stays closed (or nothing is known): no effect. NaN counts as closed.
+    let opens = t > preload_nm.abs();
+    if !opens || amplitude_rad <= 0.0 || half_lash_rad <= 0.0 {
         return Complex64::new(0.0, 0.0);
     }
     let open = (1.0 - (preload_nm / t).powi(2)).sqrt();
