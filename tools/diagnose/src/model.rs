@@ -676,42 +676,6 @@ pub fn coulomb_describing(f_nm: f64, smoothing_rad_s: f64, a_rad: f64, w: f64) -
     f_nm * b1 / a_rad
 }
 
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    /// The fit's bounds, by what each parameter means: errors and offsets
-    /// and the polynomial spring and the drift take either sign; a
-    /// stiffness stays positive; the cubic damper stays passive (B₃ ≥ 0,
-    /// the simulator's range); delays and dampings are non-negative.
-    #[test]
-    fn each_parameter_is_clamped_to_what_it_can_physically_be() {
-        let plant = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
-            .join("../../configs/plants/default.toml");
-        let mut p = Physics::from_plant(&PlantModel::from_file(&plant).unwrap(), &[1]);
-        for (q, v) in [
-            (Param::InertiaError, -0.01),
-            (Param::GravityError, -0.5),
-            (Param::TorqueOffset, -0.2),
-            (Param::CubicStiffness, -50.0),
-            (Param::StiffnessDrift, -0.02),
-        ] {
-            p.set(q, v);
-            assert_eq!(p.get(q), v, "{q:?} may be negative");
-        }
-        for (q, v, floor) in [
-            (Param::CubicDamping, -1.0, 0.0),
-            (Param::K(1), -5.0, 1e-3),
-            (Param::Bh, -0.1, 0.0),
-            (Param::DelayTheta, -1e-3, 0.0),
-            (Param::SeaWn, 0.5, 1.0),
-        ] {
-            p.set(q, v);
-            assert_eq!(p.get(q), floor, "{q:?} set to {v}");
-        }
-    }
-}
-
 /// What backlash in the joint's drive adds to `S_h-e` (Nm/rad): a gear mesh
 /// with lost motion `2δ` between the drive's output (motor side, inertia
 /// `J_m`, where the SEA's torque acts) and the arm, whose impedance on the
@@ -754,4 +718,78 @@ pub fn backlash_describing(
         / amplitude_rad
         * open;
     -size * z_arm / z_arm.norm() * Complex64::from_polar(1.0, -lag)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The fit's bounds, by what each parameter means: errors and offsets
+    /// and the polynomial spring and the drift take either sign; a
+    /// stiffness stays positive; the cubic damper stays passive (B₃ ≥ 0,
+    /// the simulator's range); delays and dampings are non-negative.
+    #[test]
+    fn each_parameter_is_clamped_to_what_it_can_physically_be() {
+        let plant = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("../../configs/plants/default.toml");
+        let mut p = Physics::from_plant(&PlantModel::from_file(&plant).unwrap(), &[1]);
+        for (q, v) in [
+            (Param::InertiaError, -0.01),
+            (Param::GravityError, -0.5),
+            (Param::TorqueOffset, -0.2),
+            (Param::CubicStiffness, -50.0),
+            (Param::StiffnessDrift, -0.02),
+        ] {
+            p.set(q, v);
+            assert_eq!(p.get(q), v, "{q:?} may be negative");
+        }
+        for (q, v, floor) in [
+            (Param::CubicDamping, -1.0, 0.0),
+            (Param::K(1), -5.0, 1e-3),
+            (Param::Bh, -0.1, 0.0),
+            (Param::DelayTheta, -1e-3, 0.0),
+            (Param::SeaWn, 0.5, 1.0),
+        ] {
+            p.set(q, v);
+            assert_eq!(p.get(q), floor, "{q:?} set to {v}");
+        }
+    }
+
+    /// The backlash describing function with the numbers written out: a
+    /// mesh torque of amplitude T = |Z_arm| A = 3 Nm with no preload,
+    /// δ = 0.05 rad, J_m = 0.02 kg·m², ω = 5 rad/s: size J_m ω² (4/π) δ/A
+    /// = 0.02·25·1.27324·0.5 = 0.318310, lag ω (6 J_m δ/(T ω))^{1/3} =
+    /// 5·(4e-4)^{1/3} = 0.368403 rad, along −Z_arm/|Z_arm| = −1; with a
+    /// preload of 0.8 T the opening factor is 0.6 (size ×0.6, slope ×0.6);
+    /// none where the preload exceeds T.
+    #[test]
+    fn backlash_describing_function_by_hand() {
+        let z = Complex64::new(30.0, 0.0);
+        // J_m ω² (4/π) δ/A, written out.
+        let size = 0.02 * 25.0 * (4.0 / std::f64::consts::PI) * (0.05 / 0.1);
+        let got = backlash_describing(0.05, 0.02, z, 0.0, 0.1, 5.0);
+        let want = Complex64::from_polar(size, std::f64::consts::PI - 0.368_403_15);
+        assert!((got - want).norm() < 1e-6, "{got} against {want}");
+        let got = backlash_describing(0.05, 0.02, z, 2.4, 0.1, 5.0);
+        let lag = 5.0 * (6.0 * 0.02 * 0.05 / (3.0 * 5.0 * 0.6_f64)).cbrt();
+        let want = Complex64::from_polar(0.6 * size, std::f64::consts::PI - lag);
+        assert!((got - want).norm() < 1e-6, "{got} against {want}");
+        assert_eq!(
+            backlash_describing(0.05, 0.02, z, -3.1, 0.1, 5.0),
+            Complex64::new(0.0, 0.0)
+        );
+        assert_eq!(
+            backlash_describing(0.0, 0.02, z, 0.0, 0.1, 5.0),
+            Complex64::new(0.0, 0.0)
+        );
+        // Its direction follows the arm's impedance.
+        let zi = Complex64::new(0.0, 30.0);
+        let got = backlash_describing(0.05, 0.02, zi, 0.0, 0.1, 5.0);
+        let want = Complex64::from_polar(size, -std::f64::consts::FRAC_PI_2 - 0.368_403_15);
+        assert!((got - want).norm() < 1e-6, "{got} against {want}");
+        // A long crossing: the lag is capped at π/2.
+        let got = backlash_describing(0.05, 2.0, z, 0.0, 0.1, 5.0);
+        let want = Complex64::from_polar(100.0 * size, std::f64::consts::FRAC_PI_2);
+        assert!((got - want).norm() < 1e-4, "{got} against {want}");
+    }
 }
