@@ -257,11 +257,15 @@ impl Term {
 
     /// A generic form defined by how it changes with the excitation's
     /// amplitude (its describing function grows with A²): at one amplitude
-    /// the polynomial spring is a constant on K and the cubic damper a
-    /// damping growing as ω³, i.e. a frequency dependence, so such a form
-    /// is only taken from recordings with at least two amplitudes.
+    /// the polynomial spring is a constant on K, the cubic damper a damping
+    /// growing as ω³ and backlash an inertia-like `ω²` term, i.e. a
+    /// frequency dependence, so such a form is only taken from recordings
+    /// with at least two amplitudes.
     pub fn needs_two_amplitudes(self) -> bool {
-        matches!(self, Term::CubicStiffness | Term::CubicDamping)
+        matches!(
+            self,
+            Term::CubicStiffness | Term::CubicDamping | Term::Backlash
+        )
     }
 
     /// Starting values when the term is added to `p`.

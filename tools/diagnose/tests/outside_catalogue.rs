@@ -312,3 +312,69 @@ fn our_simulators_posture_dependent_stiffness_is_discovered_in_the_2nd_harmonic(
         assert!(updated.validate("updated-plant.toml").is_ok());
     }
 }
+
+/// Bad input for the amplitude-dependent forms: recordings at one
+/// excitation amplitude. Backlash on a horizontal rig is then not named
+/// (its 1/A cannot be told from a frequency dependence), and the tool says
+/// why, naming the protocol that would decide; the posture form, fitted on
+/// the 2nd harmonic's own phase and size, is still found and says that its
+/// growth as A² was not checked.
+#[test]
+fn one_excitation_amplitude_cannot_decide_an_amplitude_dependence() {
+    let one_amplitude = |mut v: Vec<exo_diagnose::synth::SynthPeriod>| {
+        for p in &mut v {
+            p.amplitude_nm = 2.0;
+        }
+        v
+    };
+    let periods = one_amplitude(common::protocol(&[
+        (1, 20.0, 8.0, 4.5, 0.0),
+        (2, 40.0, 16.0, 4.5, 4.0),
+    ]));
+    let run = |truth: &exo_plant_sim::PlantModel, nominal: &exo_plant_sim::PlantModel| {
+        let rec = synthesize(truth, &periods, &SynthSettings::default());
+        let d = reduce(&[rec], &Reduction::default());
+        diagnose(&d, nominal, &Settings::default()).expect("diagnosis")
+    };
+
+    let mut nominal = default_plant();
+    nominal.gravity.enabled = false;
+    let mut truth = nominal;
+    truth.exo.backlash.lash_rad = 0.1;
+    let r = run(&truth, &nominal);
+    let text = r.verdict.join("\n");
+    assert!(
+        r.found.iter().all(|f| f.term != Term::Backlash),
+        "named at one amplitude:\n{text}"
+    );
+    let reasons: Vec<&String> = r
+        .steps
+        .iter()
+        .flat_map(|s| &s.candidates)
+        .filter(|c| c.term == Term::Backlash)
+        .flat_map(|c| &c.rejected_because)
+        .collect();
+    assert!(
+        reasons
+            .iter()
+            .any(|w| w.contains("one excitation amplitude")),
+        "{reasons:#?}\n{text}"
+    );
+
+    let mut truth = default_plant();
+    truth.human.quadratic_stiffness_nm_per_rad2 = 15.0;
+    let r = run(&truth, &default_plant());
+    let text = r.verdict.join("\n");
+    let posture: Vec<_> = r
+        .found
+        .iter()
+        .filter(|f| f.term == Term::PostureStiffness)
+        .collect();
+    assert_eq!(posture.len(), 1, "{text}");
+    assert!(
+        posture[0]
+            .sentence
+            .contains("one amplitude: its growth as A² not checked"),
+        "{text}"
+    );
+}
