@@ -613,6 +613,34 @@ fn a_quadratic_spring_puts_a_quarter_k2_theta_squared_into_the_2nd_harmonic() {
     );
 }
 
+/// The quadratic spring acts about the posture the human holds: with the
+/// posture at 0.3 rad and a constant 2 Nm on the joint, the joint sits
+/// where `K d + ½ K₂ d² = 2` (d from the posture; solved here in closed
+/// form), not where a spring about 0 would put it.
+#[test]
+fn a_quadratic_spring_acts_about_the_held_posture() {
+    let mut m = quiet(default_model());
+    m.human.hysteretic_damping.enabled = false;
+    m.human.viscous_damping.enabled = true;
+    m.human.viscous_damping.b_nm_s_per_rad = 5.0; // well damped: quasi-static
+    m.human.quadratic_stiffness_nm_per_rad2 = 100.0;
+    m.validate("test").unwrap();
+    let mut p = Plant::new(&m);
+    p.set_drive(HumanDrive {
+        theta_eq_rad: 0.3,
+        omega_eq_rad_s: 0.0,
+    });
+    p.advance(30.0, 2.0);
+    let (k, k2) = (m.human.stiffness_nm_per_rad, 100.0);
+    // ½ K₂ d² + K d − τ = 0, the root near τ/K.
+    let d = (-k + (k * k + 2.0 * k2 * 2.0).sqrt()) / k2;
+    let got = p.truth().theta_h_rad - 0.3;
+    assert!(
+        (got - d).abs() < 1e-3 * d,
+        "deflection {got} rad; the spring about the posture says {d}"
+    );
+}
+
 /// The cubic damper acts on the human's motion relative to the drive's
 /// own (`ω_h − ω_eq`, as the linear damper): with the drive moving at a
 /// constant 0.3 rad/s and the joint following it, the damper adds no
