@@ -47,17 +47,12 @@ fn found(v: &Value) -> Vec<String> {
         .collect()
 }
 
-/// A case whose true plant has no gravity is a horizontal rig: its run
-/// file compensates none (`rig.gravity_m_s2 = 0`), the SEA's torque
-/// reverses where no bias holds it, and the backlash form finds the lost
-/// motion; the horizontal null case gets nothing.
-#[test]
-fn the_bench_runs_a_horizontal_rig_and_finds_its_backlash() {
-    let dir = scratch("bench-horizontal");
+/// `exo diagnose-bench --cases CASES -o DIR --json`, which must succeed.
+fn bench_json(dir: &Path, cases: &str) -> Value {
     let out = exo(&[
         "diagnose-bench",
         "--cases",
-        "backlash-horizontal-wide,null-horizontal",
+        cases,
         "-o",
         dir.to_str().unwrap(),
         "--json",
@@ -68,7 +63,17 @@ fn the_bench_runs_a_horizontal_rig_and_finds_its_backlash() {
         stdout(&out),
         stderr(&out)
     );
-    let v: Value = serde_json::from_str(&stdout(&out)).unwrap();
+    serde_json::from_str(&stdout(&out)).unwrap()
+}
+
+/// A case whose true plant has no gravity is a horizontal rig: its run
+/// file compensates none (`rig.gravity_m_s2 = 0`), the SEA's torque
+/// reverses where no bias holds it, and the backlash form finds the lost
+/// motion; the horizontal null case gets nothing.
+#[test]
+fn the_bench_runs_a_horizontal_rig_and_finds_its_backlash() {
+    let dir = scratch("bench-horizontal");
+    let v = bench_json(&dir, "backlash-horizontal-wide,null-horizontal");
     let cases = v.as_array().unwrap();
     assert_eq!(cases[0]["named"], serde_json::json!(["backlash"]), "{v:#}");
     assert_eq!(cases[1]["named"], serde_json::json!([]), "{v:#}");
@@ -81,21 +86,7 @@ fn the_bench_runs_a_horizontal_rig_and_finds_its_backlash() {
 #[test]
 fn the_bench_names_a_concealed_gravity_error_and_nothing_in_a_null_case() {
     let dir = scratch("bench");
-    let out = exo(&[
-        "diagnose-bench",
-        "--cases",
-        "gravity,null-params",
-        "-o",
-        dir.to_str().unwrap(),
-        "--json",
-    ]);
-    assert!(
-        out.status.success(),
-        "exo diagnose-bench failed:\n{}\n{}",
-        stdout(&out),
-        stderr(&out)
-    );
-    let v: Value = serde_json::from_str(&stdout(&out)).unwrap();
+    let v = bench_json(&dir, "gravity,null-params");
     let cases = v.as_array().unwrap();
     assert_eq!(cases.len(), 2);
     assert_eq!(cases[0]["case"], "gravity");

@@ -86,6 +86,28 @@ fn a_linear_plant_gets_no_generic_form() {
     assert!(!p.accepted, "{p:#?}");
 }
 
+/// A discovered form's value in the final model is within `tol` (relative)
+/// of the generator's `truth`, and the updated plant model holds it under
+/// its key and validates (the simulator can run it).
+fn assert_written(
+    r: &exo_diagnose::Diagnosis,
+    nominal: &exo_plant_sim::PlantModel,
+    label: &str,
+    truth: f64,
+    tol: f64,
+    fitted: f64,
+    written: impl Fn(&exo_plant_sim::PlantModel) -> f64,
+) {
+    let text = r.verdict.join("\n");
+    assert!(
+        (fitted - truth).abs() < tol * truth,
+        "{label}: fitted {fitted}\n{text}"
+    );
+    let updated = r.updated_plant(nominal);
+    assert_eq!(written(&updated), fitted, "{label}");
+    assert!(updated.validate("updated-plant.toml").is_ok(), "{label}");
+}
+
 /// Runs the protocol of two experiments (K_h 20 and 40 Nm/rad, bias 0 and
 /// 4 Nm) through `truth` and diagnoses it against `nominal`.
 fn diagnose_against(
@@ -158,14 +180,15 @@ fn our_simulators_cubic_damper_is_discovered_or_left_unexplained() {
         if forms.is_empty() {
             assert!(text.contains("unexplained"), "B₃ = {b3}:\n{text}");
         } else {
-            let fitted = r.final_physics.b3;
-            assert!(
-                (fitted - b3).abs() < 0.2 * b3,
-                "B₃ = {b3}: fitted {fitted}\n{text}"
+            assert_written(
+                &r,
+                &nominal,
+                &format!("B₃ = {b3}"),
+                b3,
+                0.2,
+                r.final_physics.b3,
+                |m| m.human.cubic_damping_nm_s3_per_rad3,
             );
-            let updated = r.updated_plant(&nominal);
-            assert_eq!(updated.human.cubic_damping_nm_s3_per_rad3, fitted);
-            assert!(updated.validate("updated-plant.toml").is_ok());
         }
     }
 }
@@ -213,14 +236,15 @@ fn backlash_without_a_preload_is_discovered_or_left_unexplained() {
         }
         let found = r.found.iter().any(|f| f.term == Term::Backlash);
         if found {
-            let fitted = 2.0 * r.final_physics.lash_half_rad;
-            assert!(
-                (fitted - lash).abs() < 0.15 * lash,
-                "lash {lash}: fitted {fitted}\n{text}"
+            assert_written(
+                &r,
+                &nominal,
+                &format!("lash {lash}"),
+                lash,
+                0.15,
+                2.0 * r.final_physics.lash_half_rad,
+                |m| m.exo.backlash.lash_rad,
             );
-            let updated = r.updated_plant(&nominal);
-            assert_eq!(updated.exo.backlash.lash_rad, fitted);
-            assert!(updated.validate("updated-plant.toml").is_ok());
         } else {
             assert!(
                 r.found.is_empty() || text.contains("remains unexplained"),
@@ -302,14 +326,15 @@ fn our_simulators_posture_dependent_stiffness_is_discovered_in_the_2nd_harmonic(
                 f.term
             );
         }
-        let fitted = r.final_physics.k2;
-        assert!(
-            (fitted - k2).abs() < 0.1 * k2,
-            "K₂ = {k2}: fitted {fitted}\n{text}"
+        assert_written(
+            &r,
+            &nominal,
+            &format!("K₂ = {k2}"),
+            k2,
+            0.1,
+            r.final_physics.k2,
+            |m| m.human.quadratic_stiffness_nm_per_rad2,
         );
-        let updated = r.updated_plant(&nominal);
-        assert_eq!(updated.human.quadratic_stiffness_nm_per_rad2, fitted);
-        assert!(updated.validate("updated-plant.toml").is_ok());
     }
 }
 
