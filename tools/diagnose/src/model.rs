@@ -705,9 +705,11 @@ pub fn backlash_describing(
     w: f64,
 ) -> Complex64 {
     let t = z_arm.norm() * amplitude_rad;
-    // The mesh stays closed (or nothing is known): no effect. NaN counts as closed.
+    // The mesh stays closed (or nothing is known): no effect. NaN counts as
+    // closed, and so does no motion (`A ≤ 0` makes `T ≤ 0`); no lost motion
+    // (or a negative one, which means nothing) is no effect.
     let opens = t > preload_nm.abs();
-    if !opens || amplitude_rad <= 0.0 || half_lash_rad <= 0.0 {
+    if !opens || half_lash_rad <= 0.0 {
         return Complex64::new(0.0, 0.0);
     }
     let open = (1.0 - (preload_nm / t).powi(2)).sqrt();
