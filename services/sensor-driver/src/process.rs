@@ -199,10 +199,14 @@ impl Process for DriverProcess {
     fn finish(mut self) -> Result<()> {
         if let Bus::Ethercat(bus) = &mut self.bus {
             let c = bus.counters();
-            let (exchange, lateness) = bus.timing();
+            let [exchange, lateness, own] = bus.timing();
             for (what, r) in [
                 ("exchange (LRW out → inputs back)", exchange),
                 ("wake-up lateness", lateness),
+                (
+                    "driver's part of the cycle (frame handed over → next read)",
+                    own,
+                ),
             ] {
                 if let Some(r) = r {
                     let l = r.latency;

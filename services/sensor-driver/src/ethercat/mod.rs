@@ -296,6 +296,10 @@ pub struct EthercatBus {
     announced_enabled: bool,
     exchange_time: RoundTrip,
     wake_lateness: RoundTrip,
+    /// The driver's own part of each cycle: from the frame handed over to
+    /// the next `read` (publish, the controller's command, the write).
+    driver_part: RoundTrip,
+    handed_over_ns: u64,
 }
 
 impl EthercatBus {
@@ -470,6 +474,8 @@ impl EthercatBus {
             announced_enabled: false,
             exchange_time: RoundTrip::new(TIMING_WARMUP_S),
             wake_lateness: RoundTrip::new(TIMING_WARMUP_S),
+            driver_part: RoundTrip::new(TIMING_WARMUP_S),
+            handed_over_ns: 0,
         })
     }
 
@@ -490,11 +496,16 @@ impl EthercatBus {
     }
 
     /// Percentiles of the exchange (cycle start → the drive's inputs back:
-    /// the LRW's round trip through the master, the wire and the drive)
-    /// and of the cycle's wake-up lateness (deadline → cycle start), after
+    /// the LRW's round trip through the master, the wire and the drive), of
+    /// the cycle's wake-up lateness (deadline → cycle start) and of the
+    /// driver's own part of the cycle (frame handed over → next read), after
     /// the first second.
-    pub fn timing(&self) -> (Option<RoundTripReport>, Option<RoundTripReport>) {
-        (self.exchange_time.report(), self.wake_lateness.report())
+    pub fn timing(&self) -> [Option<RoundTripReport>; 3] {
+        [
+            self.exchange_time.report(),
+            self.wake_lateness.report(),
+            self.driver_part.report(),
+        ]
     }
 
     /// The CiA 402 phase the master is in.
@@ -698,6 +709,9 @@ impl HardwareBus for EthercatBus {
     /// flagged `FRAME_ERROR`, so the driver latches in this cycle.
     fn read(&mut self, _timeout: Duration) -> Result<Option<RawFrame>, EthercatError> {
         let now = monotonic_ns();
+        if self.handed_over_ns != 0 {
+            self.driver_part.record(self.handed_over_ns, now);
+        }
         if self.next_ns == 0 {
             self.next_ns = now;
         } else if now < self.next_ns {
@@ -805,6 +819,7 @@ impl HardwareBus for EthercatBus {
         self.last.stamp_ns = start;
         self.last.status = status;
         self.seq += 1;
+        self.handed_over_ns = monotonic_ns();
         Ok(Some(self.last))
     }
 
