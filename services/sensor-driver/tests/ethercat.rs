@@ -349,6 +349,20 @@ fn the_drive_comes_up_to_operation_enabled_and_follows_torque_set_points() {
         allocations, 0,
         "heap allocations in 2000 cycles of read → driver → write"
     );
+    // The timing the driver logs at exit: the driver's part of the cycle
+    // is timed in every cycle whose exchange is (after the same warm-up),
+    // one behind it.
+    let [exchange, _, own] = rig.bus.timing();
+    let (exchange, own) = (
+        exchange.expect("exchanges timed"),
+        own.expect("driver's part timed"),
+    );
+    assert!(
+        own.latency.count > 0 && own.latency.count.abs_diff(exchange.latency.count) <= 1,
+        "driver's part over {} cycles, exchange over {}",
+        own.latency.count,
+        exchange.latency.count
+    );
     assert!(net.sim_alive());
 }
 
