@@ -1409,6 +1409,81 @@ fn share_words(share: f64) -> String {
     }
 }
 
+/// What a term was taken on: its F-test, held-out change and share of the
+/// misfit (a catalogue candidate's, or the posture form's in the 2nd
+/// harmonic).
+struct Evidence {
+    f: f64,
+    f_critical: f64,
+    p_holm: f64,
+    heldout_change: f64,
+    explained_share: f64,
+}
+
+/// The verdict's entry for a term taken on `ev`: its sentence (a generic
+/// form "discovered" or "partly explained", a catalogue term "left out" or
+/// "partly explained by"), flagged marginal at [`MARGINAL_P`]. A generic
+/// form's sentence has `context` before its share of the misfit, `detail`
+/// after it and `tail` after the statistics.
+fn found_entry(
+    t: Term,
+    description: String,
+    ev: &Evidence,
+    partial: bool,
+    context: &str,
+    detail: &str,
+    tail: &str,
+) -> Found {
+    let marginal = ev.p_holm >= MARGINAL_P;
+    let stats = format!(
+        "F = {:.1} against a critical {:.2} (Holm-adjusted p = {:.2e}{}); held-out RSS {:+.0} %",
+        ev.f,
+        ev.f_critical,
+        ev.p_holm,
+        if marginal {
+            ", marginal: not significant at 0.001, another recording may not confirm it"
+        } else {
+            ""
+        },
+        100.0 * ev.heldout_change
+    );
+    let share = share_words(ev.explained_share);
+    let sentence = if t.generic() {
+        format!(
+            "{}: {}, {description}; {context}{share}{}{detail}; {stats}{tail}",
+            if partial {
+                "partly explained by a form outside the catalogue"
+            } else {
+                "discovered outside the catalogue"
+            },
+            t.words(),
+            if partial { ", most of it remains" } else { "" }
+        )
+    } else if partial {
+        format!(
+            "partly explained by {}, {description}: it {share}; most of it remains ({stats})",
+            t.words()
+        )
+    } else {
+        format!("left out: {}, {description}; {share}; {stats}", t.words())
+    };
+    Found {
+        term: t,
+        toml_key: t.toml_key(),
+        words: t.words(),
+        sentence,
+        description,
+        f: ev.f,
+        f_critical: ev.f_critical,
+        p_holm: ev.p_holm,
+        heldout_change: ev.heldout_change,
+        explained_share: ev.explained_share,
+        partial,
+        discovered: t.generic(),
+        marginal,
+    }
+}
+
 /// Runs the whole diagnosis of `d` against the plant model `nominal`.
 pub fn diagnose(
     d: &Dataset,
@@ -1598,60 +1673,22 @@ pub fn diagnose(
         .into_iter()
         .map(|(t, c, partial)| {
             let se = |q: Param| current.std_error(q);
-            let description = t.describe(&current.physics, &se);
-            let marginal = c.p_holm >= MARGINAL_P;
-            let stats = format!(
-                "F = {:.1} against a critical {:.2} (Holm-adjusted p = {:.2e}{}); held-out RSS {:+.0} %",
-                c.f,
-                c.f_critical,
-                c.p_holm,
-                if marginal {
-                    ", marginal: not significant at 0.001, another recording may not confirm it"
-                } else {
-                    ""
-                },
-                100.0 * c.heldout_change
-            );
-            let sentence = if t.generic() {
-                format!(
-                    "{}: {}, {description}; {}{}; {stats}",
-                    if partial {
-                        "partly explained by a form outside the catalogue"
-                    } else {
-                        "discovered outside the catalogue"
-                    },
-                    t.words(),
-                    share_words(c.explained_share),
-                    if partial { ", most of it remains" } else { "" }
-                )
-            } else if partial {
-                format!(
-                    "partly explained by {}, {description}: it {}; most of it remains ({stats})",
-                    t.words(),
-                    share_words(c.explained_share)
-                )
-            } else {
-                format!(
-                    "left out: {}, {description}; {}; {stats}",
-                    t.words(),
-                    share_words(c.explained_share)
-                )
-            };
-            Found {
-                term: t,
-                toml_key: t.toml_key(),
-                words: t.words(),
-                sentence,
-                description,
+            let evidence = Evidence {
                 f: c.f,
                 f_critical: c.f_critical,
                 p_holm: c.p_holm,
                 heldout_change: c.heldout_change,
                 explained_share: c.explained_share,
+            };
+            found_entry(
+                t,
+                t.describe(&current.physics, &se),
+                &evidence,
                 partial,
-                discovered: t.generic(),
-                marginal,
-            }
+                "",
+                "",
+                "",
+            )
         })
         .collect();
 
@@ -1666,55 +1703,35 @@ pub fn diagnose(
         };
         let partial =
             (p.explained_share.is_nan() || p.explained_share < 0.5) && p.lack_of_fit_p < s.level;
-        let marginal = p.p_holm >= MARGINAL_P;
-        let description = t.describe(&current.physics, &se);
         let amplitude = match p.per_amplitude {
             Some([(lo, s_lo), (hi, s_hi)]) => format!(
-                "the same at both amplitudes (K₂ {} and {}: its harmonic grows as A²)",
+                "; the same at both amplitudes (K₂ {} and {}: its harmonic grows as A²)",
                 plain_pm(lo, s_lo),
                 plain_pm(hi, s_hi)
             ),
-            None => "one amplitude: its growth as A² not checked".into(),
+            None => "; one amplitude: its growth as A² not checked".into(),
         };
         let second_order = posture_chi2.map_or(String::new(), |(a, b)| {
             format!(
                 "; the shift of the stiffness with the amplitude it predicts (−K₂² A²/4K, nothing fitted for it) takes the transfer functions' χ²/dof from {a:.2} to {b:.2}"
             )
         });
-        found.push(Found {
-            term: t,
-            toml_key: t.toml_key(),
-            words: t.words(),
-            sentence: format!(
-                "{}: {}, {description}; in the 2nd harmonic of τ_c, which the transfer functions do not see: it {}{}; {amplitude}; F = {:.1} against a critical {:.2} (Holm-adjusted p = {:.2e}{}); held-out {:+.0} %{second_order}",
-                if partial {
-                    "partly explained by a form outside the catalogue"
-                } else {
-                    "discovered outside the catalogue"
-                },
-                t.words(),
-                share_words(p.explained_share),
-                if partial { ", most of it remains" } else { "" },
-                p.f,
-                p.f_critical,
-                p.p_holm,
-                if marginal {
-                    ", marginal: not significant at 0.001, another recording may not confirm it"
-                } else {
-                    ""
-                },
-                100.0 * p.heldout_change
-            ),
-            description,
+        let evidence = Evidence {
             f: p.f,
             f_critical: p.f_critical,
             p_holm: p.p_holm,
             heldout_change: p.heldout_change,
             explained_share: p.explained_share,
+        };
+        found.push(found_entry(
+            t,
+            t.describe(&current.physics, &se),
+            &evidence,
             partial,
-            discovered: true,
-            marginal,
-        });
+            "in the 2nd harmonic of τ_c, which the transfer functions do not see: it ",
+            &amplitude,
+            &second_order,
+        ));
     }
     // Structure in the 2nd harmonic that the form does not account for.
     let harmonic_unexplained = posture

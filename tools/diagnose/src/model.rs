@@ -757,6 +757,44 @@ mod tests {
         }
     }
 
+    /// A posture-dependent stiffness moves the human's stiffness at angle
+    /// amplitude A by `−K₂² A²/4K` (its mean torque shifts the posture),
+    /// written out: K = 30, K₂ = 20, A = 0.1 rad → −400·0.01/120 =
+    /// −0.0333 Nm/rad in S_h's real part, nothing in its imaginary part.
+    #[test]
+    fn the_posture_form_shifts_the_stiffness_by_k2_squared_a_squared_over_4k() {
+        let plant = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("../../configs/plants/default.toml");
+        let mut p = Physics::from_plant(&PlantModel::from_file(&plant).unwrap(), &[1]);
+        p.k.insert(1, 30.0);
+        p.delay_s = [0.0; 4];
+        let c = Condition {
+            experiment: 1,
+            period: 1,
+            load_kg: 0.0,
+            bias_nm: 0.0,
+            alpha: 1.0,
+            amplitude_nm: 2.0,
+            theta0_rad: 0.0,
+            theta_amp_rad: 0.1 * p.gain[0],
+            sin_theta_mean: 0.0,
+            tau_s_mean_nm: f64::NAN,
+            sample_period_s: 0.001,
+            start_s: 0.0,
+            elapsed_s: 0.0,
+        };
+        let zero = Complex64::new(0.0, 0.0);
+        let before = p.predict_tf(Tf::Sh, 3.0, &c, zero);
+        p.k2 = 20.0;
+        let after = p.predict_tf(Tf::Sh, 3.0, &c, zero);
+        let want = -20.0 * 20.0 * 0.01 / (4.0 * 30.0) * p.gain[1] / p.gain[0];
+        assert!(
+            ((after - before).re - want).abs() < 1e-9 && (after - before).im.abs() < 1e-9,
+            "{} against {want}",
+            after - before
+        );
+    }
+
     /// The backlash describing function with the numbers written out: a
     /// mesh torque of amplitude T = |Z_arm| A = 3 Nm with no preload,
     /// δ = 0.05 rad, J_m = 0.02 kg·m², ω = 5 rad/s: size J_m ω² (4/π) δ/A

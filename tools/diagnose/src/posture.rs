@@ -149,7 +149,8 @@ pub struct PostureFit {
     /// Share of the misfit beyond the noise it removes (NaN when the
     /// misfit was within the noise's expectation).
     pub explained_share: f64,
-    /// Lack-of-fit p after it (the whitened RSS against χ²(2n − 1)).
+    /// Lack-of-fit p after it (the whitened RSS against χ² with 2n real
+    /// rows less the form and one nuisance per experiment).
     pub lack_of_fit_p: f64,
     /// `K₂ ± se` per experiment.
     pub per_experiment: Vec<(u32, f64, f64)>,
@@ -185,8 +186,7 @@ pub(crate) fn fit(
             let (noise_power, th, tc) = (*h)?;
             let w = s.omega_rad_s;
             let c = &d.conditions[i];
-            // Per real component: E|X|² = 2σ².
-            let sd = (0.5 * noise_power).sqrt();
+            let sd = crate::signatures::component_sd(noise_power);
             let square = th[0] * th[0] * 0.25;
             let y =
                 tc[1] - current.predict_tf(Tf::Sh, 2.0 * w, c, zero) * th[1] - current.k2 * square;
@@ -205,12 +205,11 @@ pub(crate) fn fit(
         return None;
     }
     let k2 = current.k2 + dk2;
+    let mut experiments: Vec<u32> = rows.iter().map(|r| r.experiment).collect();
+    experiments.sort_unstable();
+    experiments.dedup();
     let n_real = (2 * n) as f64;
-    let n_nuisance = rows
-        .iter()
-        .map(|r| r.experiment)
-        .collect::<std::collections::BTreeSet<_>>()
-        .len() as f64;
+    let n_nuisance = experiments.len() as f64;
     let dof1 = n_real - 1.0 - n_nuisance;
     let f = (rss0 - rss1) / (rss1 / dof1).max(1e-300);
     let forms = (Term::FORMS.len() + Term::HARMONIC_FORMS.len()) as f64;
@@ -255,9 +254,6 @@ pub(crate) fn fit(
     let lack_of_fit_p = statrs::distribution::ChiSquared::new(dof1)
         .map(|c| c.sf(rss1))
         .unwrap_or(f64::NAN);
-    let mut experiments: Vec<u32> = rows.iter().map(|r| r.experiment).collect();
-    experiments.sort_unstable();
-    experiments.dedup();
     let per_experiment: Vec<(u32, f64, f64)> = experiments
         .iter()
         .filter_map(|&e| {

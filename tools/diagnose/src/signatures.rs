@@ -253,8 +253,7 @@ pub fn cubic_harmonic_check(
             continue;
         };
         let c = &d.conditions[i];
-        // Per real component: E|X|² = 2σ².
-        let sd = (0.5 * noise_power).sqrt();
+        let sd = component_sd(noise_power);
         let zero = Complex64::new(0.0, 0.0);
         let cube = th[0] * th[0] * th[0] * 0.25;
         let jw3 = Complex64::new(0.0, -w * w * w); // (jω)³
@@ -278,6 +277,13 @@ pub fn cubic_harmonic_check(
         .sum::<f64>()
         / dof;
     Some((mm, beta, (scatter.max(1.0) / mm).sqrt(), rows.len()))
+}
+
+/// The noise's standard deviation of each real component of a harmonic's
+/// phasor, from the noise power per bin (`E|X|² = 2σ²`): what the harmonic
+/// checks whiten by.
+pub(crate) fn component_sd(noise_power: f64) -> f64 {
+    (0.5 * noise_power).sqrt()
 }
 
 /// Every window's `θ_e` and `τ_c` harmonics with `τ_c`'s noise power per

@@ -176,3 +176,34 @@ fn every_term_of_the_plant_matches_the_forward_model() {
     }
     assert!(failures.is_empty(), "{failures:#?}");
 }
+
+/// Each window's mean SEA torque (the preload a gear mesh behind the SEA
+/// carries, `Condition::tau_s_mean_nm`) is what holds the arm on average:
+/// the plant's gravity at the window's `⟨sin θ⟩`, `g (m_a l_a + m_L l_L)`
+/// from the plant model, plus the cuff's mean torque.
+#[test]
+fn each_windows_mean_sea_torque_holds_the_arms_gravity_and_the_cuff() {
+    let model = default_plant();
+    let s = SynthSettings {
+        settle_s: 12.0,
+        analysis_s: 8.0,
+        ..SynthSettings::default()
+    };
+    let ps = periods();
+    let d = reduce(&[synthesize(&model, &ps, &s)], &Reduction::default());
+    let g = &model.gravity;
+    let mut seen = 0;
+    for o in d.observations.iter().filter(|o| o.tf == Tf::Balance) {
+        let c = &d.conditions[o.window];
+        let mgl = g.g_m_s2 * (g.arm_mass_kg * g.arm_com_m + c.load_kg * model.exo.load_lever_arm_m);
+        let want = mgl * c.sin_theta_mean + o.statics[1];
+        assert!(
+            (c.tau_s_mean_nm - want).abs() < 0.1,
+            "window {}: mean τ_s {} Nm, gravity and cuff {want} Nm",
+            o.window,
+            c.tau_s_mean_nm
+        );
+        seen += 1;
+    }
+    assert_eq!(seen, ps.len());
+}
