@@ -9,6 +9,9 @@
 # Usage: tools/scripts/bench_ethercat.sh [SECONDS=20]   (from the workspace root)
 #   WARMUP=s   round trips left out at the start (default 0.5)
 #   RATE=Hz    the cycle (default 1000; an integer)
+#   CAPTURE=file.pcap  capture the master's interface during the first row
+#              with tcpdump (not installed by this script), for
+#              tools/scripts/ethercat_capture.py
 # Needs: unshare -n as root (else unshare -rn: a user namespace, where the
 # processes' own SCHED_FIFO and mlock requests are refused), ip, chrt -f.
 # Three rows: `ethercat-kickcat`, KickCAT's own motor with torque scale 0 (a
@@ -92,7 +95,7 @@ if not r: print("no round trip recorded"); sys.exit()
 l = r; us = lambda k: l[k] / 1000
 print(f"n={l['count']:6d}  p50 {us('p50_ns'):7.1f} us  p99 {us('p99_ns'):7.1f} us  p99.9 {us('p999_ns'):7.1f} us  max {us('max_ns'):8.1f} us")
 PY
-  grep -h "real-time settings\|not permitted\|safe state latched\|EtherCAT fault\|EtherCAT exchange\|EtherCAT wake-up\|EtherCAT [0-9]* cycles" "$out/$name-driver.log" | head -9 | sed 's/^ *[A-Z]* sensor-driver: /    /' || true
+  grep -h "real-time settings\|driver's part\|not permitted\|safe state latched\|EtherCAT fault\|EtherCAT exchange\|EtherCAT wake-up\|EtherCAT [0-9]* cycles" "$out/$name-driver.log" | head -10 | sed 's/^ *[A-Z]* sensor-driver: /    /' || true
 }
 
 export -f run 2>/dev/null || true
@@ -106,7 +109,10 @@ $fifo $ns bash -c "
   cd '$kc'; ./network_simulator -i ecs0 -s slave_configs/ecat402-drive-still.json >/dev/null 2>&1 & sim=\$!
   sleep 1; cd '$root'
   $(declare -f run); out='$out' bin='$bin' secs='$secs' warmup='$warmup'
+  cap='${CAPTURE:-}'; td=
+  if [ -n \"\$cap\" ]; then tcpdump -i ecm0 -j adapter_unsynced --time-stamp-precision=nano -w \"\$cap\" 2>/dev/null & td=\$!; sleep 1; fi
   run ethercat-kickcat '$out/ecat.toml' 0
+  if [ -n \"\$td\" ]; then kill \$td; sleep 0.5; fi
   kill \$sim; sleep 0.5
   '$pd/exo_plant_drive' -i ecs0 -s '$pd/slave_configs/exo-drive.json' -r '$out/plant.toml' >/dev/null 2>'$out/drive.log' & sim=\$!
   sleep 1
