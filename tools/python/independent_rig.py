@@ -417,20 +417,20 @@ def simulate(specs, pre_window_s=PRE_WINDOW_S, k_cubic=0.0, k_exo_spring=0.0, k_
         pln = plan[:, n]
 
         def f(th_, om_, ts_, dts_, q_):
-            cubic = ((k_cubic * (th_ - thp) ** 3 if k_cubic else 0.0) + (b_cubic * om_ ** 3 if b_cubic else 0.0)
-                     + (0.5 * k_quad * (th_ - pln) ** 2 if k_quad else 0.0))
+            nonlin = ((k_cubic * (th_ - thp) ** 3 if k_cubic else 0.0) + (b_cubic * om_ ** 3 if b_cubic else 0.0)
+                      + (0.5 * k_quad * (th_ - pln) ** 2 if k_quad else 0.0))
             spring = k_exo_spring * (th_ - th_goal)
-            return (om_, (ts_ - g_true * np.sin(th_) - spring - b * om_ - kn * th_ - km * (th_ - q_) - cubic + un)
+            return (om_, (ts_ - g_true * np.sin(th_) - spring - b * om_ - kn * th_ - km * (th_ - q_) - nonlin + un)
                     * inv_m,
                     dts_, w2 * (tau_d - ts_) - z2 * dts_, (th_ - q_) * inv_tau)
         if lash:
             def f(th_, om_, ts_, dts_, q_, mot_, om_mot_):
-                cubic = ((k_cubic * (th_ - thp) ** 3 if k_cubic else 0.0)
+                nonlin = ((k_cubic * (th_ - thp) ** 3 if k_cubic else 0.0)
                          + (b_cubic * om_ ** 3 if b_cubic else 0.0)
                          + (0.5 * k_quad * (th_ - pln) ** 2 if k_quad else 0.0))
                 spring = k_exo_spring * (th_ - th_goal)
                 tm = mesh(mot_ - th_, om_mot_ - om_, lash)
-                return (om_, (tm - g_true * np.sin(th_) - spring - b * om_ - kn * th_ - km * (th_ - q_) - cubic
+                return (om_, (tm - g_true * np.sin(th_) - spring - b * om_ - kn * th_ - km * (th_ - q_) - nonlin
                               + un) * inv_m,
                         dts_, w2 * (tau_d - ts_) - z2 * dts_, (th_ - q_) * inv_tau,
                         om_mot_, (ts_ - tm) / MOTOR_SIDE_INERTIA)
@@ -929,6 +929,8 @@ def main(argv=None):
         raise SystemExit("--lash must be in [0, 0.2] rad")
     if not 0.0 <= a.b3 <= 1e3:
         raise SystemExit("--b3 must be in [0, 1000] Nm s^3/rad^3")
+    if not (math.isfinite(a.k2) and abs(a.k2) <= 1e3):
+        raise SystemExit("--k2 must be finite, in [-1000, 1000] Nm/rad^2")
     sim = simulate(specs, a.pre_window, a.k3, a.exo_spring, a.k_drift, a.lash, a.b3, a.k2, a.horizontal)
     write_recording(a.out, name, a.seed, specs, sim, a.noise_scale, a.writer)
     if a.truth:
