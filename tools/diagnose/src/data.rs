@@ -159,6 +159,8 @@ pub struct Dataset {
     /// and of `τ_c` ([`crate::signatures::window_harmonics`]): they depend
     /// on the data only, so they are computed once, when first needed.
     pub(crate) sh_harmonics: std::sync::OnceLock<Vec<Option<ShHarmonics>>>,
+    /// The same for `τ_s − τ_gravity` (`S_h-e`'s output) in place of `τ_c`.
+    pub(crate) she_harmonics: std::sync::OnceLock<Vec<Option<ShHarmonics>>>,
 }
 
 /// One window's `θ_e` and `τ_c` harmonics (see [`Dataset::sh_harmonics`]):

@@ -30,7 +30,7 @@ use serde::Serialize;
 use statrs::distribution::{ChiSquared, ContinuousCDF};
 
 use crate::data::{Dataset, Observation, Tf};
-use crate::fit::{fit, lack_of_fit_chi2, lack_of_fit_p, rss, sigma_floor, Fitted};
+use crate::fit::{fit, lack_of_fit, lack_of_fit_chi2, lack_of_fit_p, rss, sigma_floor, Fitted};
 use crate::model::{Param, Physics};
 use crate::terms::Term;
 
@@ -281,7 +281,10 @@ pub struct TfCheck {
 /// its standard error `1/|m|` scaled by the scatter about `β m`.
 #[derive(Debug, Clone, Serialize)]
 pub struct WindowCheck {
-    /// Windows split in halves.
+    /// What was compared, in words ("the change within a window", "the 3rd
+    /// harmonic of τ_c").
+    pub signature: &'static str,
+    /// Values compared (windows split in halves, or harmonic phasors).
     pub windows: usize,
     /// `|m|²`.
     pub moved: f64,
@@ -292,6 +295,48 @@ pub struct WindowCheck {
     /// Contradicted by the same rule as a transfer function: `|m|² ≥ 1`
     /// and `β < ½ − z·se`.
     pub contradicts: bool,
+    /// Confirmed at its predicted size: the data follow more than half of
+    /// the predicted signature beyond the one-sided critical value
+    /// (`β − z·se > ½`) and not more than twice it (`β − z·se ≤ 2`). A
+    /// generic form is taken only when its own signature is confirmed.
+    pub confirms: bool,
+}
+
+impl WindowCheck {
+    /// The check of `signature` from `(|m|², β, se, values)` at the
+    /// one-sided critical value `z`.
+    fn new(
+        signature: &'static str,
+        (moved, beta, se, windows): (f64, f64, f64, usize),
+        z: f64,
+    ) -> Self {
+        WindowCheck {
+            signature,
+            windows,
+            moved,
+            confirmed: beta,
+            confirmed_se: se,
+            contradicts: moved >= 1.0 && beta < 0.5 - z * se,
+            confirms: beta - z * se > 0.5 && beta - z * se <= 2.0,
+        }
+    }
+
+    /// "predicted X σ, the data show β ± se % of it" in words.
+    fn words(&self) -> String {
+        format!(
+            "{} it predicts ({:.1} σ over {} values) is {}: the data show {:.0} ± {:.0} % of it",
+            self.signature,
+            self.moved.sqrt(),
+            self.windows,
+            if self.contradicts {
+                "not in the data"
+            } else {
+                "not confirmed at its predicted size"
+            },
+            100.0 * self.confirmed,
+            100.0 * self.confirmed_se
+        )
+    }
 }
 
 /// The check of [`WindowCheck`] for the change from `before` to `after`;
@@ -334,13 +379,11 @@ fn window_check(d: &Dataset, before: &Physics, after: &Physics, z: f64) -> Optio
         .sum::<f64>()
         / dof;
     let se = (scatter.max(1.0) / mm).sqrt();
-    Some(WindowCheck {
-        windows: rows.len() / 2,
-        moved: mm,
-        confirmed: beta,
-        confirmed_se: se,
-        contradicts: mm >= 1.0 && beta < 0.5 - z * se,
-    })
+    Some(WindowCheck::new(
+        "the change within a window",
+        (mm, beta, se, rows.len() / 2),
+        z,
+    ))
 }
 
 /// A candidate's parameters fitted separately at two excitation amplitudes.
@@ -794,6 +837,32 @@ fn tf_checks(d: &Dataset, before: &Physics, after: &Physics, z: f64) -> Vec<TfCh
         .collect()
 }
 
+/// A generic form's own signature beyond the transfer functions it is
+/// fitted to: the change within a window for the drift, the harmonics for
+/// the polynomial spring, the cubic damper and backlash; `None` for a
+/// catalogue term (its signature is its transfer functions) or where the
+/// recordings cannot show it.
+fn own_signature(c: &Candidate) -> Option<&WindowCheck> {
+    match c.term {
+        Term::StiffnessDrift => c.within_window_check.as_ref(),
+        Term::CubicStiffness | Term::CubicDamping | Term::Backlash => c.harmonic_check.as_ref(),
+        _ => None,
+    }
+}
+
+/// The harmonic check of the change from `before` to `after`: the 3rd
+/// harmonic of `τ_c` for the polynomial spring and the cubic damper, the
+/// 2nd and 3rd of the SEA's torque for backlash; `None` when `after`
+/// predicts no harmonic.
+fn harmonic_check(d: &Dataset, before: &Physics, after: &Physics, z: f64) -> Option<WindowCheck> {
+    crate::signatures::cubic_harmonic_check(d, before, after)
+        .map(|r| WindowCheck::new("the 3rd harmonic of τ_c", r, z))
+        .or_else(|| {
+            crate::signatures::backlash_harmonic_check(d, before, after)
+                .map(|r| WindowCheck::new("the 2nd and 3rd harmonics of the SEA's torque", r, z))
+        })
+}
+
 /// The reasons, other than the amplitude check, why a candidate is not
 /// accepted (empty: every criterion accepts it).
 fn statistical_reasons(c: &Candidate, level: f64) -> Vec<String> {
@@ -819,21 +888,23 @@ fn statistical_reasons(c: &Candidate, level: f64) -> Vec<String> {
     if !c.identified {
         why.push("its parameters are not determined".into());
     }
-    if let Some(w) = c.within_window_check.as_ref().filter(|w| w.contradicts) {
-        why.push(format!(
-            "the change within a window it predicts is not in the data: the second half of each of {} windows against its first follows {:.0} ± {:.0} % of the change it predicts",
-            w.windows,
-            100.0 * w.confirmed,
-            100.0 * w.confirmed_se
-        ));
+    // A generic form is taken only on its own signature, confirmed at its
+    // predicted size; any other check that is contradicted rejects.
+    let own = own_signature(c);
+    for w in [&c.within_window_check, &c.harmonic_check]
+        .into_iter()
+        .flatten()
+    {
+        let is_own = own.is_some_and(|o| std::ptr::eq(o, w));
+        if w.contradicts || (is_own && !w.confirms) {
+            why.push(w.words());
+        }
     }
-    if let Some(w) = c.harmonic_check.as_ref().filter(|w| w.contradicts) {
-        why.push(format!(
-            "the 3rd harmonic of τ_c it predicts is not in the data: over {} windows the data show {:.0} ± {:.0} % of the harmonic it predicts",
-            w.windows,
-            100.0 * w.confirmed,
-            100.0 * w.confirmed_se
-        ));
+    if c.term.generic() && own.is_none() {
+        why.push(
+            "untested: the signature it predicts beyond the transfer functions cannot be measured in these recordings"
+                .into(),
+        );
     }
     for t in c.tf_checks.iter().filter(|t| t.contradicts) {
         why.push(if t.rss_after > t.rss_before {
@@ -1276,12 +1347,10 @@ impl StepContext<'_> {
             t.start_variant(variant, &mut cstart);
             let ho = heldout(d, &cstart, &free).values().sum::<f64>();
             let se = |q: Param| f1.std_error(q);
-            let beyond_noise = current.rss - (current.n as f64 - current.p() as f64);
-            let explained_share = if beyond_noise > 0.0 {
-                ((current.rss - f1.rss) / beyond_noise).clamp(0.0, 1.0)
-            } else {
-                f64::NAN
-            };
+            // The share of the misfit beyond the noise, by the rule that
+            // decides whether anything is beyond it ([`LackOfFit`]).
+            let explained_share = lack_of_fit(d, &current.physics, current.p(), self.level)
+                .explained_share(&lack_of_fit(d, &f1.physics, f1.p(), self.level));
             rows.push((
                 Candidate {
                     term: t,
@@ -1297,18 +1366,7 @@ impl StepContext<'_> {
                     identified: t.identified(&f1.physics, &se, experiments),
                     tf_checks: tf_checks(d, &current.physics, &f1.physics, z_tf),
                     within_window_check: window_check(d, &current.physics, &f1.physics, z_tf),
-                    harmonic_check: crate::signatures::cubic_harmonic_check(
-                        d,
-                        &current.physics,
-                        &f1.physics,
-                    )
-                    .map(|(moved, confirmed, confirmed_se, windows)| WindowCheck {
-                        windows,
-                        moved,
-                        confirmed,
-                        confirmed_se,
-                        contradicts: moved >= 1.0 && confirmed < 0.5 - z_tf * confirmed_se,
-                    }),
+                    harmonic_check: harmonic_check(d, &current.physics, &f1.physics, z_tf),
                     explained_share,
                     amplitude_check: None,
                     significant: false,
@@ -1394,9 +1452,9 @@ impl StepContext<'_> {
     }
 }
 
-/// "explains N % of the misfit left at its step", or, when what was left
-/// was already below the noise's expectation (`RSS₀ ≤ n − p₀`, share not
-/// defined), says so.
+/// "explains N % of the misfit left at its step", or, when nothing was
+/// beyond the noise ([`crate::fit::LackOfFit`]; no term is taken then), says
+/// so.
 fn share_words(share: f64) -> String {
     if share.is_finite() {
         format!(
@@ -1404,8 +1462,7 @@ fn share_words(share: f64) -> String {
             100.0 * share
         )
     } else {
-        "the misfit left at its step was already below the noise's expectation (no share defined)"
-            .into()
+        "nothing was beyond the noise at its step (no share defined)".into()
     }
 }
 

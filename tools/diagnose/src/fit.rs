@@ -112,26 +112,71 @@ fn lack_of_fit_chi2_of(d: &Dataset, phys: &Physics, only: Option<crate::data::Tf
     (chi, n)
 }
 
-/// The lack-of-fit p-value of `phys` with `p` free parameters: the
-/// χ² test ([`lack_of_fit_chi2`]) of each transfer function on its own
-/// (its share of the parameters by its share of the residuals), the
-/// smallest p-value Bonferroni-corrected over the transfer functions, so a
-/// mismatch confined to one of them is not diluted by the others.
+/// The lack-of-fit p-value of `phys` with `p` free parameters
+/// ([`lack_of_fit`]'s).
 pub fn lack_of_fit_p(d: &Dataset, phys: &Physics, p: usize) -> f64 {
+    lack_of_fit(d, phys, p, 0.0).p_value
+}
+
+/// The one materiality rule of the diagnosis: whether the misfit of a model
+/// is beyond the measured noise, and by how much.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct LackOfFit {
+    /// The χ² test ([`lack_of_fit_chi2`]) of each transfer function on its
+    /// own (its share of the parameters by its share of the residuals), the
+    /// smallest p-value Bonferroni-corrected over the transfer functions, so
+    /// a mismatch confined to one of them is not diluted by the others.
+    pub p_value: f64,
+    /// The misfit beyond the noise's expectation, `Σ (χ²_tf − dof_tf)` over
+    /// the transfer functions whose own test rejects at the level divided
+    /// over them; 0 when none does. A term is taken only while this is
+    /// positive, and the share of the misfit it explains is its fall of
+    /// `χ²` over this; "structure remains" is said only when it is
+    /// positive: one rule for naming and for "unexplained".
+    pub beyond_noise: f64,
+    /// The lack-of-fit χ² summed over the transfer functions.
+    pub chi2: f64,
+}
+
+impl LackOfFit {
+    /// The share of the misfit beyond the noise that the fall of χ² from
+    /// `self` to `after` explains, in [0, 1]; NaN when nothing was beyond
+    /// the noise.
+    pub fn explained_share(&self, after: &LackOfFit) -> f64 {
+        if self.beyond_noise > 0.0 {
+            ((self.chi2 - after.chi2) / self.beyond_noise).clamp(0.0, 1.0)
+        } else {
+            f64::NAN
+        }
+    }
+}
+
+/// [`LackOfFit`] of `phys` with `p` free parameters at `level`.
+pub fn lack_of_fit(d: &Dataset, phys: &Physics, p: usize, level: f64) -> LackOfFit {
     let (_, n_all) = lack_of_fit_chi2(d, phys);
     let mut worst: f64 = 1.0;
+    let (mut beyond, mut total) = (0.0, 0.0);
     let tfs = d.supported.len().max(1) as f64;
     for &tf in &d.supported {
         let (chi, n) = lack_of_fit_chi2_of(d, phys, Some(tf));
+        total += chi;
         let dof = n as f64 - p as f64 * n as f64 / n_all.max(1) as f64;
         if dof > 0.0 {
             if let Ok(dist) = statrs::distribution::ChiSquared::new(dof) {
                 use statrs::distribution::ContinuousCDF;
-                worst = worst.min((tfs * dist.sf(chi)).min(1.0));
+                let p_tf = (tfs * dist.sf(chi)).min(1.0);
+                worst = worst.min(p_tf);
+                if p_tf < level {
+                    beyond += chi - dof;
+                }
             }
         }
     }
-    worst
+    LackOfFit {
+        p_value: worst,
+        beyond_noise: beyond,
+        chi2: total,
+    }
 }
 
 /// Whitened residuals of `phys` on the observations selected by `use_obs`.

@@ -440,7 +440,7 @@ impl Physics {
     pub fn predict_balance(&self, c: &Condition, statics: [f64; 2]) -> f64 {
         let [tau_g, tau_c_meas] = statics;
         let tau_c = tau_c_meas / self.gain[1];
-        let mgl = self.gravity_arm_nm + self.g_load * c.load_kg * self.lever_m + self.gravity_error;
+        let mgl = self.mgl_nm(c);
         (self.gain[2] - self.gain[1]) * tau_c
             + self.gain[2] * mgl * c.sin_theta_mean
             + self.torque_offset_nm
@@ -450,43 +450,19 @@ impl Physics {
     /// The model's value of `tf` at ω in window `c`, with the controller's
     /// measured gravity compensation `gravity_comp` (for `S_h-e`).
     pub fn predict_tf(&self, tf: Tf, w: f64, c: &Condition, gravity_comp: Complex64) -> Complex64 {
-        let j = Complex64::i();
         let delay = |d: f64| Complex64::from_polar(1.0, -w * d);
         let e_theta = self.gain[0] * delay(self.delay_s[0]);
         match tf {
             Tf::Sh => self.gain[1] * delay(self.delay_s[1]) * self.s_cuff(w, c) / e_theta,
             Tf::She => {
-                let a_true = (c.theta_amp_rad / self.gain[0]).max(1e-9);
-                let theta0 = (c.theta0_rad - self.theta_offset) / self.gain[0];
-                let m_e =
-                    self.arm_inertia + c.load_kg * self.lever_m * self.lever_m + self.inertia_error;
-                let mgl = self.gravity_arm_nm
-                    + self.g_load * c.load_kg * self.lever_m
-                    + self.gravity_error;
-                let mut s_exo = -m_e * w * w
-                    + self.s_cuff(w, c)
-                    + mgl * theta0.cos()
-                    + j * w * self.b_f
-                    + j * coulomb_describing(
-                        self.coulomb_nm,
-                        self.coulomb_smoothing_rad_s,
-                        a_true,
-                        w,
-                    );
+                let mut s_exo = self.s_exo_linear(w, c);
                 if self.lash_half_rad > 0.0 {
-                    // The arm's side of the mesh: all but the motor side's inertia.
-                    let z_arm = s_exo + self.motor_inertia * w * w;
-                    let preload = if c.tau_s_mean_nm.is_finite() {
-                        c.tau_s_mean_nm
-                    } else {
-                        mgl * c.sin_theta_mean + c.bias_nm
-                    };
                     s_exo += backlash_describing(
                         self.lash_half_rad,
                         self.motor_inertia,
-                        z_arm,
-                        preload,
-                        a_true,
+                        self.z_arm(s_exo, w),
+                        self.mesh_preload_nm(c),
+                        self.true_amplitude_rad(c),
                         w,
                     );
                 }
@@ -515,6 +491,51 @@ impl Physics {
                 let hold = if self.sea.is_some() { 0.5 } else { 1.0 } * c.sample_period_s;
                 self.gain[2] * delay(self.delay_s[2] + self.delay_s[3] + hold) * sea
             }
+        }
+    }
+
+    /// The exoskeleton joint's impedance `S_exo` at ω in window `c` (Nm/rad,
+    /// the table of docs/diagnose.md §2) without backlash: arm and load
+    /// inertia, the human through the cuff, gravity linearised about the
+    /// window's mean angle, viscous and Coulomb friction.
+    pub fn s_exo_linear(&self, w: f64, c: &Condition) -> Complex64 {
+        let j = Complex64::i();
+        let a_true = self.true_amplitude_rad(c);
+        let theta0 = (c.theta0_rad - self.theta_offset) / self.gain[0];
+        let m_e = self.arm_inertia + c.load_kg * self.lever_m * self.lever_m + self.inertia_error;
+        let mgl = self.mgl_nm(c);
+        -m_e * w * w
+            + self.s_cuff(w, c)
+            + mgl * theta0.cos()
+            + j * w * self.b_f
+            + j * coulomb_describing(self.coulomb_nm, self.coulomb_smoothing_rad_s, a_true, w)
+    }
+
+    /// The joint's gravity moment `m g l` (Nm): arm, load and the gravity error.
+    fn mgl_nm(&self, c: &Condition) -> f64 {
+        self.gravity_arm_nm + self.g_load * c.load_kg * self.lever_m + self.gravity_error
+    }
+
+    /// The true angle amplitude of window `c` (rad): the measured one over
+    /// the encoder's gain.
+    pub fn true_amplitude_rad(&self, c: &Condition) -> f64 {
+        (c.theta_amp_rad / self.gain[0]).max(1e-9)
+    }
+
+    /// The arm's side of the gear mesh at ω, `Z_arm`: the joint's impedance
+    /// `s_exo` (without backlash) less the motor side's inertia.
+    pub fn z_arm(&self, s_exo: Complex64, w: f64) -> Complex64 {
+        s_exo + self.motor_inertia * w * w
+    }
+
+    /// The mesh's mean torque in window `c` (Nm): the window's mean SEA
+    /// torque, or, where it was not recorded, gravity at the mean angle
+    /// plus the bias.
+    pub fn mesh_preload_nm(&self, c: &Condition) -> f64 {
+        if c.tau_s_mean_nm.is_finite() {
+            c.tau_s_mean_nm
+        } else {
+            self.mgl_nm(c) * c.sin_theta_mean + c.bias_nm
         }
     }
 
@@ -682,21 +703,61 @@ pub fn coulomb_describing(f_nm: f64, smoothing_rad_s: f64, a_rad: f64, w: f64) -
 /// arm's side is `Z_arm` (so the mesh passes `Z_arm Θ`, amplitude
 /// `T = |Z_arm| A`, on top of its mean `P`, the preload). Exactly, `τ_s =
 /// Z_arm θ + J_m θ̈_m` with `θ_m = θ + Δ`, `Δ` the motor side's angle
-/// relative to the arm. Where the torque reverses (`|P| < T`), `Δ` flips
-/// between `−δ` and `+δ` at each reversal: the motor side, on its own,
-/// crosses the lost motion under the torque's ramp through zero (slope
-/// `s = T ω √(1 − (P/T)²)`), `J_m Δ̈ ≈ s t`, and reaches the middle after
-/// `t½ = (6 J_m δ / s)^{1/3}`. As a square wave of height `δ` whose edges lag
-/// the torque's zero crossings by `t½`, its fundamental is
-/// `(4/π) δ √(1 − (P/T)²) e^{−jωt½}` in phase with the mesh torque, and
+/// relative to the arm ([`lost_motion_harmonic`]). Its fundamental gives
 ///
 /// `ΔS_h-e = −J_m ω² (4/π) (δ/A) √(1 − (P/T)²) e^{j(∠Z_arm − ω t½)}`
 ///
-/// (the lag capped at π/2); nothing where the preload holds the mesh closed
-/// (`|P| ≥ T`). Assumptions: the crossing is short against half a cycle
-/// (its shape is left out, only its middle's lag kept); the impacts' losses
-/// and the mesh's own compliance are left out.
+/// and nothing where the preload holds the mesh closed (`|P| ≥ T`).
 pub fn backlash_describing(
+    half_lash_rad: f64,
+    motor_inertia: f64,
+    z_arm: Complex64,
+    preload_nm: f64,
+    amplitude_rad: f64,
+    w: f64,
+) -> Complex64 {
+    if amplitude_rad <= 0.0 {
+        return Complex64::new(0.0, 0.0);
+    }
+    let delta_1 = lost_motion_harmonic(
+        1,
+        half_lash_rad,
+        motor_inertia,
+        z_arm,
+        preload_nm,
+        amplitude_rad,
+        w,
+    );
+    -motor_inertia * w * w * delta_1 / amplitude_rad
+}
+
+/// The `h`-th harmonic (rad, phasor relative to the angle's fundamental:
+/// `Δ ≈ Re Σ Δ_h e^{jh(ωt + ∠Θ₁)}`) of the motor side's angle relative to
+/// the arm, `Δ`, in a gear mesh with lost motion `2δ` that passes the
+/// torque `P + T cos(ωt + ∠Θ₁ + ∠Z_arm)` (`T = |Z_arm| A`).
+///
+/// Where the torque reverses (`|P| < T`), `Δ` flips between `−δ` and `+δ`
+/// at each reversal: a pulse wave, `+δ` while the torque is positive, i.e.
+/// for `|x| < φ₀ = arccos(−P/T)` of the torque's phase `x`, whose cosine
+/// series is `δ Σ (4/(hπ)) sin(hφ₀) cos(hx)` (`sin φ₀ = √(1 − (P/T)²)`;
+/// with a preload the duty is not ½ and even harmonics appear). The motor
+/// side, on its own, crosses the lost motion under the torque's ramp through
+/// zero (slope `s = T ω sin φ₀`), `J_m Δ̈ ≈ s t`, and reaches the middle after
+/// `t½ = (6 J_m δ / s)^{1/3}`: each edge lags the torque's zero crossing by
+/// `t½` (capped at a quarter period), so harmonic `h` lags by `h ω t½`:
+///
+/// `Δ_h = δ (4/(hπ)) sin(hφ₀) e^{jh(∠Z_arm − ω t½)}`.
+///
+/// The SEA's torque carries `−J_m (hω)² Δ_h` at harmonic `h` beyond what the
+/// arm's linear impedance makes of the angle's own harmonic: backlash's
+/// signature outside the transfer functions
+/// ([`crate::signatures::backlash_harmonic_check`]). Zero where the mesh
+/// stays closed, for `h = 0`, no lost motion, or no motion. Assumptions: the
+/// crossing is short against half a cycle (its shape is left out, only its
+/// middle's lag kept); the impacts' losses and the mesh's own compliance
+/// are left out.
+pub fn lost_motion_harmonic(
+    h: u32,
     half_lash_rad: f64,
     motor_inertia: f64,
     z_arm: Complex64,
@@ -709,17 +770,16 @@ pub fn backlash_describing(
     // closed, and so does no motion (`A ≤ 0` makes `T ≤ 0`); no lost motion
     // (or a negative one, which means nothing) is no effect.
     let opens = t > preload_nm.abs();
-    if !opens || half_lash_rad <= 0.0 {
+    if !opens || half_lash_rad <= 0.0 || h == 0 {
         return Complex64::new(0.0, 0.0);
     }
-    let open = (1.0 - (preload_nm / t).powi(2)).sqrt();
-    let slope = t * w * open;
+    let phi0 = (-preload_nm / t).acos();
+    let slope = t * w * phi0.sin();
     let lag =
         (w * (6.0 * motor_inertia * half_lash_rad / slope).cbrt()).min(std::f64::consts::FRAC_PI_2);
-    let size = motor_inertia * w * w * std::f64::consts::FRAC_2_PI * 2.0 * half_lash_rad
-        / amplitude_rad
-        * open;
-    -size * z_arm / z_arm.norm() * Complex64::from_polar(1.0, -lag)
+    let hf = f64::from(h);
+    let size = half_lash_rad * 2.0 * std::f64::consts::FRAC_2_PI / hf * (hf * phi0).sin();
+    size * Complex64::from_polar(1.0, hf * (z_arm.arg() - lag))
 }
 
 #[cfg(test)]
@@ -793,6 +853,53 @@ mod tests {
             "{} against {want}",
             after - before
         );
+    }
+
+    /// The lost motion's harmonics against a direct Fourier integral of the
+    /// pulse wave they describe: `Δ(x) = δ sgn(P + T cos x)` delayed by the
+    /// crossing's lag, integrated here by the midpoint rule over one cycle
+    /// (`Δ_h = (1/π) ∫ Δ(x) e^{−jhx} dx`), with the lag written out from
+    /// `t½ = (6 J_m δ / s)^{1/3}`, at no preload (odd harmonics only) and
+    /// at a preload (even ones too).
+    #[test]
+    fn lost_motion_harmonics_are_the_pulse_waves_fourier_series() {
+        let (delta, jm, w, a) = (0.03, 0.02, 5.0, 0.1);
+        let z = Complex64::from_polar(30.0, 0.4);
+        let t = z.norm() * a;
+        for preload in [0.0, 1.2, -2.1] {
+            let open = (1.0 - (preload / t).powi(2)).sqrt();
+            let lag = w * (6.0 * jm * delta / (t * w * open)).cbrt();
+            for h in 1..=4u32 {
+                let n = 200_000;
+                let mut acc = Complex64::new(0.0, 0.0);
+                for i in 0..n {
+                    // x: the phase of ωt + ∠Θ₁; the torque's phase is x + ∠Z_arm.
+                    let x = std::f64::consts::TAU * (i as f64 + 0.5) / n as f64;
+                    let torque = preload + t * (x + z.arg() - lag).cos();
+                    let d = if torque > 0.0 { delta } else { -delta };
+                    acc += d * Complex64::from_polar(1.0, -f64::from(h) * x);
+                }
+                let want = acc * (2.0 / n as f64);
+                let got = lost_motion_harmonic(h, delta, jm, z, preload, a, w);
+                assert!(
+                    (got - want).norm() < 1e-4 * delta,
+                    "h = {h}, P = {preload}: {got} against {want}"
+                );
+            }
+        }
+        // At no preload the even harmonics vanish; the 3rd is a third of the
+        // fundamental's size.
+        let h1 = lost_motion_harmonic(1, delta, jm, z, 0.0, a, w);
+        let h2 = lost_motion_harmonic(2, delta, jm, z, 0.0, a, w);
+        let h3 = lost_motion_harmonic(3, delta, jm, z, 0.0, a, w);
+        assert!(h2.norm() < 1e-12 && (h3.norm() * 3.0 - h1.norm()).abs() < 1e-12);
+        // Nothing where the mesh stays closed, for h = 0, or without lash.
+        for (h, d, p) in [(2, delta, 3.5), (0, delta, 0.0), (3, 0.0, 0.0)] {
+            assert_eq!(
+                lost_motion_harmonic(h, d, jm, z, p, a, w),
+                Complex64::new(0.0, 0.0)
+            );
+        }
     }
 
     /// The backlash describing function with the numbers written out: a

@@ -73,21 +73,40 @@ struct Row {
 /// `(ΔK₂, se, RSS without the form, RSS with it, windows)`, the standard
 /// error scaled by the scatter when it exceeds the noise's.
 fn regress<'a>(rows: impl Iterator<Item = &'a Row> + Clone) -> Option<(f64, f64, f64, f64, usize)> {
+    regress_with(rows, false).map(|r| (r.0[0], r.1[0], r.2, r.3, r.4))
+}
+
+/// [`regress`], with `quadrature` also a second form column `j m` (a 2nd
+/// harmonic out of phase with `Θ₁²`, which no spring makes): the
+/// coefficients `[in phase, quadrature]` and their standard errors (the
+/// quadrature's 0 and NaN without it), the RSS without the form's columns
+/// and with them, and the windows.
+#[allow(clippy::type_complexity)]
+fn regress_with<'a>(
+    rows: impl Iterator<Item = &'a Row> + Clone,
+    quadrature: bool,
+) -> Option<([f64; 2], [f64; 2], f64, f64, usize)> {
     let rows: Vec<&Row> = rows.collect();
     let n = rows.len();
     let mut experiments: Vec<u32> = rows.iter().map(|r| r.experiment).collect();
     experiments.sort_unstable();
     experiments.dedup();
-    let p = 1 + experiments.len();
+    let forms = if quadrature { 2 } else { 1 };
+    let p = forms + experiments.len();
     if 2 * n <= p {
         return None;
     }
-    let col = |e: u32| 1 + experiments.iter().position(|&x| x == e).unwrap_or(0);
+    let col = |e: u32| forms + experiments.iter().position(|&x| x == e).unwrap_or(0);
     let mut x = DMatrix::<f64>::zeros(2 * n, p);
     let mut y = DVector::<f64>::zeros(2 * n);
     for (i, r) in rows.iter().enumerate() {
         x[(2 * i, 0)] = r.m.re;
         x[(2 * i + 1, 0)] = r.m.im;
+        if quadrature {
+            // j m = (−m.im, m.re).
+            x[(2 * i, 1)] = -r.m.im;
+            x[(2 * i + 1, 1)] = r.m.re;
+        }
         x[(2 * i, col(r.experiment))] = r.n.re;
         x[(2 * i + 1, col(r.experiment))] = r.n.im;
         y[2 * i] = r.y.re;
@@ -100,12 +119,17 @@ fn regress<'a>(rows: impl Iterator<Item = &'a Row> + Clone) -> Option<(f64, f64,
         Some((b, rss, inv))
     };
     let (b, rss1, inv) = solve(&x)?;
-    let nuisance = x.columns(1, p - 1).into_owned();
+    let nuisance = x.columns(forms, p - forms).into_owned();
     let rss0 = solve(&nuisance).map_or(y.norm_squared(), |s| s.1);
     let dof = (2 * n - p) as f64;
     let scatter = rss1 / dof;
-    let se = (scatter.max(1.0) * inv[(0, 0)]).sqrt();
-    (b[0].is_finite() && se.is_finite()).then_some((b[0], se, rss0, rss1, n))
+    let se = |k: usize| (scatter.max(1.0) * inv[(k, k)]).sqrt();
+    let (coef, ses) = if quadrature {
+        ([b[0], b[1]], [se(0), se(1)])
+    } else {
+        ([b[0], 0.0], [se(0), f64::NAN])
+    };
+    (coef[0].is_finite() && ses[0].is_finite()).then_some((coef, ses, rss0, rss1, n))
 }
 
 /// A difference between two fits of `K₂` that counts against the form:
@@ -269,6 +293,18 @@ pub(crate) fn fit(
         .map(|v| [v[0], v[1]]);
 
     let mut why = Vec::new();
+    // The materiality rule of the transfer functions' search
+    // ([`crate::fit::LackOfFit`]): nothing is taken while what the linear
+    // model leaves in the 2nd harmonic is within the noise.
+    let p_before = statrs::distribution::ChiSquared::new(n_real - n_nuisance)
+        .map(|c| c.sf(rss0))
+        .unwrap_or(f64::NAN);
+    if p_before.is_nan() || p_before >= level {
+        why.push(format!(
+            "the 2nd harmonic the linear model leaves is within the noise (χ²/dof {:.2}, p = {p_before:.2})",
+            rss0 / (n_real - n_nuisance)
+        ));
+    }
     if !(p_holm < level && f > f_critical) {
         why.push(format!(
             "not significant: F = {f:.1} against a critical {f_critical:.2} (Holm over the library's {forms} forms)"
@@ -322,6 +358,19 @@ pub(crate) fn fit(
             per_experiment.len(),
             per_words.join(", ")
         ));
+    }
+    // Its phase: a spring's 2nd harmonic is in phase with `Θ₁²`; one that
+    // leads or lags it (a damper's, a sensor's timing, another source at
+    // 2ω) is not this form.
+    let phase = regress_with(rows.iter(), true).map(|(b, s, ..)| (b, s));
+    if let Some(([k_in, k_quad], [_, se_quad])) = phase {
+        if differs(k_quad, 0.0, z * se_quad) && k_quad.abs() > MATERIAL * k_in.abs() {
+            why.push(format!(
+                "its 2nd harmonic is not in phase with Θ₁² as a spring's is: {:.1} Nm/rad² in phase, {} in quadrature",
+                current.k2 + k_in,
+                crate::terms::value_pm(k_quad, Some(se_quad), 0, "")
+            ));
+        }
     }
     let accepted = why.is_empty();
     let amplitude_words = match per_amplitude {

@@ -266,6 +266,14 @@ pub fn cubic_harmonic_check(
         mm += m.norm_sqr();
         rows.push((y, m));
     }
+    beta_of(ym, mm, &rows)
+}
+
+/// `(|m|², β, se, rows)` of a signature check from its whitened rows
+/// `(y, m)`: `β = Σ Re(m̄ y)/|m|²`, its standard error `1/|m|` scaled by the
+/// scatter about `β m` (never below the noise's); `None` when nothing is
+/// predicted.
+fn beta_of(ym: f64, mm: f64, rows: &[(Complex64, Complex64)]) -> Option<(f64, f64, f64, usize)> {
     if mm.is_nan() || mm <= 1e-12 {
         return None;
     }
@@ -290,20 +298,104 @@ pub(crate) fn component_sd(noise_power: f64) -> f64 {
 /// bin ([`window_harmonics`]; `None` for a broadband window or one too
 /// short), computed once per dataset.
 pub(crate) fn sh_harmonics(d: &Dataset) -> &[Option<crate::data::ShHarmonics>] {
-    d.sh_harmonics.get_or_init(|| {
-        d.signals
-            .iter()
-            .map(|s| {
-                let w = s.omega_rad_s;
-                if w <= 0.0 {
-                    return None;
-                }
-                let (_, th) = window_harmonics(&s.t_s, &s.theta_rad, w)?;
-                let (spec, tc) = window_harmonics(&s.t_s, &s.tau_c_nm, w)?;
-                Some((spec.noise_power, th, tc))
-            })
-            .collect()
-    })
+    d.sh_harmonics
+        .get_or_init(|| output_harmonics(d, |s| &s.tau_c_nm))
+}
+
+/// The same as [`sh_harmonics`] for `τ_s − τ_gravity`, `S_h-e`'s output.
+pub(crate) fn she_harmonics(d: &Dataset) -> &[Option<crate::data::ShHarmonics>] {
+    d.she_harmonics
+        .get_or_init(|| output_harmonics(d, |s| &s.tau_s_net_nm))
+}
+
+fn output_harmonics(
+    d: &Dataset,
+    output: impl Fn(&crate::data::WindowSignals) -> &[f64],
+) -> Vec<Option<crate::data::ShHarmonics>> {
+    d.signals
+        .iter()
+        .map(|s| {
+            let w = s.omega_rad_s;
+            if w <= 0.0 {
+                return None;
+            }
+            let (_, th) = window_harmonics(&s.t_s, &s.theta_rad, w)?;
+            let (spec, y) = window_harmonics(&s.t_s, output(s), w)?;
+            Some((spec.noise_power, th, y))
+        })
+        .collect()
+}
+
+/// Backlash's signature outside the transfer functions it is fitted to:
+/// the 2nd and 3rd harmonics of the SEA's torque (`τ_s − τ_gravity`) beyond
+/// what the joint's linear impedance makes of the angle's own harmonics.
+/// Exactly `τ_s = Z_arm θ + J_m θ̈_m`, `θ_m = θ + Δ`, so at harmonic `h` the
+/// SEA carries `S_h-e(hω) Θ_h − g_s J_m (hω)² Δ_h` with `Δ_h` the lost
+/// motion's harmonic ([`crate::model::lost_motion_harmonic`]: a pulse wave's
+/// `(4δ/hπ) sin(hφ₀)`, even harmonics where a preload makes its duty
+/// unequal). The check is [`cubic_harmonic_check`]'s: `y_h = T_h −
+/// S_h-e(hω) Θ_h` less what `before` predicts, `m_h` the change `after`
+/// predicts, both whitened by the window's noise per bin; `(|m|², β, se,
+/// windows)`, `None` when the lost motion does not change or `S_h-e` is not
+/// measured.
+pub fn backlash_harmonic_check(
+    d: &Dataset,
+    before: &crate::model::Physics,
+    after: &crate::model::Physics,
+) -> Option<(f64, f64, f64, usize)> {
+    if after.lash_half_rad == before.lash_half_rad || !d.supported.contains(&Tf::She) {
+        return None;
+    }
+    // The linear joint: the model without the lost motion.
+    let mut linear = before.clone();
+    linear.lash_half_rad = 0.0;
+    let mut gravity_comp = vec![None; d.signals.len()];
+    for o in d.of(Tf::She) {
+        gravity_comp[o.window] = Some(o.gravity_comp);
+    }
+    let harmonics = she_harmonics(d);
+    let (mut ym, mut mm, mut rows) = (0.0, 0.0, Vec::new());
+    for (i, (s, h)) in d.signals.iter().zip(harmonics).enumerate() {
+        let w = s.omega_rad_s;
+        let (Some((noise_power, th, ts)), Some(gc)) = (*h, gravity_comp[i]) else {
+            continue;
+        };
+        let c = &d.conditions[i];
+        let sd = component_sd(noise_power);
+        // The SEA's torque at harmonic h from the lost motion `Δ_h` of `p`,
+        // placed at the angle's measured phase (less the encoder's delay).
+        let theta_phase = th[0].arg() + w * linear.delay_s[0];
+        let lost = |p: &crate::model::Physics, h: u32| {
+            let hw = f64::from(h) * w;
+            let z_arm = p.z_arm(linear.s_exo_linear(w, c), w);
+            let delta = crate::model::lost_motion_harmonic(
+                h,
+                p.lash_half_rad,
+                p.motor_inertia,
+                z_arm,
+                linear.mesh_preload_nm(c),
+                linear.true_amplitude_rad(c),
+                w,
+            ) * Complex64::from_polar(1.0, f64::from(h) * theta_phase);
+            -linear.gain[2]
+                * p.motor_inertia
+                * hw
+                * hw
+                * delta
+                * Complex64::from_polar(1.0, -hw * linear.delay_s[2])
+        };
+        for h in [2u32, 3] {
+            let k = h as usize - 1;
+            let hw = f64::from(h) * w;
+            let y = ts[k] - linear.predict_tf(Tf::She, hw, c, gc) * th[k] - lost(before, h);
+            let m = lost(after, h) - lost(before, h);
+            let (y, m) = (y / sd, m / sd);
+            ym += (m.conj() * y).re;
+            mm += m.norm_sqr();
+            rows.push((y, m));
+        }
+    }
+    beta_of(ym, mm, &rows)
 }
 
 /// Non-harmonic content of an experiment's windows beyond their noise.
