@@ -343,7 +343,8 @@ impl NullGenerator {
 /// len`): our simulator's four null cases at 1 kHz and 500 Hz, and the
 /// independent rig with each kind of human damping, 1 kHz, a coarse
 /// encoder, another SEA discretisation, off-nominal inertia and SEA, more
-/// noise, and a horizontal rig. Only the generators of the kinds asked for
+/// noise, a horizontal rig, no voluntary twitch in the windows, and a
+/// random subject of the seed. Only the generators of the kinds asked for
 /// (`sim`, `rig`).
 pub fn null_generators(sim: bool, rig: bool) -> Vec<NullGenerator> {
     let mut v = Vec::new();
@@ -360,7 +361,7 @@ pub fn null_generators(sim: bool, rig: bool) -> Vec<NullGenerator> {
         }
     }
     if rig {
-        let rigs: [(&'static str, &'static [&'static str]); 8] = [
+        let rigs: [(&'static str, &'static [&'static str]); 10] = [
             ("viscous human", &["--damping", "viscous"]),
             ("two-point human", &["--damping", "two-point"]),
             ("1 kHz", &["--damping", "viscous", "--rate-hz", "1000"]),
@@ -375,6 +376,8 @@ pub fn null_generators(sim: bool, rig: bool) -> Vec<NullGenerator> {
             ),
             ("noise ×2", &["--damping", "viscous", "--noise-scale", "2"]),
             ("horizontal", &["--horizontal"]),
+            ("no twitch", &["--damping", "viscous", "--twitch", "0"]),
+            ("random subject", &["--random-subject"]),
         ];
         for (name, args) in rigs {
             v.push(NullGenerator::Rig { name, args });
