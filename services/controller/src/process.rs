@@ -152,3 +152,122 @@ impl Process for ControllerProcess {
         Ok(())
     }
 }
+
+/// The step's give-up bound, on real iceoryx2 ports of an instance of the
+/// test's own (issue 35: held only by the end-to-end tests before). A
+/// controller whose sensor stream has stopped must not wait for ever: once
+/// the last sample (or the start) lies more than 60 s back, the step
+/// returns an error naming the sensor driver, and the runner exits 1.
+/// Expected outcomes follow from that rule and the waits, never from a run
+/// of the step: each step waits one `safety.lockstep_timeout_ms` (20 ms
+/// here) for a sample, so with the last sample put 61 s back the idle time
+/// the step compares is 61.02 s (more than 60 s: give up), with 59 s back
+/// it is 59.02 s (not yet). Elapsed time is counted in nanoseconds: it is
+/// never *exactly* 60 s, so a step that compared with `==` would never give
+/// up, which the first test catches.
+#[cfg(test)]
+mod tests {
+    use std::time::{Duration, Instant};
+
+    use exo_config::RunConfig;
+    use exo_messages::{ActuatorCommand, SensorSample};
+    use exo_service_kit::channels::{COMMAND, SENSOR};
+    use exo_service_kit::ipc::{Inbox, Ipc, Outbox};
+    use exo_service_kit::runner::{Context, Flow, Process};
+    use exo_service_kit::{ServiceArgs, StopFlag};
+
+    use super::ControllerProcess;
+
+    /// The default run's controller process (lockstep, each step waiting
+    /// 20 ms for a sample) on the instance `ctl<tag><pid>`, with the sensor
+    /// driver's side of its channels: a sample outbox and a command inbox.
+    struct Rig {
+        process: ControllerProcess,
+        samples: Outbox<SensorSample>,
+        commands: Inbox<ActuatorCommand>,
+        _ipc: Ipc,
+    }
+
+    fn rig(tag: &str) -> Rig {
+        let file = exo_config::configs_dir().join("default.toml");
+        let mut cfg = RunConfig::from_file(&file).unwrap();
+        cfg.run.instance = format!("ctl{tag}{}", std::process::id());
+        cfg.safety.lockstep_timeout_ms = 20.0;
+        let ipc = Ipc::open("controller_step_test", &cfg.run.instance, None).unwrap();
+        let args = ServiceArgs {
+            config: file,
+            iceoryx2_config: None,
+            output: None,
+            inject_fault_at: None,
+        };
+        let process = ControllerProcess::open(Context {
+            cfg: &cfg,
+            ipc: &ipc,
+            args: &args,
+        })
+        .unwrap();
+        Rig {
+            process,
+            samples: ipc.outbox(SENSOR).unwrap(),
+            commands: ipc.inbox(COMMAND, 16).unwrap(),
+            _ipc: ipc,
+        }
+    }
+
+    /// The last sample (or the start) put `secs` back.
+    fn idle_for(p: &mut ControllerProcess, secs: u64) {
+        p.idle_since = Instant::now()
+            .checked_sub(Duration::from_secs(secs))
+            .expect("the clock reaches back that far");
+    }
+
+    #[test]
+    fn with_no_sample_for_more_than_60_s_the_step_gives_up_naming_the_driver() {
+        let mut r = rig("idle61");
+        idle_for(&mut r.process, 61);
+        let e = r
+            .process
+            .step(&StopFlag::unraised())
+            .expect_err("61 s without a sample: the step must give up")
+            .to_string();
+        assert!(
+            e.contains("no sensor sample for 60 s") && e.contains("sensor driver"),
+            "{e}"
+        );
+    }
+
+    #[test]
+    fn with_no_sample_for_59_s_the_step_waits_on() {
+        let mut r = rig("idle59");
+        idle_for(&mut r.process, 59);
+        let flow = r.process.step(&StopFlag::unraised()).unwrap();
+        assert_eq!(flow, Flow::Continue);
+        // Lockstep: a stalled loop is the plant's or the driver's to report,
+        // so the controller raised no fault meanwhile.
+        assert!(r.process.node.controller().fault().is_none());
+    }
+
+    /// The bound counts from the last sample, not from the start: a sample
+    /// after 61 s of silence is answered, and the next quiet step waits on.
+    #[test]
+    fn a_sample_restarts_the_idle_time() {
+        let mut r = rig("resume");
+        idle_for(&mut r.process, 61);
+        let stop = StopFlag::unraised();
+        r.samples
+            .send(SensorSample {
+                seq: 0,
+                theta_e: 0.3,
+                ..Default::default()
+            })
+            .unwrap();
+        assert_eq!(r.process.step(&stop).unwrap(), Flow::Continue);
+        let answer = r
+            .commands
+            .recv_timeout(Duration::from_secs(2))
+            .unwrap()
+            .expect("the sample answered");
+        assert_eq!(answer.sensor_seq, 0);
+        assert_eq!(r.process.step(&stop).unwrap(), Flow::Continue);
+    }
+}

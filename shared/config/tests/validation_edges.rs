@@ -4,60 +4,10 @@
 //! controller and the driver's safe state use (issue 23: each was a
 //! surviving mutant of the cargo-mutants sample of exo-config).
 
-use std::path::PathBuf;
+mod common;
 
-use exo_config::{configs_dir, ConfigError, RigSettings, RunConfig};
-
-/// A scratch copy of `configs/` with `default.toml` edited by `edits`,
-/// loaded.
-fn load_edited(tag: &str, edits: &[(&str, &str)]) -> (Result<RunConfig, ConfigError>, PathBuf) {
-    load_edited_in(tag, "default.toml", edits)
-}
-
-/// The same with `file` (relative to `configs/`) edited.
-fn load_edited_in(
-    tag: &str,
-    file: &str,
-    edits: &[(&str, &str)],
-) -> (Result<RunConfig, ConfigError>, PathBuf) {
-    let dir = std::env::temp_dir().join(format!("exo-config-edges-{tag}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    for sub in ["plants", "subjects"] {
-        std::fs::create_dir_all(dir.join(sub)).unwrap();
-    }
-    for f in [
-        "default.toml",
-        "experiments.toml",
-        "subjects/B.toml",
-        "plants/default.toml",
-    ] {
-        std::fs::copy(configs_dir().join(f), dir.join(f)).unwrap();
-    }
-    let edited = dir.join(file);
-    let mut text = std::fs::read_to_string(&edited).unwrap();
-    for (from, to) in edits {
-        assert!(text.contains(from), "{from:?} not in {file}");
-        text = text.replacen(from, to, 1);
-    }
-    std::fs::write(&edited, text).unwrap();
-    (RunConfig::from_file(&dir.join("default.toml")), dir)
-}
-
-fn refused_naming(tag: &str, edits: &[(&str, &str)], key: &str) {
-    let (r, dir) = load_edited(tag, edits);
-    let err = r.err().unwrap_or_else(|| panic!("{edits:?} accepted"));
-    assert!(
-        err.each().iter().any(|e| e.to_string().contains(key)),
-        "{edits:?}: {err}"
-    );
-    let _ = std::fs::remove_dir_all(dir);
-}
-
-fn accepted(tag: &str, edits: &[(&str, &str)]) -> RunConfig {
-    let (r, dir) = load_edited(tag, edits);
-    let _ = std::fs::remove_dir_all(dir);
-    r.unwrap_or_else(|e| panic!("{edits:?} refused: {e}"))
-}
+use common::{accepted, load_edited, load_edited_in, refused_naming};
+use exo_config::RigSettings;
 
 #[test]
 fn f_bounds_out_of_order_are_refused_naming_the_upper_bound() {

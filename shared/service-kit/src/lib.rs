@@ -69,6 +69,12 @@ impl StopFlag {
         }
         Ok(StopFlag(flag))
     }
+    /// A flag no signal raises (no handler is installed, so SIGINT and
+    /// SIGTERM keep their default action): for stepping a
+    /// [`runner::Process`] outside [`runner::main`], as a process's tests do.
+    pub fn unraised() -> Self {
+        StopFlag(Arc::new(AtomicBool::new(false)))
+    }
     /// Whether a stop was requested.
     #[inline]
     pub fn requested(&self) -> bool {
