@@ -159,7 +159,8 @@ fn physics_outside_the_catalogue_is_reported_unexplained_not_named() {
     // there.
     assert!(
         text.contains("not named: the human's stiffness drifting")
-            && text.contains("the change within a window it predicts is not in the data"),
+            && text.contains("the change within a window it predicts (")
+            && text.contains(") is not in the data"),
         "K₃ = 120:\n{text}"
     );
     assert_exclusive(&v);
@@ -229,7 +230,8 @@ fn physics_outside_the_catalogue_is_reported_unexplained_not_named() {
     // harmonic of τ_c it predicts is not in the data.
     assert!(
         text.contains("not named: an amplitude-dependent stiffness")
-            && text.contains("the 3rd harmonic of τ_c it predicts is not in the data"),
+            && text.contains("the 3rd harmonic of τ_c it predicts (")
+            && text.contains(") is not in the data"),
         "exo spring:\n{text}"
     );
     assert!(text.contains("unexplained"), "exo spring:\n{text}");
