@@ -193,10 +193,24 @@ fn physics_outside_the_catalogue_is_reported_unexplained_not_named() {
         "K₃ = 400:\n{text}"
     );
 
-    // The human's stiffness drifting within each experiment, K(1 + ρt), at
-    // 2 and 5 % per minute: discovered as the library's drift with ρ near
-    // the generator's; nothing else.
-    for (rho, arg) in [(0.02, "0.02"), (0.05, "0.05")] {
+    // The human's stiffness drifting within each experiment, K(1 + ρt).
+    // At 2 % per minute the change within a window that is the drift's own
+    // signature (the protocol's time is its frequency, so across windows
+    // the two are one) is 2 σ: too small to check. The form is "untested",
+    // nothing is named, and no lesser catalogue term takes its misfit (a
+    // partial cuff compliance did before).
+    let v = diagnose(&rig(&dir, "drift-0.02.mcap", &["--k-drift", "0.02"]));
+    let text = verdict(&v).join("\n");
+    assert!(found(&v).is_empty(), "ρ = 0.02:\n{text}");
+    assert!(
+        text.contains("not named: the human's stiffness drifting")
+            && text.contains("too small to check in these recordings (untested)"),
+        "ρ = 0.02:\n{text}"
+    );
+    assert_exclusive(&v);
+    // At 5 % per minute it is checked and confirmed: discovered as the
+    // library's drift with ρ near the generator's; nothing else.
+    for (rho, arg) in [(0.05, "0.05")] {
         let v = diagnose(&rig(
             &dir,
             &format!("drift-{arg}.mcap"),

@@ -238,6 +238,10 @@ pub struct Candidate {
     pub significant: bool,
     /// Why it was not accepted (empty when accepted).
     pub rejected_because: Vec<String>,
+    /// A generic form that every criterion accepts except that its own
+    /// signature is too small to check in these recordings: neither found
+    /// nor refuted ("untested").
+    pub untested: bool,
     /// Chosen at this step.
     pub chosen: bool,
 }
@@ -295,11 +299,17 @@ pub struct WindowCheck {
     /// Contradicted by the same rule as a transfer function: `|m|² ≥ 1`
     /// and `β < ½ − z·se`.
     pub contradicts: bool,
-    /// Confirmed at its predicted size: the data follow more than half of
-    /// the predicted signature beyond the one-sided critical value
-    /// (`β − z·se > ½`) and not more than twice it (`β − z·se ≤ 2`). A
+    /// Confirmed at its predicted size: the signature is in the data beyond
+    /// the one-sided critical value (`β > z·se`), and the data follow
+    /// between half and twice the size predicted (`½ ≤ β ≤ 2`: the form's
+    /// idealisation, e.g. backlash's instant impacts, may miss the size by a
+    /// few tens of per cent; far more or far less is another cause). A
     /// generic form is taken only when its own signature is confirmed.
     pub confirms: bool,
+    /// Large enough to check: had the data followed it exactly (`β = 1`),
+    /// it would be in the data beyond the critical value (`z·se < 1`). A
+    /// form whose signature is not is "untested", never found.
+    pub testable: bool,
 }
 
 impl WindowCheck {
@@ -317,7 +327,8 @@ impl WindowCheck {
             confirmed: beta,
             confirmed_se: se,
             contradicts: moved >= 1.0 && beta < 0.5 - z * se,
-            confirms: beta - z * se > 0.5 && beta - z * se <= 2.0,
+            confirms: beta > z * se && (0.5..=2.0).contains(&beta),
+            testable: z * se < 1.0,
         }
     }
 
@@ -330,6 +341,8 @@ impl WindowCheck {
             self.windows,
             if self.contradicts {
                 "not in the data"
+            } else if !self.testable {
+                "too small to check in these recordings (untested)"
             } else {
                 "not confirmed at its predicted size"
             },
@@ -1371,6 +1384,7 @@ impl StepContext<'_> {
                     amplitude_check: None,
                     significant: false,
                     rejected_because: Vec::new(),
+                    untested: false,
                     chosen: false,
                 },
                 f1,
@@ -1415,6 +1429,8 @@ impl StepContext<'_> {
         for (i, r) in rows.iter_mut().enumerate() {
             r.0.significant = r.0.p_holm < level;
             let mut why = statistical_reasons(&r.0, level);
+            r.0.untested = why.len() == 1
+                && own_signature(&r.0).is_some_and(|w| !w.testable && !w.contradicts);
             if why.is_empty() && pick.is_none() {
                 if let Some(groups) = self.amp_groups {
                     let added = r.0.term.params(experiments);
@@ -1652,9 +1668,17 @@ pub fn diagnose(
             });
         }
         let forms = eligible(&s.forms);
+        // The best form every criterion accepts but for its untestable
+        // signature: (its words, its RSS).
+        let mut untested_form: Option<(&'static str, f64)> = None;
         if !forms.is_empty() {
             let mut form_rows = ctx.evaluate(&forms);
             let form_pick = ctx.select(&mut form_rows);
+            untested_form = form_rows
+                .iter()
+                .filter(|r| r.0.untested)
+                .map(|r| (r.0.words, r.1.rss))
+                .min_by(|a, b| a.1.total_cmp(&b.1));
             let better =
                 form_pick.filter(|&j| pick.is_none_or(|i| form_rows[j].1.rss < rows[i].1.rss));
             if let Some(j) = form_pick.filter(|_| better.is_none()) {
@@ -1684,6 +1708,27 @@ pub fn diagnose(
             });
         } else if !searched {
             break;
+        }
+        // A generic form that fits better than the term picked but whose
+        // own signature these recordings cannot check: nothing is named at
+        // this step (naming the lesser term would put a wrong name on the
+        // misfit the form explains); the form is reported "untested".
+        if let (Some(i), Some((form, rss))) = (pick, untested_form) {
+            let rss_pick = rows[i].1.rss;
+            if rss < rss_pick {
+                let words = format!(
+                    "{form} leaves less misfit (RSS {rss:.1} against {rss_pick:.1}) but cannot be checked by its own signature here (untested): nothing is named at this step"
+                );
+                for c in steps[catalogue_step..]
+                    .iter_mut()
+                    .flat_map(|s| s.candidates.iter_mut())
+                    .filter(|c| c.chosen)
+                {
+                    c.chosen = false;
+                    c.rejected_because.push(words.clone());
+                }
+                break;
+            }
         }
         let Some(pick) = pick else { break };
         let (cand, f1, cstart, _free) = rows.swap_remove(pick);
