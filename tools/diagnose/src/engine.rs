@@ -1984,3 +1984,38 @@ pub fn diagnose(
         posture,
     })
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The signature rule with the numbers written out (z = 2): present
+    /// beyond the noise (`β > z·se`) and between half and twice the
+    /// predicted size; too small to check when even `β = 1` would not be
+    /// beyond the noise (`z·se ≥ 1`); contradicted when it moves the
+    /// prediction by a noise σ or more and `β < ½ − z·se`.
+    #[test]
+    fn a_signature_is_confirmed_present_and_at_its_predicted_size() {
+        let check =
+            |beta: f64, se: f64, moved: f64| WindowCheck::new("s", (moved, beta, se, 10), 2.0);
+        // The rig's backlash (β = 0.83 ± 0.01) and 5 %/min drift (0.88 ± 0.22).
+        for (b, se) in [(0.83, 0.01), (0.88, 0.22), (0.5, 0.2), (2.0, 0.1)] {
+            let c = check(b, se, 100.0);
+            assert!(c.confirms && c.testable && !c.contradicts, "{b} ± {se}");
+        }
+        // Present but too small, or far too large: not at its size.
+        for (b, se) in [(0.45, 0.01), (2.05, 0.01)] {
+            assert!(!check(b, se, 100.0).confirms, "{b} ± {se}");
+        }
+        // At its size but not beyond the noise: β = 0.8 ± 0.41 (z·se = 0.82).
+        assert!(!check(0.8, 0.41, 100.0).confirms);
+        // Testable up to z·se < 1.
+        assert!(check(0.8, 0.49, 100.0).testable);
+        assert!(!check(0.73, 0.54, 5.0).testable);
+        // Contradicted: β = 0 ± 0.1 against ½ − 0.2; not below a σ moved.
+        assert!(check(0.0, 0.1, 100.0).contradicts);
+        assert!(!check(0.0, 0.1, 0.9).contradicts);
+        assert!(!check(0.31, 0.1, 100.0).contradicts);
+        assert!(check(0.29, 0.1, 100.0).contradicts);
+    }
+}

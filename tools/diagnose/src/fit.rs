@@ -354,3 +354,28 @@ pub fn fit(
         converged,
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A term's share is its fall of χ² over the misfit beyond the noise
+    /// before it, clamped to [0, 1]; NaN when nothing was beyond the noise.
+    #[test]
+    fn the_share_is_the_fall_of_chi2_over_the_misfit_beyond_the_noise() {
+        let before = LackOfFit {
+            p_value: 1e-6,
+            beyond_noise: 40.0,
+            chi2: 100.0,
+        };
+        let after = |chi2: f64| LackOfFit {
+            p_value: 0.5,
+            beyond_noise: 0.0,
+            chi2,
+        };
+        assert_eq!(before.explained_share(&after(90.0)), 0.25);
+        assert_eq!(before.explained_share(&after(50.0)), 1.0);
+        assert_eq!(before.explained_share(&after(120.0)), 0.0);
+        assert!(after(80.0).explained_share(&after(70.0)).is_nan());
+    }
+}

@@ -428,6 +428,34 @@ mod tests {
         }
     }
 
+    /// A 2nd harmonic out of phase with `Θ₁²`: `y = (3 + 2j) m + η_e n`
+    /// exactly; with the quadrature column the coefficients are 3 in phase
+    /// and 2 in quadrature, with no residual; without it the in-phase fit
+    /// leaves what `2j m` does not share with `m` and the nuisance.
+    #[test]
+    fn the_phase_of_the_harmonic_is_measured_in_quadrature() {
+        let c = |re: f64, im: f64| Complex64::new(re, im);
+        let data = [
+            (1, c(1.0, 0.5), c(0.0, 1.0), 0.7),
+            (1, c(0.3, -1.0), c(0.5, 0.2), 0.7),
+            (1, c(-0.8, 0.1), c(0.2, -0.4), 0.7),
+            (2, c(0.4, 0.9), c(1.0, 0.0), -1.2),
+            (2, c(1.1, 0.2), c(-0.3, 0.6), -1.2),
+        ];
+        let rows: Vec<Row> = data
+            .iter()
+            .map(|&(e, m, n, eta)| row(e, m, n, c(3.0, 2.0) * m + eta * n))
+            .collect();
+        let ([k_in, k_quad], [_, se_quad], _, rss1, _) = regress_with(rows.iter(), true).unwrap();
+        assert!(
+            (k_in - 3.0).abs() < 1e-9 && (k_quad - 2.0).abs() < 1e-9,
+            "{k_in} {k_quad}"
+        );
+        assert!(rss1 < 1e-18 && se_quad.is_finite());
+        let (_, [_, none], _, rss_in, _) = regress_with(rows.iter(), false).unwrap();
+        assert!(none.is_nan() && rss_in > 1e-3, "{rss_in}");
+    }
+
     /// `y = 3 m + η_e n` exactly, with a nuisance of its own per experiment:
     /// the least squares recovers 3 with no residual, and without the form
     /// the residual is what `3 m` leaves after the nuisance's best fit,
