@@ -2018,4 +2018,21 @@ mod tests {
         assert!(!check(0.31, 0.1, 100.0).contradicts);
         assert!(check(0.29, 0.1, 100.0).contradicts);
     }
+
+    /// The reason a form is not taken names its signature, the size it
+    /// predicted and what the data showed, in each of the three cases.
+    #[test]
+    fn a_signatures_words_say_what_was_predicted_and_seen() {
+        let w = |beta: f64, se: f64| {
+            WindowCheck::new("the 3rd harmonic of τ_c", (400.0, beta, se, 30), 2.0).words()
+        };
+        assert_eq!(
+            w(0.0, 0.05),
+            "the 3rd harmonic of τ_c it predicts (20.0 σ over 30 values) is not in the data: the data show 0 ± 5 % of it"
+        );
+        assert!(w(0.73, 0.54).contains("too small to check in these recordings (untested)"));
+        assert!(
+            w(0.4, 0.05).contains("not confirmed at its predicted size: the data show 40 ± 5 %")
+        );
+    }
 }

@@ -428,6 +428,19 @@ mod tests {
         }
     }
 
+    /// Five windows of two experiments: (experiment, the form's `m`, the
+    /// nuisance's `n`, the experiment's nuisance coefficient `η_e`).
+    fn windows() -> [(u32, Complex64, Complex64, f64); 5] {
+        let c = |re: f64, im: f64| Complex64::new(re, im);
+        [
+            (1, c(1.0, 0.5), c(0.0, 1.0), 0.7),
+            (1, c(0.3, -1.0), c(0.5, 0.2), 0.7),
+            (1, c(-0.8, 0.1), c(0.2, -0.4), 0.7),
+            (2, c(0.4, 0.9), c(1.0, 0.0), -1.2),
+            (2, c(1.1, 0.2), c(-0.3, 0.6), -1.2),
+        ]
+    }
+
     /// A 2nd harmonic out of phase with `Θ₁²`: `y = (3 + 2j) m + η_e n`
     /// exactly; with the quadrature column the coefficients are 3 in phase
     /// and 2 in quadrature, with no residual; without it the in-phase fit
@@ -435,13 +448,7 @@ mod tests {
     #[test]
     fn the_phase_of_the_harmonic_is_measured_in_quadrature() {
         let c = |re: f64, im: f64| Complex64::new(re, im);
-        let data = [
-            (1, c(1.0, 0.5), c(0.0, 1.0), 0.7),
-            (1, c(0.3, -1.0), c(0.5, 0.2), 0.7),
-            (1, c(-0.8, 0.1), c(0.2, -0.4), 0.7),
-            (2, c(0.4, 0.9), c(1.0, 0.0), -1.2),
-            (2, c(1.1, 0.2), c(-0.3, 0.6), -1.2),
-        ];
+        let data = windows();
         let rows: Vec<Row> = data
             .iter()
             .map(|&(e, m, n, eta)| row(e, m, n, c(3.0, 2.0) * m + eta * n))
@@ -463,14 +470,7 @@ mod tests {
     /// projection `Re(n̄ r)/|n|²` per experiment).
     #[test]
     fn the_regression_separates_the_form_from_the_nuisance() {
-        let c = |re: f64, im: f64| Complex64::new(re, im);
-        let data = [
-            (1, c(1.0, 0.5), c(0.0, 1.0), 0.7),
-            (1, c(0.3, -1.0), c(0.5, 0.2), 0.7),
-            (1, c(-0.8, 0.1), c(0.2, -0.4), 0.7),
-            (2, c(0.4, 0.9), c(1.0, 0.0), -1.2),
-            (2, c(1.1, 0.2), c(-0.3, 0.6), -1.2),
-        ];
+        let data = windows();
         let rows: Vec<Row> = data
             .iter()
             .map(|&(e, m, n, eta)| row(e, m, n, 3.0 * m + eta * n))

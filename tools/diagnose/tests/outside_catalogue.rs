@@ -403,3 +403,42 @@ fn one_excitation_amplitude_cannot_decide_an_amplitude_dependence() {
         "{text}"
     );
 }
+
+/// Backlash's harmonic check measures the change from the model it starts
+/// from, whatever that model already holds: on our simulator's horizontal
+/// rig with 0.1 rad of lost motion, the harmonics the fitted δ predicts
+/// over no lost motion and over half of it are both in the data at their
+/// predicted size (β near 1), and the harmonics of twice the fitted δ over
+/// it are not (β near 0: the data hold δ, not 2δ).
+#[test]
+fn backlashs_harmonic_check_measures_the_change_from_any_starting_lash() {
+    use exo_diagnose::signatures::backlash_harmonic_check;
+    let mut nominal = default_plant();
+    nominal.gravity.enabled = false;
+    let mut truth = nominal;
+    truth.exo.backlash.lash_rad = 0.1;
+    let periods = common::protocol(&[(1, 20.0, 8.0, 4.5, 0.0), (2, 40.0, 16.0, 4.5, 4.0)]);
+    let rec = synthesize(&truth, &periods, &SynthSettings::default());
+    let d = reduce(&[rec], &Reduction::default());
+    let r = diagnose(&d, &nominal, &Settings::default()).expect("diagnosis");
+    let fitted = r.final_physics.clone();
+    assert!(fitted.lash_half_rad > 0.04, "{:#?}", r.verdict);
+    let with = |half: f64| {
+        let mut p = fitted.clone();
+        p.lash_half_rad = half;
+        p
+    };
+    let delta = fitted.lash_half_rad;
+    for start in [0.0, 0.5 * delta] {
+        let (moved, beta, se, _) =
+            backlash_harmonic_check(&d, &with(start), &fitted).expect("a check");
+        assert!(moved > 25.0, "from {start}: {:.1} σ", moved.sqrt());
+        assert!(
+            (0.5..=1.5).contains(&beta),
+            "from {start}: β = {beta} ± {se}"
+        );
+    }
+    let (_, beta, se, _) =
+        backlash_harmonic_check(&d, &fitted, &with(2.0 * delta)).expect("a check");
+    assert!(beta.abs() < 0.3, "δ → 2δ: β = {beta} ± {se}");
+}
