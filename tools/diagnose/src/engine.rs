@@ -1915,7 +1915,7 @@ pub fn diagnose(
     if found_tf.is_empty() {
         if beyond_noise(final_score.lack_of_fit_p) {
             verdict.push(format!(
-                "unexplained: structure beyond the measured noise remains after the refit (χ²/dof {:.2}, lack-of-fit p = {:.1e}) and no term of the catalogue nor generic form of the library explains it without the data contradicting it",
+                "unexplained: structure beyond the measured noise remains after the refit (χ²/dof {:.2}, lack-of-fit p = {:.1e}) and no term of the catalogue nor generic form of the library explains it and passes every check (each not named is listed with its reason)",
                 final_score.chi2_per_dof, final_score.lack_of_fit_p
             ));
             verdict.extend(not_named(&steps));
