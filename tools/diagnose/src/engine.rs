@@ -474,6 +474,15 @@ pub struct Found {
 /// `exo diagnose-bench` is far below it.)
 pub const MARGINAL_P: f64 = 1e-3;
 
+/// The fewest analysis windows (a broadband window counts once per band
+/// it gives) from which the diagnosis tells structure from noise. Each
+/// window's noise comes from its own residual, but with
+/// one or two windows the model's own parameters (`K_h`, `H_h`, `M_h`, the
+/// SEA's) take up nearly every value, so a lack-of-fit there measures the
+/// few degrees of freedom left, not the physics: nothing is named and the
+/// verdict says why.
+pub const MIN_WINDOWS: usize = 3;
+
 /// The whole result.
 #[derive(Debug, Clone, Serialize)]
 pub struct Diagnosis {
@@ -1615,7 +1624,24 @@ pub fn diagnose(
     let mut current: Fitted = base.clone();
     let mut current_start = p0.clone();
     let mut current_ho = refit_score.heldout_rss;
-    let mut lack_p = refit_score.lack_of_fit_p;
+    // Single-sine windows, a broadband window counting once per band.
+    let windows = {
+        let mut w: Vec<(usize, u64)> = d
+            .observations
+            .iter()
+            .filter(|o| o.tf.is_dynamic())
+            .map(|o| (o.window, o.omega_rad_s.to_bits()))
+            .collect();
+        w.sort_unstable();
+        w.dedup();
+        w.len()
+    };
+    let too_few = windows < MIN_WINDOWS;
+    let mut lack_p = if too_few {
+        1.0
+    } else {
+        refit_score.lack_of_fit_p
+    };
     let mut in_model: Vec<Term> = Term::ALL
         .iter()
         .chain(Term::FORMS.iter())
@@ -1749,13 +1775,17 @@ pub fn diagnose(
     // the model's own parameters are refitted with it: its second-order
     // shift of the stiffness with the amplitude (`−K₂² A²/4K`) is then
     // predicted, nothing fitted for it.
-    let posture = crate::posture::fit(
-        d,
-        &current.physics,
-        s.level,
-        amp_groups.as_ref().map(|g| g.group.as_slice()),
-        normal_quantile(1.0 - s.level / 2.0),
-    );
+    let posture = (!too_few)
+        .then(|| {
+            crate::posture::fit(
+                d,
+                &current.physics,
+                s.level,
+                amp_groups.as_ref().map(|g| g.group.as_slice()),
+                normal_quantile(1.0 - s.level / 2.0),
+            )
+        })
+        .flatten();
     let posture_taken = posture.as_ref().filter(|p| p.accepted);
     let mut posture_chi2 = None;
     if let Some(p) = posture_taken {
@@ -1912,7 +1942,11 @@ pub fn diagnose(
         .chain(harmonic_unexplained)
         .collect();
     let found_tf = &found[..tf_found];
-    if found_tf.is_empty() {
+    if too_few {
+        verdict.push(format!(
+            "too few analysis windows to tell structure from noise ({windows}; at least {MIN_WINDOWS}): nothing is named (the model's own parameters, refitted, are above)"
+        ));
+    } else if found_tf.is_empty() {
         if beyond_noise(final_score.lack_of_fit_p) {
             verdict.push(format!(
                 "unexplained: structure beyond the measured noise remains after the refit (χ²/dof {:.2}, lack-of-fit p = {:.1e}) and no term of the catalogue nor generic form of the library explains it and passes every check (each not named is listed with its reason)",
