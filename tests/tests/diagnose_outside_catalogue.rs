@@ -437,7 +437,7 @@ fn backlash_in_a_horizontal_rig_is_discovered() {
 /// Backlash's own signature beyond the transfer functions (issue 30,
 /// item 1), on data we did not write: the 2nd and 3rd harmonics of the
 /// SEA's torque that a lost motion `2δ` leaves beyond the arm's linear
-/// impedance (`exo_diagnose::model::lost_motion_harmonic`).
+/// impedance (`exo_diagnose::model::Mesh::lost_motion_harmonic`).
 ///
 /// - On the horizontal rig with 0.05 rad of lost motion, the harmonics the
 ///   form predicts at the fitted δ are in the data at their predicted size

@@ -331,7 +331,7 @@ fn output_harmonics(
 /// what the joint's linear impedance makes of the angle's own harmonics.
 /// Exactly `τ_s = Z_arm θ + J_m θ̈_m`, `θ_m = θ + Δ`, so at harmonic `h` the
 /// SEA carries `S_h-e(hω) Θ_h − g_s J_m (hω)² Δ_h` with `Δ_h` the lost
-/// motion's harmonic ([`crate::model::lost_motion_harmonic`]: a pulse wave's
+/// motion's harmonic ([`crate::model::Mesh::lost_motion_harmonic`]: a pulse wave's
 /// `(4δ/hπ) sin(hφ₀)`, even harmonics where a preload makes its duty
 /// unequal). The check is [`cubic_harmonic_check`]'s: `y_h = T_h −
 /// S_h-e(hω) Θ_h` less what `before` predicts, `m_h` the change `after`
@@ -365,18 +365,11 @@ pub fn backlash_harmonic_check(
         // The SEA's torque at harmonic h from the lost motion `Δ_h` of `p`,
         // placed at the angle's measured phase (less the encoder's delay).
         let theta_phase = th[0].arg() + w * linear.delay_s[0];
+        let s_exo = linear.s_exo_linear(w, c);
         let lost = |p: &crate::model::Physics, h: u32| {
             let hw = f64::from(h) * w;
-            let z_arm = p.z_arm(linear.s_exo_linear(w, c), w);
-            let delta = crate::model::lost_motion_harmonic(
-                h,
-                p.lash_half_rad,
-                p.motor_inertia,
-                z_arm,
-                linear.mesh_preload_nm(c),
-                linear.true_amplitude_rad(c),
-                w,
-            ) * Complex64::from_polar(1.0, f64::from(h) * theta_phase);
+            let delta = p.mesh(p.lash_half_rad, s_exo, w, c).lost_motion_harmonic(h)
+                * Complex64::from_polar(1.0, f64::from(h) * theta_phase);
             -linear.gain[2]
                 * p.motor_inertia
                 * hw

@@ -58,7 +58,7 @@ pub enum Term {
     PostureStiffness,
     /// Generic form: backlash (lost motion `2δ`) in the gear mesh between
     /// the drive's output and the arm, seen where the joint's torque
-    /// reverses ([`crate::model::backlash_describing`]).
+    /// reverses ([`crate::model::Mesh::describing`]).
     Backlash,
 }
 
