@@ -67,29 +67,28 @@ def window(x, rig):
     return x[:, -(rig.tm.ticks(R.ANALYSIS_S) + 1):]
 
 
-def fundamental(x, specs, rig):
-    """Complex amplitude X (x ~ c + Re X e^{j w t}) of each period's window at its w."""
+def fit_fundamental(x, specs, rig):
+    """(c, X) of each period's window at its w: x ~ c + Re X e^{j w t}."""
     tm = rig.tm
     x = window(x, rig)
     t = (tm.t_analysis - tm.t_sine + np.arange(x.shape[1])) * tm.dt
-    out = []
+    const, amp = [], []
     for row, sp in zip(x, specs):
         a = np.stack([np.ones_like(t), np.cos(sp["omega"] * t), np.sin(sp["omega"] * t)], axis=1)
         c = np.linalg.lstsq(a, row, rcond=None)[0]
-        out.append(c[1] - 1j * c[2])
-    return np.array(out)
+        const.append(c[0])
+        amp.append(c[1] - 1j * c[2])
+    return np.array(const), np.array(amp)
+
+
+def fundamental(x, specs, rig):
+    """Complex amplitude X (x ~ c + Re X e^{j w t}) of each period's window at its w."""
+    return fit_fundamental(x, specs, rig)[1]
 
 
 def fundamental_const(x, specs, rig):
     """The constant c of the fit of fundamental()."""
-    tm = rig.tm
-    x = window(x, rig)
-    t = (tm.t_analysis - tm.t_sine + np.arange(x.shape[1])) * tm.dt
-    out = []
-    for row, sp in zip(x, specs):
-        a = np.stack([np.ones_like(t), np.cos(sp["omega"] * t), np.sin(sp["omega"] * t)], axis=1)
-        out.append(np.linalg.lstsq(a, row, rcond=None)[0][0])
-    return np.array(out)
+    return fit_fundamental(x, specs, rig)[0]
 
 
 def wrap(p):
