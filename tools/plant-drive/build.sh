@@ -5,7 +5,8 @@
 #   LIB: libexo_plant_drive.a when already built (the tests pass theirs);
 #        otherwise `cargo build -p exo-plant-drive` builds it (in $CARGO_TARGET_DIR, or target/).
 # Needs what the vendored ../shared/vendor/kickcat/build.sh needs (cmake, g++,
-# nlohmann-json3-dev, libtinyxml2-dev). Incremental: the cmake tree stays in DIR/build.
+# nlohmann-json3-dev, libtinyxml2-dev); tools/scripts/system-packages.sh installs
+# them when missing and run as root. Incremental: the cmake tree stays in DIR/build.
 set -euo pipefail
 here=$(cd "$(dirname "$0")" && pwd)
 root=$(cd "$here/../.." && pwd)
@@ -17,10 +18,8 @@ if [ -z "$lib" ]; then
   lib="${CARGO_TARGET_DIR:-$root/target}/debug/libexo_plant_drive.a"
 fi
 [ -f "$lib" ] || { echo "plant-drive build: $lib not found" >&2; exit 1; }
-for tool in cmake g++; do
-  command -v $tool >/dev/null || { echo "plant-drive build: install $tool first (../shared/vendor/kickcat/build.sh installs it when run as root)" >&2; exit 1; }
-done
-[ -f /usr/include/tinyxml2.h ] || { echo "plant-drive build: install libtinyxml2-dev first" >&2; exit 1; }
+# The packages it builds with: installed when missing (as root), or named.
+"$root/tools/scripts/system-packages.sh" "plant-drive build"
 if [ ! -f "$out/argparse-prefix/.done" ]; then
   cmake -S "$kickcat/argparse" -B "$out/argparse-build" -DCMAKE_INSTALL_PREFIX="$out/argparse-prefix" \
     -DARGPARSE_BUILD_TESTS=OFF -DARGPARSE_BUILD_SAMPLES=OFF >/dev/null
