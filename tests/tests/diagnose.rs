@@ -83,6 +83,38 @@ fn the_bench_runs_a_horizontal_rig_and_finds_its_backlash() {
     }
 }
 
+/// The drive's torque limit (issue 30, item 6) on our simulator, through
+/// the real processes, at two sizes: 28 Nm clips the peaks of experiment
+/// 7's larger amplitude, 26.5 Nm every period of it. Each is named alone,
+/// at the true limit, and written into the updated plant, which the
+/// simulator accepts.
+#[test]
+fn the_bench_names_the_drives_torque_limit_at_two_sizes() {
+    let dir = scratch("bench-saturation");
+    let v = bench_json(&dir, "saturation,saturation-deep");
+    let cases = v.as_array().unwrap();
+    for (case, truth_nm) in cases.iter().zip([28.0_f64, 26.5]) {
+        assert_eq!(
+            case["named"],
+            serde_json::json!(["actuator_saturation"]),
+            "{v:#}"
+        );
+        let name = case["case"].as_str().unwrap();
+        let updated = exo_plant_sim::PlantModel::from_file(
+            &dir.join(format!("{name}-diagnosis/updated-plant.toml")),
+        )
+        .unwrap();
+        let truth =
+            exo_plant_sim::PlantModel::from_file(&dir.join(format!("{name}-truth.toml"))).unwrap();
+        assert_eq!(truth.sea.torque_limit_nm, truth_nm);
+        let found = updated.sea.torque_limit_nm;
+        assert!(
+            (found - truth_nm).abs() < 0.01 * truth_nm,
+            "{name}: found {found} Nm, true {truth_nm} Nm"
+        );
+    }
+}
+
 #[test]
 fn the_bench_names_a_concealed_gravity_error_and_nothing_in_a_null_case() {
     let dir = scratch("bench");

@@ -595,3 +595,64 @@ fn a_posture_form_within_the_models_accuracy_is_not_named() {
         "{why:#?}"
     );
 }
+
+/// The drive's torque limit (issue 30, item 6) on the independent rig,
+/// whose drive clips the command it records unclipped (`--saturation`), at
+/// two sizes: 27 Nm clips only the peaks of experiment 7 (bias 8 Nm on
+/// 17 Nm of gravity compensation, commands up to 28.5 Nm), 26 Nm most of
+/// its cycles. Each is named alone, at the rig's limit, confirmed by the
+/// 2nd and 3rd harmonics the clipped peaks leave in the SEA's torque at the
+/// size the fit predicts, and written into the updated plant (the same rig
+/// without a limit names nothing:
+/// `physics_outside_the_catalogue_is_reported_unexplained_not_named`).
+#[test]
+fn the_rigs_torque_limit_is_named_at_two_sizes_by_its_clipped_peaks() {
+    let dir = scratch("saturation");
+    for limit in [27.0_f64, 26.0] {
+        let rec = rig(
+            &dir,
+            &format!("sat-{limit}.mcap"),
+            &["--saturation", &limit.to_string()],
+        );
+        let out_dir = dir.join(format!("sat-{limit}"));
+        let out = exo(&[
+            "diagnose",
+            "--json",
+            "--model",
+            configs_dir().join("plants/default.toml").to_str().unwrap(),
+            rec.to_str().unwrap(),
+            "-o",
+            out_dir.to_str().unwrap(),
+        ]);
+        assert!(out.status.success(), "exo diagnose: {}", stderr(&out));
+        let v: Value = serde_json::from_str(&stdout(&out)).unwrap();
+        assert_eq!(
+            found(&v),
+            vec![("actuator_saturation".to_string(), false)],
+            "{limit} Nm: {:#?}",
+            verdict(&v)
+        );
+        assert_exclusive(&v);
+        let inv = final_value(&v, "saturation_per_nm");
+        let fitted = 1.0 / inv;
+        assert!(
+            (fitted - limit).abs() < 0.01 * limit,
+            "{limit} Nm: fitted {fitted}"
+        );
+        let c = chosen(&v, "actuator_saturation");
+        let h = &c["harmonic_check"];
+        assert_eq!(h["confirms"], true, "{limit} Nm: {h:#}");
+        let beta = h["confirmed"].as_f64().unwrap();
+        assert!((0.8..=1.25).contains(&beta), "{limit} Nm: β = {beta}");
+        let plant = std::fs::read_to_string(out_dir.join("updated-plant.toml")).unwrap();
+        let written: f64 = plant
+            .lines()
+            .find_map(|l| l.strip_prefix("torque_limit_nm = "))
+            .and_then(|x| x.trim().parse().ok())
+            .unwrap_or_else(|| panic!("no torque_limit_nm in {plant}"));
+        assert!(
+            (written - fitted).abs() < 1e-9 * fitted,
+            "{written} against {fitted}"
+        );
+    }
+}

@@ -207,6 +207,20 @@ pub fn cases() -> Vec<Case> {
             nominal: horizontal,
         },
         Case {
+            name: "saturation",
+            what: "the drive's torque limit at 28 Nm, 1 Nm below the largest command of the bench's protocol (experiment 7: bias 8 Nm on 17 Nm of gravity compensation): the peaks of experiment 7's larger amplitude are clipped",
+            expected: vec![Term::ActuatorSaturation],
+            truth: |m, _, scale| m.sea.torque_limit_nm = 29.0 - scale,
+            nominal: same,
+        },
+        Case {
+            name: "saturation-deep",
+            what: "the drive's torque limit at 26.5 Nm, 2.5 Nm below the largest command: every period of experiment 7 clipped",
+            expected: vec![Term::ActuatorSaturation],
+            truth: |m, _, scale| m.sea.torque_limit_nm = 29.0 - 2.5 * scale,
+            nominal: same,
+        },
+        Case {
             name: "null-horizontal",
             what: "no missing physics: a horizontal rig (no gravity, none compensated) and its nominal model, another seed",
             expected: vec![],

@@ -72,7 +72,7 @@ impl Tf {
 }
 
 /// The conditions of one analysis window.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+#[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct Condition {
     /// Experiment (1–9, or the recording's own numbering).
     pub experiment: u32,
@@ -96,6 +96,10 @@ pub struct Condition {
     /// not measured): the torque the joint's drive holds on average, the
     /// preload of a gear mesh behind it.
     pub tau_s_mean_nm: f64,
+    /// The window's motor command as a torque limit sees it (`None` when
+    /// not recorded in every sample of its whole cycles, or broadband).
+    #[serde(skip)]
+    pub command: Option<std::sync::Arc<CommandPeaks>>,
     /// Control period of the recording (s).
     pub sample_period_s: f64,
     /// Start of the window (s from the recording's first sensor sample).
@@ -103,6 +107,86 @@ pub struct Condition {
     /// Time from the start of the experiment's first window to this
     /// window's start (s): its place in time within the experiment.
     pub elapsed_s: f64,
+}
+
+/// One window's motor command `τ_d` over its whole cycles, as a torque
+/// limit sees it: the samples sorted by value with running sums of their
+/// share of the fundamental, so that what a limit `L` cuts off the
+/// fundamental, `(2/n) Σ (clip(x_k, −L, L) − x_k) e^{−jωt_k}`, is exact for
+/// any `L` (a binary search and two sums) and needs no assumption on the
+/// command's shape (its harmonics, its noise: the peaks are what they were).
+#[derive(Debug, Clone, PartialEq)]
+pub struct CommandPeaks {
+    /// The command's fundamental `(2/n) Σ x_k e^{−jωt_k}` (Nm).
+    pub fundamental: Complex64,
+    /// The samples' values, largest first (Nm).
+    desc_x: Vec<f64>,
+    /// Running sums over that order of `(2/n) e^{−jωt_k}`, from 0 (one more
+    /// than the samples).
+    sum_e: Vec<Complex64>,
+    /// The same of `(2/n) x_k e^{−jωt_k}` (Nm).
+    sum_xe: Vec<Complex64>,
+}
+
+impl CommandPeaks {
+    /// From the command `x` (Nm) at `t` (s) over whole cycles of `w`
+    /// (rad/s); `None` when a value is not finite or there are none.
+    pub fn new(t: &[f64], x: &[f64], w: f64) -> Option<Self> {
+        let n = t.len().min(x.len());
+        if n == 0 || x[..n].iter().any(|v| !v.is_finite()) {
+            return None;
+        }
+        let scale = 2.0 / n as f64;
+        let mut order: Vec<usize> = (0..n).collect();
+        order.sort_by(|&a, &b| x[b].total_cmp(&x[a]));
+        let (mut sum_e, mut sum_xe) = (Vec::with_capacity(n + 1), Vec::with_capacity(n + 1));
+        let (mut e_acc, mut xe_acc) = (Complex64::new(0.0, 0.0), Complex64::new(0.0, 0.0));
+        sum_e.push(e_acc);
+        sum_xe.push(xe_acc);
+        for &k in &order {
+            let e = scale * Complex64::from_polar(1.0, -w * (t[k] - t[0]));
+            e_acc += e;
+            xe_acc += x[k] * e;
+            sum_e.push(e_acc);
+            sum_xe.push(xe_acc);
+        }
+        Some(Self {
+            fundamental: xe_acc,
+            desc_x: order.iter().map(|&k| x[k]).collect(),
+            sum_e,
+            sum_xe,
+        })
+    }
+
+    /// The largest magnitude of the command (Nm).
+    pub fn peak_nm(&self) -> f64 {
+        let first = self.desc_x.first().copied().unwrap_or(0.0);
+        let last = self.desc_x.last().copied().unwrap_or(0.0);
+        first.abs().max(last.abs())
+    }
+
+    /// The gain of a torque limit `limit_nm` at the fundamental: the
+    /// fundamental of `clip(τ_d, −L, L)` over the command's own (complex:
+    /// a command with harmonics can be clipped off its phase). 1 for an
+    /// infinite limit or a command with no fundamental.
+    pub fn clip_gain(&self, limit_nm: f64) -> Complex64 {
+        let one = Complex64::new(1.0, 0.0);
+        if !limit_nm.is_finite() || self.fundamental.norm() == 0.0 {
+            return one;
+        }
+        let l = limit_nm.max(0.0);
+        let n = self.desc_x.len();
+        // Above the limit: the first `up` samples; below −L: the last `low`.
+        let up = self.desc_x.partition_point(|&v| v > l);
+        let low = n - self.desc_x.partition_point(|&v| v >= -l);
+        let cut_up = l * self.sum_e[up] - self.sum_xe[up];
+        let (e_low, xe_low) = (
+            self.sum_e[n] - self.sum_e[n - low],
+            self.sum_xe[n] - self.sum_xe[n - low],
+        );
+        let cut_low = -l * e_low - xe_low;
+        one + (cut_up + cut_low) / self.fundamental
+    }
 }
 
 /// One measured transfer-function value.
@@ -135,6 +219,10 @@ pub struct WindowSignals {
     pub tau_c_nm: Vec<f64>,
     /// SEA torque less the controller's gravity compensation (Nm).
     pub tau_s_net_nm: Vec<f64>,
+    /// SEA torque as measured (Nm).
+    pub tau_s_nm: Vec<f64>,
+    /// Motor command (Nm; NaN where the command was not recorded).
+    pub tau_d_nm: Vec<f64>,
     /// Excitation frequency (rad/s; 0 for broadband).
     pub omega_rad_s: f64,
 }
@@ -366,6 +454,8 @@ pub fn reduce(recordings: &[Recording], s: &Reduction) -> Dataset {
                 sig.tau_s_net_nm.push(x.tau_s - tg);
                 tau_s_raw.push(x.tau_s);
                 tau_d.push(td);
+                sig.tau_s_nm.push(x.tau_s);
+                sig.tau_d_nm.push(td);
                 tau_g.push(tg);
             }
             if bad > 0 {
@@ -397,6 +487,7 @@ pub fn reduce(recordings: &[Recording], s: &Reduction) -> Dataset {
                 theta_amp_rad: 0.0,
                 sin_theta_mean: theta0.sin(),
                 tau_s_mean_nm: f64::NAN,
+                command: None,
                 sample_period_s: dt,
                 start_s: t0.saturating_sub(r.sensor[0].stamp_ns) as f64 * 1e-9,
                 elapsed_s: 0.0,
@@ -543,6 +634,10 @@ fn single_sine(
         push(Tf::She, &a_th, &a_tsn);
         if a_ts.amplitude.norm() > 0.0 {
             push(Tf::Sea, &a_td, &a_ts);
+        }
+        if let Some(n) = exo_impedance::frf::whole_cycles(&sig.t_s, w) {
+            cond.command =
+                CommandPeaks::new(&sig.t_s[..n], &tau_d[..n], w).map(std::sync::Arc::new);
         }
         balance(what, sig, tau_g, window, cond, d);
     }

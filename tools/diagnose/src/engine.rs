@@ -362,12 +362,12 @@ fn window_check(d: &Dataset, before: &Physics, after: &Physics, z: f64) -> Optio
         }
         for r in crate::remains::within_window_rates(d, tf) {
             let o = &r.observation;
-            let c = d.conditions[o.window];
-            let mut later = c;
+            let c = &d.conditions[o.window];
+            let mut later = c.clone();
             later.elapsed_s += r.dt_s;
             let rate = |p: &Physics| {
                 (p.predict_tf(tf, o.omega_rad_s, &later, o.gravity_comp)
-                    - p.predict_tf(tf, o.omega_rad_s, &c, o.gravity_comp))
+                    - p.predict_tf(tf, o.omega_rad_s, c, o.gravity_comp))
                     * o.value.conj()
                     / o.value.norm_sqr()
                     * (100.0 / r.dt_s)
@@ -859,29 +859,42 @@ fn tf_checks(d: &Dataset, before: &Physics, after: &Physics, z: f64) -> Vec<TfCh
         .collect()
 }
 
-/// A generic form's own signature beyond the transfer functions it is
-/// fitted to: the change within a window for the drift, the harmonics for
-/// the polynomial spring, the cubic damper and backlash; `None` for a
-/// catalogue term (its signature is its transfer functions) or where the
-/// recordings cannot show it.
+/// A form's own signature beyond the transfer functions it is fitted to
+/// ([`Term::needs_own_signature`]): the change within a window for the
+/// drift, the harmonics for the polynomial spring, the cubic damper,
+/// backlash and the torque limit; `None` for the rest of the catalogue (its
+/// signature is its transfer functions) or where the recordings cannot
+/// show it.
 fn own_signature(c: &Candidate) -> Option<&WindowCheck> {
     match c.term {
         Term::StiffnessDrift => c.within_window_check.as_ref(),
-        Term::CubicStiffness | Term::CubicDamping | Term::Backlash => c.harmonic_check.as_ref(),
+        Term::CubicStiffness | Term::CubicDamping | Term::Backlash | Term::ActuatorSaturation => {
+            c.harmonic_check.as_ref()
+        }
         _ => None,
     }
 }
 
 /// The harmonic check of the change from `before` to `after`: the 3rd
 /// harmonic of `τ_c` for the polynomial spring and the cubic damper, the
-/// 2nd and 3rd of the SEA's torque for backlash; `None` when `after`
-/// predicts no harmonic.
+/// 2nd and 3rd of the SEA's torque for backlash and, beyond the SEA's
+/// response to the command's own, for the torque limit; `None` when
+/// `after` predicts no harmonic.
 fn harmonic_check(d: &Dataset, before: &Physics, after: &Physics, z: f64) -> Option<WindowCheck> {
     crate::signatures::cubic_harmonic_check(d, before, after)
         .map(|r| WindowCheck::new("the 3rd harmonic of τ_c", r, z))
         .or_else(|| {
             crate::signatures::backlash_harmonic_check(d, before, after)
                 .map(|r| WindowCheck::new("the 2nd and 3rd harmonics of the SEA's torque", r, z))
+        })
+        .or_else(|| {
+            crate::signatures::saturation_harmonic_check(d, before, after).map(|r| {
+                WindowCheck::new(
+                    "the 2nd and 3rd harmonics of the SEA's torque beyond its response to the command's own",
+                    r,
+                    z,
+                )
+            })
         })
 }
 
@@ -922,7 +935,7 @@ fn statistical_reasons(c: &Candidate, level: f64) -> Vec<String> {
             why.push(w.words());
         }
     }
-    if c.term.generic() && own.is_none() {
+    if c.term.needs_own_signature() && own.is_none() {
         why.push(
             "untested: the signature it predicts beyond the transfer functions cannot be measured in these recordings"
                 .into(),
@@ -1342,14 +1355,28 @@ impl StepContext<'_> {
             free.extend(added.iter().copied());
             // The best of the term's starting points.
             let mut best: Option<(Fitted, usize)> = None;
+            // A term whose effect the refit's parameters bend to absorb is
+            // also started from their values before the refit.
+            let bases: &[&Physics] = if t.refits_from_nominal() {
+                &[&current.physics, current_start]
+            } else {
+                &[&current.physics]
+            };
             for i in 0.. {
-                let mut start = current.physics.clone();
-                if !t.start_variant(i, &mut start) {
-                    break;
+                let mut more = false;
+                for base in bases {
+                    let mut start = (*base).clone();
+                    if !t.start_variant(i, &mut start, d) {
+                        break;
+                    }
+                    more = true;
+                    let f = fit(d, &start, &free, &|_, _| true);
+                    if best.as_ref().is_none_or(|(b, _)| f.rss < b.rss) {
+                        best = Some((f, i));
+                    }
                 }
-                let f = fit(d, &start, &free, &|_, _| true);
-                if best.as_ref().is_none_or(|(b, _)| f.rss < b.rss) {
-                    best = Some((f, i));
+                if !more {
+                    break;
                 }
             }
             let Some((f1, variant)) = best else { continue };
@@ -1366,7 +1393,7 @@ impl StepContext<'_> {
                 1.0
             };
             let mut cstart = current_start.clone();
-            t.start_variant(variant, &mut cstart);
+            t.start_variant(variant, &mut cstart, d);
             let ho = heldout(d, &cstart, &free).values().sum::<f64>();
             let se = |q: Param| f1.std_error(q);
             // The share of the misfit beyond the noise, by the rule that

@@ -110,6 +110,12 @@ pub enum Param {
     /// (motor side, inertia `J_m`) and the arm (rad), a generic form: a
     /// backlash whose describing function is [`Mesh::describing`].
     Backlash,
+    /// The inverse of the drive's torque limit `1/τ_max` (1/Nm; 0 = no
+    /// limit): the motor torque is `clip(τ_d, −τ_max, τ_max)`, whose
+    /// fundamental is [`crate::data::CommandPeaks::clip_gain`]'s. Fitted as the inverse so
+    /// that "absent" is 0 and the fit is smooth where the limit is first
+    /// reached.
+    Saturation,
 }
 
 impl Param {
@@ -142,6 +148,7 @@ impl Param {
             Param::StiffnessDrift => "stiffness drift ρ (1/min)".into(),
             Param::QuadraticStiffness => "posture stiffness slope K₂ (Nm/rad²)".into(),
             Param::Backlash => "backlash half lost motion δ (rad)".into(),
+            Param::Saturation => "inverse torque limit 1/τ_max (1/Nm)".into(),
         }
     }
 
@@ -170,6 +177,7 @@ impl Param {
             Param::StiffnessDrift => 0.01,
             Param::QuadraticStiffness => 50.0,
             Param::Backlash => 0.01,
+            Param::Saturation => 2e-3,
         }
     }
 
@@ -265,6 +273,9 @@ pub struct Physics {
     /// plant model's `exo.backlash.motor_inertia_kg_m2` (a drive's
     /// datasheet value: not fitted).
     pub motor_inertia: f64,
+    /// The inverse of the drive's torque limit `1/τ_max` (1/Nm; 0 = no
+    /// limit), from the plant's `sea.torque_limit_nm`.
+    pub saturation_per_nm: f64,
 }
 
 impl Physics {
@@ -345,6 +356,7 @@ impl Physics {
             k2: m.human.quadratic_stiffness_nm_per_rad2,
             lash_half_rad: 0.5 * m.exo.backlash.lash_rad,
             motor_inertia: m.exo.backlash.motor_inertia_kg_m2,
+            saturation_per_nm: 1.0 / m.sea.torque_limit_nm,
         }
     }
 
@@ -377,6 +389,7 @@ impl Physics {
             Param::StiffnessDrift => self.k_drift_per_min,
             Param::QuadraticStiffness => self.k2,
             Param::Backlash => self.lash_half_rad,
+            Param::Saturation => self.saturation_per_nm,
         }
     }
 
@@ -420,6 +433,7 @@ impl Physics {
             Param::StiffnessDrift => self.k_drift_per_min = v,
             Param::QuadraticStiffness => self.k2 = v,
             Param::Backlash => self.lash_half_rad = v,
+            Param::Saturation => self.saturation_per_nm = v,
         }
     }
 
@@ -482,7 +496,10 @@ impl Physics {
                 // hold, half a period of delay through the SEA's filter);
                 // an ideal actuator's sampled torque is the previous hold.
                 let hold = if self.sea.is_some() { 0.5 } else { 1.0 } * c.sample_period_s;
-                self.gain[2] * delay(self.delay_s[2] + self.delay_s[3] + hold) * sea
+                self.gain[2]
+                    * delay(self.delay_s[2] + self.delay_s[3] + hold)
+                    * sea
+                    * self.saturation_gain(c)
             }
         }
     }
@@ -503,6 +520,27 @@ impl Physics {
             + mgl * theta0.cos() * gravity_describing(a_true)
             + j * w * self.b_f
             + j * coulomb_describing(self.coulomb_nm, self.coulomb_smoothing_rad_s, a_true, w)
+    }
+
+    /// The drive's torque limit `τ_max` (Nm; infinite when there is none).
+    pub fn torque_limit_nm(&self) -> f64 {
+        if self.saturation_per_nm > 0.0 {
+            1.0 / self.saturation_per_nm
+        } else {
+            f64::INFINITY
+        }
+    }
+
+    /// The gain of the drive's torque limit at the fundamental in window
+    /// `c`, from the window's recorded command
+    /// ([`crate::data::CommandPeaks::clip_gain`]); 1 where the command was
+    /// not recorded or the window is broadband (an assumption: a broadband
+    /// window's limit is not modelled).
+    pub fn saturation_gain(&self, c: &Condition) -> Complex64 {
+        match &c.command {
+            Some(cmd) if self.saturation_per_nm > 0.0 => cmd.clip_gain(self.torque_limit_nm()),
+            _ => Complex64::new(1.0, 0.0),
+        }
     }
 
     /// The joint's gravity moment `m g l` (Nm): arm, load and the gravity error.
@@ -662,6 +700,10 @@ impl Physics {
         m.sensors.sea_deflection.terms.offset =
             m.sensors.cuff_ft.terms.offset + self.torque_offset_nm;
         m.sensors.sea_deflection.terms.gain = self.gain[2];
+        // The plant's range for the limit is (0, 1000] Nm.
+        if self.saturation_per_nm > 1e-3 {
+            m.sea.torque_limit_nm = 1.0 / self.saturation_per_nm;
+        }
         m
     }
 
@@ -872,6 +914,7 @@ mod tests {
             theta_amp_rad: 0.1 * p.gain[0],
             sin_theta_mean: 0.0,
             tau_s_mean_nm: f64::NAN,
+            command: None,
             sample_period_s: 0.001,
             start_s: 0.0,
             elapsed_s: 0.0,
@@ -1010,5 +1053,62 @@ mod tests {
         let got = mesh(0.05, 2.0, z, 0.0, 0.1, 5.0).describing();
         let want = Complex64::from_polar(100.0 * size, std::f64::consts::FRAC_PI_2);
         assert!((got - want).norm() < 1e-4, "{got} against {want}");
+    }
+
+    /// A torque limit's gain from a window's command samples
+    /// ([`crate::data::CommandPeaks::clip_gain`]) against the describing
+    /// function of a clipped sine `b + A sin φ`, written out here as the
+    /// independent truth: each side clips where `sin φ` passes `u = (L −
+    /// b)/A` or `v = (L + b)/A` and removes `f(u) = (π/2 − asin u − u √(1 −
+    /// u²))/π` of the fundamental (the textbook `(2/π)(asin u + u √(1 −
+    /// u²))` without a mean), at limits above, at and below the peaks, with
+    /// and without a mean, and a whole cycle beyond the limit.
+    #[test]
+    fn the_torque_limits_gain_is_the_clipped_sines_fundamental() {
+        let f = |u: f64| {
+            let u = u.clamp(-1.0, 1.0);
+            (std::f64::consts::FRAC_PI_2 - u.asin() - u * (1.0 - u * u).sqrt())
+                / std::f64::consts::PI
+        };
+        let describing = |l: f64, b: f64, a: f64| (1.0 - f((l - b) / a) - f((l + b) / a)).max(0.0);
+        let w = 5.0;
+        for (l, b, a) in [
+            (30.0, 0.0, 2.0),
+            (1.5, 0.0, 2.0),
+            (26.0, 24.0, 3.2),
+            (22.0, 24.0, 3.2),
+            (20.0, 24.0, 3.2),
+            (5.0, -4.0, 2.0),
+            (3.0, -4.0, 8.0),
+            (0.5, 0.0, 4.0),
+        ] {
+            // Four whole cycles, 20 000 samples, at a phase of 0.3 rad.
+            let n = 20_000;
+            let t: Vec<f64> = (0..n)
+                .map(|k| 4.0 * std::f64::consts::TAU / w * k as f64 / n as f64)
+                .collect();
+            let x: Vec<f64> = t.iter().map(|t| b + a * (w * t + 0.3).sin()).collect();
+            let cmd = crate::data::CommandPeaks::new(&t, &x, w).unwrap();
+            let got = cmd.clip_gain(l);
+            let want = describing(l, b, a);
+            assert!(
+                (got - want).norm() < 2e-4,
+                "L {l}, b {b}, A {a}: {got} against {want}"
+            );
+            assert!((cmd.peak_nm() - (b.abs() + a)).abs() < 1e-6);
+        }
+        // A clip at the mean keeps half the fundamental.
+        let t: Vec<f64> = (0..1000).map(|k| k as f64 * 1e-3).collect();
+        let x: Vec<f64> = t
+            .iter()
+            .map(|t| 24.0 + 3.0 * (std::f64::consts::TAU * t).cos())
+            .collect();
+        let cmd = crate::data::CommandPeaks::new(&t, &x, std::f64::consts::TAU).unwrap();
+        assert!((cmd.clip_gain(24.0) - 0.5).norm() < 1e-3);
+        // No limit, or a limit beyond the peaks: no effect.
+        assert_eq!(cmd.clip_gain(f64::INFINITY), Complex64::new(1.0, 0.0));
+        assert!((cmd.clip_gain(27.5) - 1.0).norm() < 1e-12);
+        // A command that is not finite is no command.
+        assert!(crate::data::CommandPeaks::new(&t, &[f64::NAN; 1000], 1.0).is_none());
     }
 }

@@ -391,6 +391,79 @@ pub fn backlash_harmonic_check(
     beta_of(ym, mm, &rows)
 }
 
+/// A torque limit's signature outside `τ_s/τ_d`'s fundamental, to which it
+/// is fitted: the 2nd and 3rd harmonics of the measured SEA torque beyond
+/// what the SEA makes of the command's own harmonics. The drive applies
+/// `clip(τ_d, −τ_max, τ_max)`, so at harmonic `h` the SEA carries
+/// `G(hω) (D_h + C_h)`, `G` the SEA's response with its delays (the model's
+/// `τ_s/τ_d` without the limit), `D_h` the recorded command's harmonic and
+/// `C_h` that of the part the limit cuts off the recorded command's own
+/// samples, `clip(τ_d) − τ_d` (so the check needs no assumption on the
+/// command's shape: its peaks are what they were). The check is
+/// [`cubic_harmonic_check`]'s: `y_h = T_h − G(hω) D_h` less what `before`
+/// predicts, `m_h` the change `after` predicts, whitened by the noise of
+/// `T_h − G D_h` per bin; `(|m|², β, se, windows)`, `None` when the limit
+/// does not change or `τ_s/τ_d` is not measured.
+pub fn saturation_harmonic_check(
+    d: &Dataset,
+    before: &crate::model::Physics,
+    after: &crate::model::Physics,
+) -> Option<(f64, f64, f64, usize)> {
+    if after.saturation_per_nm == before.saturation_per_nm || !d.supported.contains(&Tf::Sea) {
+        return None;
+    }
+    // The SEA without the limit.
+    let mut linear = before.clone();
+    linear.saturation_per_nm = 0.0;
+    let zero = Complex64::new(0.0, 0.0);
+    let (mut ym, mut mm, mut rows) = (0.0, 0.0, Vec::new());
+    for (i, s) in d.signals.iter().enumerate() {
+        let w = s.omega_rad_s;
+        if w <= 0.0 || s.tau_d_nm.len() != s.t_s.len() || s.tau_d_nm.iter().any(|x| !x.is_finite())
+        {
+            continue;
+        }
+        let Some(n) = exo_impedance::frf::whole_cycles(&s.t_s, w) else {
+            continue;
+        };
+        let (Some((spec_s, ts)), Some((spec_d, td))) = (
+            window_harmonics(&s.t_s, &s.tau_s_nm, w),
+            window_harmonics(&s.t_s, &s.tau_d_nm, w),
+        ) else {
+            continue;
+        };
+        let c = &d.conditions[i];
+        let t: Vec<f64> = s.t_s[..n].iter().map(|x| x - s.t_s[0]).collect();
+        // The harmonic of what the limit of `p` cuts off the command.
+        let cut = |p: &crate::model::Physics, hw: f64| {
+            let l = p.torque_limit_nm();
+            if !l.is_finite() {
+                return zero;
+            }
+            let r: Vec<f64> = s.tau_d_nm[..n].iter().map(|x| x.clamp(-l, l) - x).collect();
+            project(&t, &r, hw)
+        };
+        for h in [2u32, 3] {
+            let k = h as usize - 1;
+            let hw = f64::from(h) * w;
+            let g = linear.predict_tf(Tf::Sea, hw, c, zero);
+            let sd =
+                component_sd(spec_s.noise_power).hypot(g.norm() * component_sd(spec_d.noise_power));
+            if sd.is_nan() || sd <= 0.0 {
+                continue;
+            }
+            let before_h = g * cut(before, hw);
+            let y = ts[k] - g * td[k] - before_h;
+            let m = g * cut(after, hw) - before_h;
+            let (y, m) = (y / sd, m / sd);
+            ym += (m.conj() * y).re;
+            mm += m.norm_sqr();
+            rows.push((y, m));
+        }
+    }
+    beta_of(ym, mm, &rows)
+}
+
 /// Non-harmonic content of an experiment's windows beyond their noise.
 #[derive(Debug, Clone, Serialize)]
 pub struct NonHarmonic {

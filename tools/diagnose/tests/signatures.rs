@@ -157,6 +157,8 @@ fn a_steady_non_harmonic_tone_is_sized_against_the_fundamental() {
             omega_rad_s: w,
             theta_rad: y.iter().map(|v| 0.01 * v).collect(),
             tau_s_net_nm: y.clone(),
+            tau_s_nm: Vec::new(),
+            tau_d_nm: Vec::new(),
             tau_c_nm: y,
             t_s: t,
         });
@@ -171,6 +173,7 @@ fn a_steady_non_harmonic_tone_is_sized_against_the_fundamental() {
             theta_amp_rad: 0.02,
             sin_theta_mean: 0.0,
             tau_s_mean_nm: f64::NAN,
+            command: None,
             sample_period_s: 0.002,
             start_s: 5.0 * f64::from(k),
             elapsed_s: 5.0 * f64::from(k),
