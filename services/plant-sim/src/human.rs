@@ -16,6 +16,7 @@ pub struct PostureDrive {
     time_constant_s: f64,
     posture_rad: f64,
     motion_t_s: f64,
+    goal_offset_rad: f64,
 }
 
 impl PostureDrive {
@@ -30,6 +31,16 @@ impl PostureDrive {
             time_constant_s: 0.5,
             posture_rad: rest_rad,
             motion_t_s: 0.0,
+            goal_offset_rad: 0.0,
+        }
+    }
+
+    /// Moves the reference of the active phases by `offset_rad` from
+    /// `active_rad` (a subject that holds its goal against a bias,
+    /// [`crate::model::PostureReference::HoldsGoal`]); 0 by default.
+    pub fn set_goal_offset(&mut self, offset_rad: f64) {
+        if offset_rad.is_finite() {
+            self.goal_offset_rad = offset_rad;
         }
     }
 
@@ -40,7 +51,7 @@ impl PostureDrive {
     pub fn update(&mut self, dt_s: f64, phase: ProtocolPhase) -> HumanDrive {
         use ProtocolPhase::*;
         let target = match phase {
-            RampIn | Settling | Analysis | RampOut => self.active_rad,
+            RampIn | Settling | Analysis | RampOut => self.active_rad + self.goal_offset_rad,
             Idle | Rest => self.rest_rad,
         };
         let a = (-dt_s / self.time_constant_s).exp();

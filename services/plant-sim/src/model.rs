@@ -196,6 +196,26 @@ pub enum PlantModelError {
     Several(Vec<PlantModelError>),
 }
 
+/// What the subject's posture reference does during a period
+/// (`human.posture_reference`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum PostureReference {
+    /// The subject's spring pulls towards `human.active_angle_rad`
+    /// whatever the bias: a bias torque moves the arm by `bias/K`.
+    #[default]
+    Fixed,
+    /// The subject sets its reference so that the arm rests at
+    /// `human.active_angle_rad` against the period's bias and what the
+    /// controller's gravity compensation leaves of the plant's gravity:
+    /// `θ_ref = θ_active − (bias + τ_comp − τ_gravity)/(α K)` at the goal,
+    /// `α` the period's amplification (the amplifier's static gain taken as
+    /// `α − 1`), `K` the experiment's stiffness (the subject file's, or
+    /// `human.stiffness_nm_per_rad`). The independent rig's subject does
+    /// this (`tools/python/independent_rig.py`).
+    HoldsGoal,
+}
+
 /// How hysteretic damping is simulated.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
@@ -341,6 +361,10 @@ pub struct Human {
     pub rest_angle_rad: f64,
     /// Posture during a period (the paper: about 45°). Range [−2π, 2π].
     pub active_angle_rad: f64,
+    /// What the subject's posture reference does during a period: `fixed`
+    /// (the default when the key is absent) or `holds_goal`.
+    #[serde(default)]
+    pub posture_reference: PostureReference,
 }
 
 /// `[exo]`.

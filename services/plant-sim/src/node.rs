@@ -17,6 +17,7 @@ use exo_messages::bus_status::DRIVE_FAULT;
 use exo_messages::{BusMotorCommand, BusSensorFrame, ProtocolPhase, ProtocolState};
 use tracing::{info, warn};
 
+use crate::model::PostureReference;
 use crate::{Plant, PlantModel, PlantTruth, PostureDrive};
 
 /// Why a plant node cannot be built from a run configuration.
@@ -46,6 +47,20 @@ pub struct PlantNode {
     tau_motor_nm: f64,
     inject_fault_at: Option<u64>,
     watchdog: DriveWatchdog,
+    /// What the subject's reference does, with what a subject that holds
+    /// its goal needs: the goal, the plant's default stiffness, and the
+    /// controller's gravity compensation (`None` when off).
+    posture: PostureGoal,
+}
+
+/// What a subject that holds its goal ([`PostureReference::HoldsGoal`])
+/// knows: the goal, its default stiffness and what the controller
+/// compensates of gravity.
+struct PostureGoal {
+    reference: PostureReference,
+    goal_rad: f64,
+    default_stiffness_nm_per_rad: f64,
+    compensation: Option<exo_config::RigSettings>,
 }
 
 /// The simulated drive's watchdog (as an EtherCAT drive's sync-manager
@@ -122,6 +137,12 @@ impl PlantNode {
             max_ticks: cfg.run.max_sim_time_s.map(|t| (t / period_s).ceil() as u64),
             tau_motor_nm: 0.0,
             inject_fault_at,
+            posture: PostureGoal {
+                reference: model.human.posture_reference,
+                goal_rad: model.human.active_angle_rad,
+                default_stiffness_nm_per_rad: model.human.stiffness_nm_per_rad,
+                compensation: cfg.controller.gravity_compensation.then_some(cfg.rig),
+            },
             watchdog: DriveWatchdog {
                 limit_ticks: (cfg.run.timing == TimingMode::Realtime)
                     .then(|| (cfg.safety.drive_watchdog_ms * 1e-3 / period_s).ceil() as u64),
@@ -158,7 +179,41 @@ impl PlantNode {
                 self.plant.set_load_kg(p.load_kg);
             }
         }
+        if self.posture.reference == PostureReference::HoldsGoal {
+            let offset = self.goal_offset_rad(p);
+            self.drive.set_goal_offset(offset);
+        }
         self.protocol = *p;
+    }
+
+    /// The reference offset a subject that holds its goal sets for period
+    /// `p` (rad): `−(bias + τ_comp − τ_gravity)/(α K)` at the goal, the
+    /// torque its spring must carry there over its stiffness (the
+    /// amplifier's static gain taken as `α − 1`; `α ≤ 0` counts as 1).
+    fn goal_offset_rad(&self, p: &ProtocolState) -> f64 {
+        let goal = self.posture.goal_rad;
+        let k = self
+            .subject
+            .get(p.experiment)
+            .map_or(self.posture.default_stiffness_nm_per_rad, |e| {
+                e.stiffness_nm_per_rad
+            });
+        let load = if p.load_kg > 0.0 {
+            p.load_kg
+        } else {
+            self.plant.load_kg()
+        };
+        let compensated = self
+            .posture
+            .compensation
+            .map_or(0.0, |r| r.gravity_torque_nm(goal, load));
+        let alpha = if p.alpha > 0.0 { p.alpha } else { 1.0 };
+        let offset = -(p.bias_nm + compensated - self.plant.gravity_torque(goal)) / (alpha * k);
+        if offset.is_finite() {
+            offset
+        } else {
+            0.0
+        }
     }
 
     /// The raw bus frame of the current tick, stamped `stamp_ns`. In a

@@ -664,8 +664,9 @@ impl Plant {
         g.g_m_s2 * (g.arm_mass_kg * g.arm_com_m + self.load_kg * self.model.exo.load_lever_arm_m)
     }
 
-    /// The gravity torque at `theta` (Nm): `g (m_a l_a + m_L l_L) sin θ`.
-    fn gravity_torque(&self, theta: f64) -> f64 {
+    /// The gravity torque at `theta` (Nm): `g (m_a l_a + m_L l_L) sin θ`,
+    /// with the current load.
+    pub fn gravity_torque(&self, theta: f64) -> f64 {
         let moment = self.gravity_moment_nm();
         if moment == 0.0 {
             return 0.0;

@@ -43,6 +43,14 @@ fn horizontal(m: &mut PlantModel, _: &Subject) {
     m.gravity.enabled = false;
 }
 
+/// A subject that holds the arm at its goal against the bias, as the
+/// independent rig's does (`tools/python/independent_rig.py`: a goal of 45°
+/// on average): the nominal model of the rig's recordings.
+pub fn holds_goal(m: &mut PlantModel) {
+    m.human.posture_reference = exo_plant_sim::model::PostureReference::HoldsGoal;
+    m.human.active_angle_rad = std::f64::consts::FRAC_PI_4;
+}
+
 fn viscous_truth(m: &mut PlantModel, s: &Subject, _: f64) {
     viscous_tuned(m, s)
 }
@@ -219,6 +227,23 @@ pub fn cases() -> Vec<Case> {
             expected: vec![Term::ActuatorSaturation],
             truth: |m, _, scale| m.sea.torque_limit_nm = 29.0 - 2.5 * scale,
             nominal: same,
+        },
+        Case {
+            name: "posture-shift",
+            what: "a static offset, no dynamic term: the subject's neutral angle 0.05 rad above the model's in every experiment (re-seated); nothing to name, the offset to locate",
+            expected: vec![],
+            truth: |m, _, scale| m.human.active_angle_rad += 0.05 * scale,
+            nominal: same,
+        },
+        Case {
+            name: "null-holds-goal",
+            what: "no missing physics: a subject that holds the arm at its goal against the bias (`human.posture_reference = \"holds_goal\"`, the independent rig's strategy) and a model that says so, another seed",
+            expected: vec![],
+            truth: |m, _, _| {
+                holds_goal(m);
+                m.integration.seed = 17;
+            },
+            nominal: |m, _| holds_goal(m),
         },
         Case {
             name: "null-horizontal",

@@ -96,6 +96,10 @@ pub struct Condition {
     /// not measured): the torque the joint's drive holds on average, the
     /// preload of a gear mesh behind it.
     pub tau_s_mean_nm: f64,
+    /// Mean cuff torque `τ_c` over the window's whole cycles (the whole
+    /// window when broadband; Nm): at rest on average what the subject's
+    /// spring carries ([`crate::equilibrium`]).
+    pub tau_c_mean_nm: f64,
     /// The window's motor command as a torque limit sees it (`None` when
     /// not recorded in every sample of its whole cycles, or broadband).
     #[serde(skip)]
@@ -487,6 +491,15 @@ pub fn reduce(recordings: &[Recording], s: &Reduction) -> Dataset {
                 theta_amp_rad: 0.0,
                 sin_theta_mean: theta0.sin(),
                 tau_s_mean_nm: f64::NAN,
+                tau_c_mean_nm: {
+                    let m = if sp.omega > 0.0 {
+                        exo_impedance::frf::whole_cycles(&sig.t_s, sp.omega).unwrap_or(n)
+                    } else {
+                        n
+                    }
+                    .max(1);
+                    sig.tau_c_nm[..m].iter().sum::<f64>() / m as f64
+                },
                 command: None,
                 sample_period_s: dt,
                 start_s: t0.saturating_sub(r.sensor[0].stamp_ns) as f64 * 1e-9,

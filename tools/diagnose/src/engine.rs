@@ -519,6 +519,9 @@ pub struct Diagnosis {
     /// The posture-dependent stiffness's fit in the 2nd harmonic of `τ_c`
     /// (taken or not, with why), when the windows have the harmonics.
     pub posture: Option<crate::posture::PostureFit>,
+    /// Each experiment's posture against the model's static equilibrium
+    /// ([`crate::equilibrium`]).
+    pub equilibrium: Option<crate::equilibrium::Equilibrium>,
 }
 
 impl Diagnosis {
@@ -809,7 +812,7 @@ fn time_rows(d: &Dataset, nominal: &Physics, fin: &Physics) -> Vec<TimeRow> {
         .collect()
 }
 
-fn normal_quantile(p: f64) -> f64 {
+pub(crate) fn normal_quantile(p: f64) -> f64 {
     use statrs::distribution::Normal;
     Normal::new(0.0, 1.0).map_or(f64::NAN, |n| n.inverse_cdf(p.clamp(1e-300, 1.0 - 1e-16)))
 }
@@ -2025,6 +2028,12 @@ pub fn diagnose(
         }
     }
     verdict.extend(harmonic_words);
+    // Where the posture differs: a static offset, said apart from the
+    // dynamics (it is no term of the search).
+    let equilibrium = (!too_few)
+        .then(|| crate::equilibrium::locate(d, &current.physics, s.level))
+        .flatten();
+    verdict.extend(equilibrium.as_ref().and_then(|e| e.sentence()));
 
     Ok(Diagnosis {
         sources: d.sources.clone(),
@@ -2043,6 +2052,7 @@ pub fn diagnose(
         remains,
         final_physics: current.physics,
         posture,
+        equilibrium,
     })
 }
 

@@ -27,6 +27,7 @@
 pub mod bench;
 pub mod data;
 pub mod engine;
+pub mod equilibrium;
 pub mod fit;
 pub mod model;
 pub mod posture;

@@ -276,6 +276,13 @@ pub struct Physics {
     /// The inverse of the drive's torque limit `1/τ_max` (1/Nm; 0 = no
     /// limit), from the plant's `sea.torque_limit_nm`.
     pub saturation_per_nm: f64,
+    /// The subject's posture during a period (rad), the plant's
+    /// `human.active_angle_rad`, and what its reference does
+    /// (`human.posture_reference`): the static equilibrium
+    /// [`crate::equilibrium`] compares each experiment with.
+    pub active_angle_rad: f64,
+    /// See [`Physics::active_angle_rad`].
+    pub posture_reference: exo_plant_sim::model::PostureReference,
 }
 
 impl Physics {
@@ -357,6 +364,8 @@ impl Physics {
             lash_half_rad: 0.5 * m.exo.backlash.lash_rad,
             motor_inertia: m.exo.backlash.motor_inertia_kg_m2,
             saturation_per_nm: 1.0 / m.sea.torque_limit_nm,
+            active_angle_rad: m.human.active_angle_rad,
+            posture_reference: m.human.posture_reference,
         }
     }
 
@@ -914,6 +923,7 @@ mod tests {
             theta_amp_rad: 0.1 * p.gain[0],
             sin_theta_mean: 0.0,
             tau_s_mean_nm: f64::NAN,
+            tau_c_mean_nm: 0.0,
             command: None,
             sample_period_s: 0.001,
             start_s: 0.0,

@@ -35,6 +35,7 @@ fn an_amplitude_step_inside_the_noise_is_not_a_finding() {
             theta_amp_rad: if high { 0.13 } else { 0.11 },
             sin_theta_mean: 0.0,
             tau_s_mean_nm: f64::NAN,
+            tau_c_mean_nm: 0.0,
             command: None,
             sample_period_s: 0.002,
             start_s: 30.0 * i as f64,

@@ -173,6 +173,7 @@ fn a_steady_non_harmonic_tone_is_sized_against_the_fundamental() {
             theta_amp_rad: 0.02,
             sin_theta_mean: 0.0,
             tau_s_mean_nm: f64::NAN,
+            tau_c_mean_nm: 0.0,
             command: None,
             sample_period_s: 0.002,
             start_s: 5.0 * f64::from(k),

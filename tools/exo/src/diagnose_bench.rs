@@ -252,6 +252,7 @@ fn nulls(a: &BenchArgs, n: usize) -> Result<()> {
                     run_rig(&rec, seed, args)?;
                 }
                 let mut nominal = default_plant;
+                exo_diagnose::bench::holds_goal(&mut nominal);
                 if args.contains(&"--horizontal") {
                     nominal.gravity.enabled = false;
                 }
