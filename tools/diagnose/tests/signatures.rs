@@ -8,7 +8,9 @@ mod common;
 
 use common::normals;
 use exo_diagnose::data::{reduce, Condition, Dataset, Reduction, Tf, WindowSignals};
-use exo_diagnose::signatures::{cubic_harmonic_check, harmonics, window_spectrum};
+use exo_diagnose::signatures::{
+    cubic_harmonic_check, harmonics, saturation_harmonic_check, window_spectrum,
+};
 use exo_diagnose::synth::{synthesize, SynthSettings};
 use exo_diagnose::Physics;
 
@@ -196,4 +198,99 @@ fn a_steady_non_harmonic_tone_is_sized_against_the_fundamental() {
         "decay {}",
         nh.decay
     );
+}
+
+/// The torque limit's signature on data built by hand: an ideal actuator
+/// (no SEA dynamics; the sampled torque is the previous control period's
+/// held command) whose drive clips `τ_d = 24 + 3 sin 4t` (plus a little
+/// 2nd harmonic and noise) at 26 Nm. What the clip leaves in the 2nd and
+/// 3rd harmonics of `τ_s` is in the data at the size a 26 Nm limit
+/// predicts (β = 1 within its error) and at 1/1.6 of it for a limit the
+/// data do not have (24.5 Nm predicts far more); on the same command
+/// without a clip, a 26 Nm limit's harmonics are absent (β ≈ 0).
+#[test]
+fn the_torque_limits_harmonics_are_where_the_drive_clipped() {
+    let w = 4.0;
+    let dt = 0.002;
+    let dataset = |limit: f64| {
+        let mut d = Dataset::default();
+        d.supported = vec![Tf::Sea];
+        for k in 0..4u32 {
+            let t: Vec<f64> = (0..2500).map(|i| f64::from(i) * dt).collect();
+            let e = normals(70 + u64::from(k), t.len());
+            let command = |t: f64| 24.0 + 3.0 * (w * t).sin() + 0.2 * (2.0 * w * t + 0.5).cos();
+            let tau_d: Vec<f64> = t.iter().map(|&t| command(t)).collect();
+            // The sample reads the previous period's hold.
+            let tau_s: Vec<f64> = t
+                .iter()
+                .zip(&e)
+                .map(|(&t, e)| command(t - dt).min(limit) + 0.01 * e)
+                .collect();
+            let zero = vec![0.0; t.len()];
+            d.signals.push(WindowSignals {
+                omega_rad_s: w,
+                theta_rad: zero.clone(),
+                tau_s_net_nm: zero.clone(),
+                tau_c_nm: zero,
+                tau_s_nm: tau_s,
+                tau_d_nm: tau_d,
+                t_s: t,
+            });
+            d.conditions.push(Condition {
+                experiment: 7,
+                period: k + 1,
+                load_kg: 0.0,
+                bias_nm: 8.0,
+                alpha: 1.0,
+                amplitude_nm: 2.0,
+                theta0_rad: 0.0,
+                theta_amp_rad: 0.02,
+                sin_theta_mean: 0.0,
+                tau_s_mean_nm: f64::NAN,
+                tau_c_mean_nm: 0.0,
+                command: None,
+                sample_period_s: dt,
+                start_s: 5.0 * f64::from(k),
+                elapsed_s: 5.0 * f64::from(k),
+            });
+        }
+        d
+    };
+    let plant =
+        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../configs/plants/default.toml");
+    let mut before =
+        Physics::from_plant(&exo_plant_sim::PlantModel::from_file(&plant).unwrap(), &[7]);
+    before.sea = None;
+    let with_limit = |l: f64| {
+        let mut p = before.clone();
+        p.saturation_per_nm = 1.0 / l;
+        p
+    };
+    let clipped = dataset(26.0);
+    let (_, beta, se, windows) =
+        saturation_harmonic_check(&clipped, &before, &with_limit(26.0)).expect("a check");
+    assert_eq!(windows, 8, "two harmonics in each of four windows");
+    assert!(se < 0.05, "β's standard error {se}");
+    assert!(
+        (beta - 1.0).abs() < 3.0 * se + 0.02,
+        "β = {beta} ± {se}, truth 1"
+    );
+    let (_, beta_wrong, _, _) =
+        saturation_harmonic_check(&clipped, &before, &with_limit(24.5)).expect("a check");
+    assert!(
+        beta_wrong < 0.6,
+        "a deeper limit predicts more: β = {beta_wrong}"
+    );
+    let free = dataset(f64::INFINITY);
+    let (_, beta_free, se_free, _) =
+        saturation_harmonic_check(&free, &before, &with_limit(26.0)).expect("a check");
+    assert!(
+        beta_free.abs() < 3.0 * se_free,
+        "β = {beta_free} ± {se_free}, truth 0"
+    );
+    // No change of the limit, or no τ_s/τ_d: no check.
+    assert!(saturation_harmonic_check(&clipped, &before, &before).is_none());
+    let mut no_sea = clipped.clone();
+    no_sea.supported = vec![Tf::Sh];
+    assert!(saturation_harmonic_check(&no_sea, &before, &with_limit(26.0)).is_none());
 }
