@@ -4,6 +4,10 @@
 #
 #   tools/scripts/mutants.sh                      # every crate, whole (slow: hours on 2 cores)
 #   tools/scripts/mutants.sh --shard 2/8          # one shard of every crate
+#   tools/scripts/mutants.sh --fresh 12 [--seed S] # per crate, a shard k/12 not measured before
+#                                                 # (k drawn with seed S, printed and recorded;
+#                                                 # the shards in score.tsv are skipped): a score
+#                                                 # from mutants whose survivors nobody has seen
 #   tools/scripts/mutants.sh --crate exo-impedance --shard 1/4
 #   tools/scripts/mutants.sh --in-diff main       # only code changed since main (the habit before a commit)
 #   tools/scripts/mutants.sh --crate exo-impedance --file shared/impedance/src/ftest.rs \
@@ -29,20 +33,28 @@ declare -A FILES=(
 )
 ORDER=(exo-impedance exo-identifier exo-controller exo-diagnose exo-sensor-driver exo-config)
 
-shard="" crates=() files=() base="" out="${MUTANTS_OUT:-$root/target/mutants}" extra=()
+shard="" fresh="" seed="" crates=() files=() base="" out="${MUTANTS_OUT:-$root/target/mutants}" extra=()
 while [ $# -gt 0 ]; do
   case "$1" in
     --shard) shard="$2"; shift 2 ;;
+    --fresh) fresh="$2"; shift 2 ;;
+    --seed) seed="$2"; shift 2 ;;
     --crate) crates+=("$2"); shift 2 ;;
     --file) files+=("$2"); shift 2 ;;
     --in-diff) base="$2"; shift 2 ;;
     --out) out="$2"; shift 2 ;;
     --) shift; extra=("$@"); break ;;
-    -h|--help) sed -n '2,18p' "$0"; exit 0 ;;
+    -h|--help) sed -n '2,22p' "$0"; exit 0 ;;
     *) echo "mutants.sh: unknown argument $1 (see --help)" >&2; exit 2 ;;
   esac
 done
 [ ${#crates[@]} -gt 0 ] || crates=("${ORDER[@]}")
+if [ -n "$fresh" ]; then
+  [ -z "$shard" ] || { echo "mutants.sh: --fresh and --shard exclude each other" >&2; exit 2; }
+  [[ "$fresh" =~ ^[1-9][0-9]*$ ]] || { echo "mutants.sh: --fresh N: N must be a positive integer, got $fresh" >&2; exit 2; }
+  [ -n "$seed" ] || seed=$(od -An -N4 -tu4 /dev/urandom | tr -d ' ')
+  [[ "$seed" =~ ^[0-9]+$ ]] || { echo "mutants.sh: --seed S: S must be a non-negative integer, got $seed" >&2; exit 2; }
+fi
 for c in "${crates[@]}"; do
   [ -n "${FILES[$c]+x}" ] || { echo "mutants.sh: $c is not one of: ${ORDER[*]}" >&2; exit 2; }
 done
@@ -64,7 +76,31 @@ fi
 
 count() { if [ -f "$1" ]; then grep -c . "$1" || true; else echo 0; fi; }
 
+# A shard k/N of crate $1 not yet in score.tsv, drawn with $seed (and the
+# crate's name, so crates draw differently); empty when all N are measured.
+fresh_shard() {
+  local c=$1 used k i
+  used=$(awk -F'\t' -v c="$c" -v n="$fresh" '$1 == c { split($2, a, " "); split(a[1], b, "/"); if (b[2] == n) print b[1] }' "$score" | sort -un)
+  local free=()
+  for ((k = 1; k <= fresh; k++)); do
+    grep -qx "$k" <<<"$used" || free+=("$k")
+  done
+  [ ${#free[@]} -gt 0 ] || return 0
+  i=$(( ($(printf '%s' "$seed$c" | cksum | cut -d' ' -f1)) % ${#free[@]} ))
+  echo "${free[$i]}/$fresh"
+}
+
 for c in "${crates[@]}"; do
+  label=""
+  if [ -n "$fresh" ]; then
+    shard=$(fresh_shard "$c")
+    if [ -z "$shard" ]; then
+      echo "mutants.sh: $c: every shard of $fresh has been measured; take a larger N" >&2
+      continue
+    fi
+    label=" fresh seed $seed"
+    echo "mutants.sh: $c: fresh shard $shard (seed $seed)" >&2
+  fi
   args=(mutants --package "$c" --output "$out/$c" --no-shuffle)
   if [ ${#files[@]} -gt 0 ]; then
     for f in "${files[@]}"; do args+=(--file "$f"); done
@@ -85,7 +121,7 @@ for c in "${crates[@]}"; do
   timeout=$(count "$d/timeout.txt"); unviable=$(count "$d/unviable.txt")
   viable=$((caught + missed + timeout))
   pct=$(awk -v c="$caught" -v v="$viable" 'BEGIN { if (v > 0) printf "%.1f", 100 * c / v; else print "n/a" }')
-  printf '%s\t%s\t%s\t%s\t%s\t%s\t%s\n' "$c" "${shard:-whole}${base:+ in-diff $base}" \
+  printf '%s\t%s\t%s\t%s\t%s\t%s\t%s\n' "$c" "${shard:-whole}${label}${base:+ in-diff $base}" \
     "$caught" "$missed" "$timeout" "$unviable" "$pct" >>"$score"
   echo "mutants.sh: $c: caught $caught, missed $missed, timeout $timeout, unviable $unviable ($pct % of viable)" >&2
   if [ "$missed" -gt 0 ]; then sed 's/^/  missed: /' "$d/missed.txt" >&2; fi
