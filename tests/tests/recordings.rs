@@ -287,6 +287,18 @@ fn a_recorder_killed_mid_run_leaves_a_readable_file_and_control_goes_on() {
         exo_recording::read_recording(&rec).unwrap().sensor,
         r.sensor
     );
+    // Completed, not merely renamed: Python's `mcap` opens it with its
+    // indexed reader (summary and footer) and reads every sample.
+    let py: Value = serde_json::from_slice(&stdout_of(
+        python_script("read_recording.py")
+            .arg(&rec)
+            .args(["--max", "0"]),
+    ))
+    .unwrap();
+    assert_eq!(
+        py["topics"]["exo/sensor"]["count"].as_u64().unwrap() as usize,
+        r.sensor.len()
+    );
     assert!(r.sensor.len() > 1000, "{} samples survived", r.sensor.len());
     assert!(r.sensor.windows(2).all(|w| w[1].seq == w[0].seq + 1));
     assert!(r.meta("subject").is_some());

@@ -14,12 +14,20 @@
 //! holds is an orphan, left by a writer that died (`kill -9`, a failed
 //! write). Its complete chunks are the recording up to that point:
 //! [`finish_orphans`] (called by a restarted recorder and by `exo run` at
-//! the end of a run) gives it its own name, and the readers read an orphan
-//! (or a partial file still being written) in place of a missing segment.
+//! the end of a run) completes it ([`complete`]: what its complete chunks
+//! and loose records hold, rewritten with indexes, summary and footer, as
+//! `mcap recover` does) under its own name, so that a file at a segment's
+//! own name is a complete MCAP any reader opens (on a full disk, where
+//! the completed copy does not fit, the partial file is renamed as it is);
+//! and the readers
+//! read an orphan (or a partial file still being written) in place of a
+//! missing segment.
 
 use std::fs::{File, TryLockError};
 use std::io;
 use std::path::{Path, PathBuf};
+
+use crate::{RecordingError, RecordingWriter, DEFAULT_CHUNK_BYTES};
 
 /// What a segment's name gets while its writer writes it.
 pub const PARTIAL_SUFFIX: &str = ".partial";
@@ -53,10 +61,12 @@ fn held(path: &Path) -> io::Result<bool> {
     }
 }
 
-/// Gives every orphaned partial file of `first`'s segments (one no live
-/// writer holds, whose segment has no finished file) its segment's own
-/// name, and returns the segments so finished. A partial file a writer
-/// still holds is left alone. Errors name the file.
+/// Completes every orphaned partial file of `first`'s segments (one no
+/// live writer holds, whose segment has no finished file) under its
+/// segment's own name ([`complete`]), and returns the segments so
+/// finished. Where completing fails (no room for the completed copy on a
+/// full disk), the partial file is renamed as it is. A partial file a
+/// writer still holds is left alone. Errors name the file.
 pub fn finish_orphans(first: &Path) -> io::Result<Vec<PathBuf>> {
     let named = |p: &Path, e: io::Error| io::Error::new(e.kind(), format!("{}: {e}", p.display()));
     let mut finished = Vec::new();
@@ -72,10 +82,91 @@ pub fn finish_orphans(first: &Path) -> io::Result<Vec<PathBuf>> {
         if held(&partial).map_err(|e| named(&partial, e))? {
             continue;
         }
-        std::fs::rename(&partial, &seg).map_err(|e| named(&partial, e))?;
+        if complete(&partial, &seg).is_err() {
+            // No room for the completed copy (a full disk): the partial
+            // file takes the name as it is, which exo's readers read (its
+            // complete chunks) and an indexed reader may not.
+            std::fs::rename(&partial, &seg).map_err(|e| named(&partial, e))?;
+        }
         finished.push(seg);
     }
     Ok(finished)
+}
+
+/// What [`complete`] copied from a dead writer's file.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct Completed {
+    /// Messages (those of its complete chunks and loose message records).
+    pub messages: usize,
+    /// Metadata records.
+    pub metadata: usize,
+    /// Attachments.
+    pub attachments: usize,
+}
+
+/// Rewrites the MCAP file `partial` that its writer never finished (no
+/// summary, no footer, perhaps cut in the middle of a record) as a complete
+/// MCAP at `dest`: every message MCAP's own stream reader yields before the
+/// first damaged or cut record (the complete chunks, CRC-checked), and the
+/// metadata and attachments before it, written by a [`RecordingWriter`]
+/// with the recordings' own options, then given indexes, summary and
+/// footer. The new file is written beside `dest`, synced, renamed onto
+/// `dest`, and only then is `partial` removed: a crash on the way leaves
+/// `partial` as it was. Errors name the file.
+pub fn complete(partial: &Path, dest: &Path) -> Result<Completed, RecordingError> {
+    let mut tmp = dest.as_os_str().to_os_string();
+    tmp.push(".completing");
+    let tmp = PathBuf::from(tmp);
+    let done = complete_via(partial, dest, &tmp);
+    if done.is_err() {
+        // Nothing half-written is left beside the partial file (a full
+        // disk): the readers go on reading the partial file in its place.
+        let _ = std::fs::remove_file(&tmp);
+    }
+    done
+}
+
+fn complete_via(partial: &Path, dest: &Path, tmp: &Path) -> Result<Completed, RecordingError> {
+    let bytes = std::fs::read(partial).map_err(|e| RecordingError::io(partial, e))?;
+    let file = File::create(tmp).map_err(|e| RecordingError::io(tmp, e))?;
+    let mut w = RecordingWriter::new(io::BufWriter::new(file), dest, DEFAULT_CHUNK_BYTES)?;
+    let mut done = Completed::default();
+    let options = || mcap::read::Options::IgnoreEndMagic.into();
+    // Metadata and attachments: the records outside chunks, up to the first
+    // that does not parse.
+    if let Ok(records) = mcap::read::LinearReader::new_with_options(&bytes, options()) {
+        for record in records.map_while(Result::ok) {
+            match record {
+                mcap::records::Record::Metadata(m) => {
+                    w.write_metadata(&m.name, &m.metadata)?;
+                    done.metadata += 1;
+                }
+                mcap::records::Record::Attachment { header, data, .. } => {
+                    w.attach(&header.name, &header.media_type, &data, header.log_time)?;
+                    done.attachments += 1;
+                }
+                _ => {}
+            }
+        }
+    }
+    if let Ok(stream) = mcap::MessageStream::new_with_options(&bytes, options()) {
+        for message in stream.map_while(Result::ok) {
+            w.copy_message(&message)?;
+            done.messages += 1;
+        }
+    }
+    w.finish()?;
+    let publish = || -> io::Result<()> {
+        File::open(tmp)?.sync_all()?;
+        std::fs::rename(tmp, dest)?;
+        if let Some(dir) = dest.parent().filter(|d| !d.as_os_str().is_empty()) {
+            // Best effort: makes the rename itself durable.
+            let _ = File::open(dir).and_then(|d| d.sync_all());
+        }
+        std::fs::remove_file(partial)
+    };
+    publish().map_err(|e| RecordingError::io(dest, e))?;
+    Ok(done)
 }
 
 /// Path of segment `part` (1-based) of the recording whose first segment

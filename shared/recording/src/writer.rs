@@ -238,6 +238,15 @@ impl<W: Write + Seek> RecordingWriter<W> {
             .map_err(|e| RecordingError::mcap(&self.file, e))
     }
 
+    /// Copies a message read from another MCAP file (its channel and schema
+    /// are registered on first use): what [`crate::segments::complete`]
+    /// rewrites a dead writer's file with.
+    pub fn copy_message(&mut self, message: &mcap::Message<'_>) -> Result<(), RecordingError> {
+        self.mcap
+            .write(message)
+            .map_err(|e| RecordingError::mcap(&self.file, e))
+    }
+
     /// Closes the open chunk and flushes it to the file, so a crash after
     /// this loses nothing written before.
     pub fn flush(&mut self) -> Result<(), RecordingError> {

@@ -168,3 +168,79 @@ fn recordings_written_by_pythons_mcap_ros2_writer_are_read() {
         }
     }
 }
+
+/// A file its writer never finished (issue 32, item 2), cut in the middle
+/// of a chunk, at a chunk's start and inside the summary, is completed by
+/// `segments::complete` into a file that Python's `mcap` library opens with
+/// `make_reader` (indexed reading: summary, chunk and message indexes,
+/// footer) and decodes exactly the messages its complete chunks held; exo's
+/// reader reads the same messages, no longer truncated, with the metadata
+/// and the configuration attachment written before the cut.
+#[test]
+fn a_dead_writers_file_is_completed_into_one_pythons_indexed_reader_opens() {
+    let dir = TempDir::new("complete");
+    let full = dir.join("full.mcap");
+    let e = write_full(&full, 1200, 8192);
+    let bytes = std::fs::read(&full).unwrap();
+    let summary = mcap::Summary::read(&bytes).unwrap().unwrap();
+    let c = &summary.chunk_indexes[summary.chunk_indexes.len() / 2];
+    let (start, len) = (c.chunk_start_offset as usize, c.chunk_length as usize);
+    for (i, cut) in [start + len / 2, start, bytes.len() - 30]
+        .into_iter()
+        .enumerate()
+    {
+        let dest = dir.join(&format!("cut{i}.mcap"));
+        let partial = segments::partial_path(&dest);
+        std::fs::write(&partial, &bytes[..cut]).unwrap();
+        let before = read_recording_bytes("cut.mcap", &bytes[..cut]).unwrap();
+        assert!(before.truncated || cut > bytes.len() - 40, "cut at {cut}");
+        if i == 0 {
+            // As it was left, the indexed reader does not open it (what a
+            // rename alone gave Foxglove and Python's tools).
+            let raw = dir.join("raw.mcap");
+            std::fs::write(&raw, &bytes[..cut]).unwrap();
+            let out = Command::new(python())
+                .arg(tools_python("read_recording.py"))
+                .arg(&raw)
+                .args(["--max", "0"])
+                .output()
+                .unwrap();
+            assert!(!out.status.success(), "Python read a cut file as it was");
+        }
+        let done = segments::complete(&partial, &dest).unwrap();
+        assert!(dest.exists() && !partial.exists(), "cut at {cut}");
+        assert_eq!(done.messages, before.message_count(), "cut at {cut}");
+        assert!(done.messages > 0 && done.attachments == 1, "{done:?}");
+        let after = read_recording(&dest).unwrap();
+        assert!(!after.truncated, "cut at {cut}: {:?}", after.warnings);
+        assert_eq!(after.sensor, before.sensor);
+        assert_eq!(after.command, before.command);
+        assert_eq!(after.protocol, before.protocol);
+        assert_eq!(after.bus_sensor, before.bus_sensor);
+        assert_eq!(after.metadata["exo"], e.metadata["exo"]);
+        assert_eq!(after.attachment("config.toml"), Some(e.config.as_bytes()));
+        let out = Command::new(python())
+            .arg(tools_python("read_recording.py"))
+            .arg(&dest)
+            .args(["--max", "0"])
+            .output()
+            .unwrap();
+        assert!(
+            out.status.success(),
+            "cut at {cut}: {}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        let v: Value = serde_json::from_slice(&out.stdout).unwrap();
+        let counts: u64 = v["topics"]
+            .as_object()
+            .unwrap()
+            .values()
+            .map(|t| t["count"].as_u64().unwrap())
+            .sum();
+        assert_eq!(counts as usize, before.message_count(), "cut at {cut}");
+        assert_eq!(
+            v["topics"]["exo/sensor"]["count"].as_u64().unwrap() as usize,
+            before.sensor.len()
+        );
+    }
+}
