@@ -86,8 +86,8 @@ fn the_bench_runs_a_horizontal_rig_and_finds_its_backlash() {
 /// The drive's torque limit (issue 30, item 6) on our simulator, through
 /// the real processes, at two sizes: 28 Nm clips the peaks of experiment
 /// 7's larger amplitude, 26.5 Nm every period of it. Each is named alone,
-/// at the true limit, and written into the updated plant, which the
-/// simulator accepts.
+/// within 0.2 % of the true limit, with the rest within the noise, and
+/// written into the updated plant, which the simulator accepts.
 #[test]
 fn the_bench_names_the_drives_torque_limit_at_two_sizes() {
     let dir = scratch("bench-saturation");
@@ -109,8 +109,16 @@ fn the_bench_names_the_drives_torque_limit_at_two_sizes() {
         assert_eq!(truth.sea.torque_limit_nm, truth_nm);
         let found = updated.sea.torque_limit_nm;
         assert!(
-            (found - truth_nm).abs() < 0.01 * truth_nm,
+            (found - truth_nm).abs() < 0.002 * truth_nm,
             "{name}: found {found} Nm, true {truth_nm} Nm"
+        );
+        // With the limit the rest is within the noise (started from the
+        // refitted model alone, the deep case stopped at 26.63 Nm with
+        // structure remaining: `Term::refits_from_nominal`).
+        let verdict = case["verdict"].to_string();
+        assert!(
+            verdict.contains("the rest is within the measured noise"),
+            "{name}: {verdict}"
         );
     }
 }

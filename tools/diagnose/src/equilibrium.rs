@@ -233,6 +233,40 @@ mod tests {
         assert!(!line.contains("experiment 1"), "{line}");
     }
 
+    /// The measured angle through the encoder's model (`θ = (θ_meas −
+    /// offset)/gain`) and the cuff torque through the cuff sensor's gain;
+    /// a period's windows are averaged before the periods: two windows of
+    /// 0.84 and 0.88 rad are one period at 0.86, and the experiment's
+    /// standard error is from the periods' scatter (0.004 rad here), not
+    /// from the windows'.
+    #[test]
+    fn angles_and_torques_are_read_through_the_sensors_and_windows_averaged_per_period() {
+        let mut p = physics(PostureReference::Fixed);
+        p.gain[0] = 1.1;
+        p.theta_offset = 0.02;
+        p.gain[1] = 2.0;
+        let mut d = Dataset::default();
+        for period in 1..=4 {
+            let shift = if period % 2 == 0 { 0.004 } else { -0.004 };
+            // True angle 0.86 ± 0.004 rad, cuff torque 4 Nm (read 8), K 40:
+            // the neutral angle 0.76 ± 0.004.
+            for window_shift in [-0.02, 0.02] {
+                let theta_true = 0.86 + shift + window_shift;
+                d.conditions
+                    .push(condition(1, period, 1.1 * theta_true + 0.02, 8.0));
+            }
+        }
+        let e = locate(&d, &p, 0.05).unwrap();
+        let one = &e.experiments[0];
+        assert_eq!(one.periods, 4);
+        assert!((one.measured_rad - 0.76).abs() < 1e-12, "{one:?}");
+        assert!((one.difference_rad + 0.04).abs() < 1e-12, "{one:?}");
+        // Periods at ±0.004: sd 0.004·√(4/3), se that over √4.
+        let se = 0.004 * (4.0_f64 / 3.0).sqrt() / 2.0;
+        assert!((one.std_error_rad - se).abs() < 1e-12, "{one:?}");
+        assert!(one.differs);
+    }
+
     /// A subject that holds its goal: the arm's mean angle is compared, the
     /// cuff's torque plays no part. A difference beyond the noise but below
     /// [`MATERIAL_RAD`] is not named; one period has no scatter to test
