@@ -110,26 +110,14 @@ pub struct Completed {
 /// first damaged or cut record (the complete chunks, CRC-checked), and the
 /// metadata and attachments before it, written by a [`RecordingWriter`]
 /// with the recordings' own options, then given indexes, summary and
-/// footer. The new file is written beside `dest`, synced, renamed onto
-/// `dest`, and only then is `partial` removed: a crash on the way leaves
-/// `partial` as it was. Errors name the file.
+/// footer. The new file is written as every output file is
+/// ([`crate::files::write_output_file`]: beside `dest`, synced, renamed,
+/// nothing left on failure), and only then is `partial` removed: a crash
+/// on the way leaves `partial` as it was. Errors name the file.
 pub fn complete(partial: &Path, dest: &Path) -> Result<Completed, RecordingError> {
-    let mut tmp = dest.as_os_str().to_os_string();
-    tmp.push(".completing");
-    let tmp = PathBuf::from(tmp);
-    let done = complete_via(partial, dest, &tmp);
-    if done.is_err() {
-        // Nothing half-written is left beside the partial file (a full
-        // disk): the readers go on reading the partial file in its place.
-        let _ = std::fs::remove_file(&tmp);
-    }
-    done
-}
-
-fn complete_via(partial: &Path, dest: &Path, tmp: &Path) -> Result<Completed, RecordingError> {
     let bytes = std::fs::read(partial).map_err(|e| RecordingError::io(partial, e))?;
-    let file = File::create(tmp).map_err(|e| RecordingError::io(tmp, e))?;
-    let mut w = RecordingWriter::new(io::BufWriter::new(file), dest, DEFAULT_CHUNK_BYTES)?;
+    let mut out = io::Cursor::new(Vec::with_capacity(bytes.len() + (bytes.len() >> 4)));
+    let mut w = RecordingWriter::new(&mut out, dest, DEFAULT_CHUNK_BYTES)?;
     let mut done = Completed::default();
     let options = || mcap::read::Options::IgnoreEndMagic.into();
     // Metadata and attachments: the records outside chunks, up to the first
@@ -156,16 +144,11 @@ fn complete_via(partial: &Path, dest: &Path, tmp: &Path) -> Result<Completed, Re
         }
     }
     w.finish()?;
-    let publish = || -> io::Result<()> {
-        File::open(tmp)?.sync_all()?;
-        std::fs::rename(tmp, dest)?;
-        if let Some(dir) = dest.parent().filter(|d| !d.as_os_str().is_empty()) {
-            // Best effort: makes the rename itself durable.
-            let _ = File::open(dir).and_then(|d| d.sync_all());
-        }
-        std::fs::remove_file(partial)
-    };
-    publish().map_err(|e| RecordingError::io(dest, e))?;
+    // Atomically, as every output file: beside `dest`, synced, renamed
+    // (nothing half-written left on failure); only then the partial goes.
+    crate::files::write_output_file(dest, out.into_inner())
+        .map_err(|e| RecordingError::io(dest, e))?;
+    std::fs::remove_file(partial).map_err(|e| RecordingError::io(partial, e))?;
     Ok(done)
 }
 
