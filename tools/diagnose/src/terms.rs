@@ -424,20 +424,13 @@ impl Term {
             Term::CuffSensorDelay => format!("d = {}", pm(Param::DelayTauC, 1e3, 2, " ms")),
             Term::SeaSensorDelay => format!("d = {}", pm(Param::DelayTauS, 1e3, 2, " ms")),
             Term::ActuatorDelay => format!("d = {}", pm(Param::DelayAct, 1e3, 2, " ms")),
-            Term::CuffCompliance => {
-                let c = p.cuff_compliance;
-                match se(Param::CuffCompliance) {
-                    Some(s) if determined(c, s) => {
-                        // k_c = 1/c; its standard error by the delta method.
-                        let k = 1.0 / c;
-                        format!("k_c = {}", value_pm(k, Some(k * s / c), 0, " Nm/rad"))
-                    }
-                    s => format!(
-                        "k_c not determined (compliance {c:.3e} rad/Nm; {})",
-                        why_undetermined(c, s)
-                    ),
-                }
-            }
+            Term::CuffCompliance => inverse_pm(
+                "k_c",
+                "compliance",
+                p.cuff_compliance,
+                se(Param::CuffCompliance),
+                (0, " Nm/rad", "rad/Nm"),
+            ),
             Term::SeaBandwidth => format!(
                 "ω_n = {} ({:.2} Hz), ζ = {}",
                 pm(Param::SeaWn, 1.0, 1, " rad/s"),
@@ -481,26 +474,42 @@ impl Term {
                 "dK/dθ = K₂ = {}",
                 pm(Param::QuadraticStiffness, 1.0, 0, " Nm/rad²")
             ),
-            Term::ActuatorSaturation => {
-                let s = p.saturation_per_nm;
-                match se(Param::Saturation) {
-                    Some(e) if determined(s, e) => {
-                        // τ_max = 1/s; its standard error by the delta method.
-                        let l = 1.0 / s;
-                        format!("τ_max = {}", value_pm(l, Some(l * e / s), 2, " Nm"))
-                    }
-                    e => format!(
-                        "τ_max not determined (1/τ_max {s:.3e} 1/Nm; {})",
-                        why_undetermined(s, e)
-                    ),
-                }
-            }
+            Term::ActuatorSaturation => inverse_pm(
+                "τ_max",
+                "1/τ_max",
+                p.saturation_per_nm,
+                se(Param::Saturation),
+                (2, " Nm", "1/Nm"),
+            ),
             Term::Backlash => format!(
                 "lost motion 2δ = {} (motor side J_m = {:.3} kg·m², the model's)",
                 pm(Param::Backlash, 2.0, 4, " rad"),
                 p.motor_inertia
             ),
         }
+    }
+}
+
+/// A quantity fitted as its inverse `x` (a compliance for a stiffness, an
+/// inverse limit for a limit), in words: `name = 1/x ± se`, its standard
+/// error by the delta method (`se/x²`), or "not determined" with `x` as
+/// fitted (`fitted`, in `inverse_unit`). `(digits, unit, inverse_unit)`.
+fn inverse_pm(
+    name: &str,
+    fitted: &str,
+    x: f64,
+    se: Option<f64>,
+    (digits, unit, inverse_unit): (usize, &str, &str),
+) -> String {
+    match se {
+        Some(s) if determined(x, s) => {
+            let v = 1.0 / x;
+            format!("{name} = {}", value_pm(v, Some(v * s / x), digits, unit))
+        }
+        s => format!(
+            "{name} not determined ({fitted} {x:.3e} {inverse_unit}; {})",
+            why_undetermined(x, s)
+        ),
     }
 }
 

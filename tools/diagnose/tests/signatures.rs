@@ -14,6 +14,28 @@ use exo_diagnose::signatures::{
 use exo_diagnose::synth::{synthesize, SynthSettings};
 use exo_diagnose::Physics;
 
+/// The conditions of a 5 s single-sine window `period` (the `period − 1`-th
+/// of its experiment, 5 s apart), 2 Nm excitation, 0.02 rad angle amplitude.
+fn condition(experiment: u32, period: u32, bias_nm: f64, sample_period_s: f64) -> Condition {
+    Condition {
+        experiment,
+        period,
+        load_kg: 0.0,
+        bias_nm,
+        alpha: 1.0,
+        amplitude_nm: 2.0,
+        theta0_rad: 0.0,
+        theta_amp_rad: 0.02,
+        sin_theta_mean: 0.0,
+        tau_s_mean_nm: f64::NAN,
+        tau_c_mean_nm: 0.0,
+        command: None,
+        sample_period_s,
+        start_s: 5.0 * f64::from(period - 1),
+        elapsed_s: 5.0 * f64::from(period - 1),
+    }
+}
+
 /// 5 s at 500 Hz, ω = 4 rad/s (whole cycles: 3), fundamental 2 Nm, noise σ.
 fn window(sigma: f64, third: f64, ringing: f64, seed: u64) -> (Vec<f64>, Vec<f64>) {
     let w = 4.0;
@@ -164,23 +186,7 @@ fn a_steady_non_harmonic_tone_is_sized_against_the_fundamental() {
             tau_c_nm: y,
             t_s: t,
         });
-        d.conditions.push(Condition {
-            experiment: 1,
-            period: k + 1,
-            load_kg: 0.0,
-            bias_nm: 0.0,
-            alpha: 1.0,
-            amplitude_nm: 2.0,
-            theta0_rad: 0.0,
-            theta_amp_rad: 0.02,
-            sin_theta_mean: 0.0,
-            tau_s_mean_nm: f64::NAN,
-            tau_c_mean_nm: 0.0,
-            command: None,
-            sample_period_s: 0.002,
-            start_s: 5.0 * f64::from(k),
-            elapsed_s: 5.0 * f64::from(k),
-        });
+        d.conditions.push(condition(1, k + 1, 0.0, 0.002));
     }
     let h = harmonics(&d, 0.05);
     assert_eq!(h.len(), 1, "one experiment, one supported channel");
@@ -236,23 +242,7 @@ fn the_torque_limits_harmonics_are_where_the_drive_clipped() {
                 tau_d_nm: tau_d,
                 t_s: t,
             });
-            d.conditions.push(Condition {
-                experiment: 7,
-                period: k + 1,
-                load_kg: 0.0,
-                bias_nm: 8.0,
-                alpha: 1.0,
-                amplitude_nm: 2.0,
-                theta0_rad: 0.0,
-                theta_amp_rad: 0.02,
-                sin_theta_mean: 0.0,
-                tau_s_mean_nm: f64::NAN,
-                tau_c_mean_nm: 0.0,
-                command: None,
-                sample_period_s: dt,
-                start_s: 5.0 * f64::from(k),
-                elapsed_s: 5.0 * f64::from(k),
-            });
+            d.conditions.push(condition(7, k + 1, 8.0, dt));
         }
         d
     };
