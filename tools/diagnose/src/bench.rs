@@ -440,6 +440,8 @@ pub struct NullOutcome {
     /// The refitted nominal model's χ²/dof (1 when the noise model is
     /// calibrated).
     pub chi2_per_dof: f64,
+    /// The refitted nominal model's score per transfer function.
+    pub per_tf: Vec<crate::engine::TfScore>,
 }
 
 impl NullOutcome {
@@ -452,6 +454,7 @@ impl NullOutcome {
             unexplained: named.is_empty() && r.final_score.lack_of_fit_p < level,
             named,
             chi2_per_dof: r.refit.chi2_per_dof,
+            per_tf: r.refit.per_tf.clone(),
         }
     }
 }

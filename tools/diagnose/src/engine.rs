@@ -86,6 +86,12 @@ pub struct TfScore {
     pub r2: f64,
     /// Weighted RSS on held-out periods (two-fold over periods).
     pub heldout_rss: f64,
+    /// Lack-of-fit χ² per real residual against the measured noise and the
+    /// model's accuracy (1 when both are right; the model's own parameters
+    /// are not subtracted here).
+    pub chi2_per_residual: f64,
+    /// The same against the measured noise alone (no accuracy floor).
+    pub noise_only_chi2_per_residual: f64,
 }
 
 /// A model's scores.
@@ -573,6 +579,11 @@ fn score(d: &Dataset, start: &Physics, fitted: &Physics, free: &[Param]) -> Scor
                 f64::NAN
             },
             heldout_rss: folds.get(&tf).copied().unwrap_or(f64::NAN),
+            chi2_per_residual: {
+                let (chi, n) = crate::fit::lack_of_fit_chi2_of(d, fitted, Some(tf));
+                chi / n.max(1) as f64
+            },
+            noise_only_chi2_per_residual: crate::fit::noise_only_chi2(d, fitted, tf),
         });
     }
     let (total, _) = rss(d, fitted, &|_, _| true);

@@ -91,7 +91,13 @@ pub fn lack_of_fit_chi2(d: &Dataset, phys: &Physics) -> (f64, usize) {
     lack_of_fit_chi2_of(d, phys, None)
 }
 
-fn lack_of_fit_chi2_of(d: &Dataset, phys: &Physics, only: Option<crate::data::Tf>) -> (f64, usize) {
+/// [`lack_of_fit_chi2`] of one transfer function's observations, or of all
+/// (`None`).
+pub fn lack_of_fit_chi2_of(
+    d: &Dataset,
+    phys: &Physics,
+    only: Option<crate::data::Tf>,
+) -> (f64, usize) {
     let mut chi = 0.0;
     let mut n = 0;
     for o in d
@@ -110,6 +116,23 @@ fn lack_of_fit_chi2_of(d: &Dataset, phys: &Physics, only: Option<crate::data::Tf
         }
     }
     (chi, n)
+}
+
+/// χ² per real residual of one transfer function against the measured
+/// noise alone (no accuracy floor): how the noise estimate compares with the
+/// misfit, for calibrating it (docs/diagnose.md, "The noise model").
+pub fn noise_only_chi2(d: &Dataset, phys: &Physics, tf: crate::data::Tf) -> f64 {
+    let (mut chi, mut n) = (0.0, 0usize);
+    for o in d.observations.iter().filter(|o| o.tf == tf) {
+        let r = phys.predict(o, &d.conditions[o.window]) - o.value;
+        chi += (r.re / o.sigma[0].max(1e-12)).powi(2);
+        n += 1;
+        if tf.is_dynamic() {
+            chi += (r.im / o.sigma[1].max(1e-12)).powi(2);
+            n += 1;
+        }
+    }
+    chi / n.max(1) as f64
 }
 
 /// The lack-of-fit p-value of `phys` with `p` free parameters

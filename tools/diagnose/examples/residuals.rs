@@ -1,0 +1,53 @@
+//! Prints every observation's residual after the nominal refit, against the
+//! measured noise alone: `experiment period tf ω |data/model|−1 (%)
+//! arg(data/model) (°) z_re z_im` (z: residual over the measured σ). The
+//! raw material for calibrating the noise model and for locating a
+//! generator's systematic (docs/diagnose.md, "The noise model").
+//!
+//! `cargo run -p exo-diagnose --example residuals -- PLANT.toml [--holds-goal] [--horizontal] REC.mcap`
+
+use std::path::Path;
+
+use exo_diagnose::data::{reduce, Reduction};
+use exo_diagnose::{diagnose, Settings};
+use exo_plant_sim::PlantModel;
+
+fn main() -> Result<(), Box<dyn std::error::Error>> {
+    let args: Vec<String> = std::env::args().skip(1).collect();
+    let [plant, rest @ ..] = args.as_slice() else {
+        return Err("usage: residuals PLANT.toml [--holds-goal] [--horizontal] REC.mcap".into());
+    };
+    let mut model = PlantModel::from_file(Path::new(plant)).map_err(|e| format!("{plant}: {e}"))?;
+    let mut recs = Vec::new();
+    for a in rest {
+        match a.as_str() {
+            "--holds-goal" => exo_diagnose::bench::holds_goal(&mut model),
+            "--horizontal" => model.gravity.enabled = false,
+            f => recs.push(
+                exo_recording::read_recording(Path::new(f)).map_err(|e| format!("{f}: {e}"))?,
+            ),
+        }
+    }
+    let d = reduce(&recs, &Reduction::default());
+    let r = diagnose(&d, &model, &Settings::default())?;
+    let phys = &r.refit_physics;
+    println!("experiment\tperiod\ttf\tomega\tmag_pct\tphase_deg\tz_re\tz_im");
+    for o in &d.observations {
+        let c = &d.conditions[o.window];
+        let m = phys.predict(o, c);
+        let q = o.value / m;
+        let res = o.value - m;
+        println!(
+            "{}\t{}\t{}\t{:.3}\t{:+.3}\t{:+.3}\t{:+.2}\t{:+.2}",
+            c.experiment,
+            c.period,
+            o.tf.name(),
+            o.omega_rad_s,
+            100.0 * (q.norm() - 1.0),
+            q.arg().to_degrees(),
+            res.re / o.sigma[0].max(1e-12),
+            res.im / o.sigma[1].max(1e-12),
+        );
+    }
+    Ok(())
+}
