@@ -104,6 +104,10 @@ pub struct Condition {
     /// not recorded in every sample of its whole cycles, or broadband).
     #[serde(skip)]
     pub command: Option<std::sync::Arc<CommandPeaks>>,
+    /// The measured angle's gravity fundamentals over the window's whole
+    /// cycles (`None` when broadband or not measurable).
+    #[serde(skip)]
+    pub gravity: Option<GravityFundamentals>,
     /// Control period of the recording (s).
     pub sample_period_s: f64,
     /// Start of the window (s from the recording's first sensor sample).
@@ -111,6 +115,44 @@ pub struct Condition {
     /// Time from the start of the experiment's first window to this
     /// window's start (s): its place in time within the experiment.
     pub elapsed_s: f64,
+}
+
+/// The fundamentals `(2/n) Σ y_k e^{−jωt_k}` (detrended, over one window's
+/// whole cycles) of the measured angle `θ_m`, of `sin θ_m` and of
+/// `cos θ_m`: gravity's moment at the fundamental is `m g l [sin θ]₁`
+/// exactly, whatever harmonics the arm's swing holds, and an encoder offset
+/// `δ` moves it to `cos δ [sin θ_m]₁ − sin δ [cos θ_m]₁`
+/// ([`crate::model::Physics::gravity_gain`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct GravityFundamentals {
+    /// `[θ_m]₁` (rad).
+    pub theta: Complex64,
+    /// `[sin θ_m]₁`.
+    pub sin: Complex64,
+    /// `[cos θ_m]₁`.
+    pub cos: Complex64,
+}
+
+impl GravityFundamentals {
+    /// The fundamentals of the angle samples `theta_rad` at `t_s` (s), all
+    /// in whole cycles of `omega_rad_s`; `None` when any is not measurable
+    /// or the angle does not move at ω.
+    pub fn new(t_s: &[f64], theta_rad: &[f64], omega_rad_s: f64) -> Option<Self> {
+        let f = |y: &[f64]| {
+            exo_impedance::frf::sine_amplitude(t_s, y, omega_rad_s, true)
+                .ok()
+                .map(|a| a.amplitude)
+        };
+        let theta = f(theta_rad)?;
+        let sin: Vec<f64> = theta_rad.iter().map(|x| x.sin()).collect();
+        let cos: Vec<f64> = theta_rad.iter().map(|x| x.cos()).collect();
+        let g = GravityFundamentals {
+            theta,
+            sin: f(&sin)?,
+            cos: f(&cos)?,
+        };
+        (theta.norm() > 0.0 && [g.theta, g.sin, g.cos].iter().all(|z| z.is_finite())).then_some(g)
+    }
 }
 
 /// One window's motor command `τ_d` over its whole cycles, as a torque
@@ -478,7 +520,18 @@ pub fn reduce(recordings: &[Recording], s: &Reduction) -> Dataset {
                 1e-3
             };
             let has_command = answered * 10 >= n * 9 && !human_only;
-            let theta0 = sig.theta_rad.iter().sum::<f64>() / n as f64;
+            // The window's whole cycles (all of a broadband window): the
+            // means the plant is linearised about. A partial cycle's mean is
+            // biased by the sine it holds (at 2 rad/s a 5 s window is one
+            // cycle and 0.6 of another: with experiment 1's 0.1 rad that
+            // is about 1°, which moves gravity's slope `m g l cos θ₀`).
+            let whole = if sp.omega > 0.0 {
+                exo_impedance::frf::whole_cycles(&sig.t_s, sp.omega).unwrap_or(n)
+            } else {
+                n
+            }
+            .max(1);
+            let theta0 = sig.theta_rad[..whole].iter().sum::<f64>() / whole as f64;
             let cond_index = d.conditions.len();
             let mut cond = Condition {
                 experiment: sp.experiment + key_offset,
@@ -491,16 +544,9 @@ pub fn reduce(recordings: &[Recording], s: &Reduction) -> Dataset {
                 theta_amp_rad: 0.0,
                 sin_theta_mean: theta0.sin(),
                 tau_s_mean_nm: f64::NAN,
-                tau_c_mean_nm: {
-                    let m = if sp.omega > 0.0 {
-                        exo_impedance::frf::whole_cycles(&sig.t_s, sp.omega).unwrap_or(n)
-                    } else {
-                        n
-                    }
-                    .max(1);
-                    sig.tau_c_nm[..m].iter().sum::<f64>() / m as f64
-                },
+                tau_c_mean_nm: sig.tau_c_nm[..whole].iter().sum::<f64>() / whole as f64,
                 command: None,
+                gravity: None,
                 sample_period_s: dt,
                 start_s: t0.saturating_sub(r.sensor[0].stamp_ns) as f64 * 1e-9,
                 elapsed_s: 0.0,
@@ -649,6 +695,7 @@ fn single_sine(
             push(Tf::Sea, &a_td, &a_ts);
         }
         if let Some(n) = exo_impedance::frf::whole_cycles(&sig.t_s, w) {
+            cond.gravity = GravityFundamentals::new(&sig.t_s[..n], &sig.theta_rad[..n], w);
             cond.command =
                 CommandPeaks::new(&sig.t_s[..n], &tau_d[..n], w).map(std::sync::Arc::new);
         }

@@ -184,6 +184,7 @@ mod tests {
             tau_s_mean_nm: f64::NAN,
             tau_c_mean_nm: tau_c,
             command: None,
+            gravity: None,
             sample_period_s: 1e-3,
             start_s: 0.0,
             elapsed_s: 0.0,

@@ -521,12 +521,11 @@ impl Physics {
     pub fn s_exo_linear(&self, w: f64, c: &Condition) -> Complex64 {
         let j = Complex64::i();
         let a_true = self.true_amplitude_rad(c);
-        let theta0 = (c.theta0_rad - self.theta_offset) / self.gain[0];
         let m_e = self.arm_inertia + c.load_kg * self.lever_m * self.lever_m + self.inertia_error;
         let mgl = self.mgl_nm(c);
         -m_e * w * w
             + self.s_cuff(w, c)
-            + mgl * theta0.cos() * gravity_describing(a_true)
+            + mgl * self.gravity_gain(c)
             + j * w * self.b_f
             + j * coulomb_describing(self.coulomb_nm, self.coulomb_smoothing_rad_s, a_true, w)
     }
@@ -555,6 +554,37 @@ impl Physics {
     /// The joint's gravity moment `m g l` (Nm): arm, load and the gravity error.
     fn mgl_nm(&self, c: &Condition) -> f64 {
         self.gravity_arm_nm + self.g_load * c.load_kg * self.lever_m + self.gravity_error
+    }
+
+    /// Gravity's moment at the fundamental per unit `m g l` and per radian
+    /// of the true angle's fundamental in window `c`, `[sin θ]₁ / [θ]₁`.
+    /// From the window's measured angle where it was recorded
+    /// ([`crate::data::GravityFundamentals`]: exact whatever harmonics the
+    /// swing holds; with experiment 1's 0.2 rad swings about 45° the arm's
+    /// own second harmonic moves the fundamental by about 0.5 %, beyond
+    /// the describing function of a pure sine), with the encoder's offset
+    /// exactly and its gain by the describing function's ratio; otherwise
+    /// `cos θ₀ · 2 J₁(A)/A` about the window's mean ([`gravity_describing`]).
+    pub fn gravity_gain(&self, c: &Condition) -> Complex64 {
+        let a_true = self.true_amplitude_rad(c);
+        let theta0 = (c.theta0_rad - self.theta_offset) / self.gain[0];
+        let describing = theta0.cos() * gravity_describing(a_true);
+        match &c.gravity {
+            Some(f) => {
+                let (sd, cd) = self.theta_offset.sin_cos();
+                let measured = (f.sin * cd - f.cos * sd) / f.theta;
+                // The gain's share (1 at gain 1): the describing function
+                // at the true angle over the one at the measured angle.
+                let at_measured =
+                    (c.theta0_rad - self.theta_offset).cos() * gravity_describing(c.theta_amp_rad);
+                if self.gain[0] == 1.0 || at_measured == 0.0 {
+                    measured
+                } else {
+                    measured * (describing / at_measured)
+                }
+            }
+            None => Complex64::new(describing, 0.0),
+        }
     }
 
     /// The true angle amplitude of window `c` (rad): the measured one over
@@ -925,6 +955,7 @@ mod tests {
             tau_s_mean_nm: f64::NAN,
             tau_c_mean_nm: 0.0,
             command: None,
+            gravity: None,
             sample_period_s: 0.001,
             start_s: 0.0,
             elapsed_s: 0.0,
@@ -938,6 +969,82 @@ mod tests {
             ((after - before).re - want).abs() < 1e-9 && (after - before).im.abs() < 1e-9,
             "{} against {want}",
             after - before
+        );
+    }
+
+    /// Gravity's gain from a window's measured angle: a swing `θ₀ + A cos
+    /// ωt + B cos(2ωt + φ)` about 45° sampled at 1 kHz over three cycles,
+    /// against `[sin(θ − δ)]₁ / [θ]₁` summed here directly (`(2/n) Σ y
+    /// e^{−jωt}`, no detrending: the swing is periodic; the correlator's
+    /// trend takes a little of the harmonics, hence 0.1 %), with an encoder
+    /// offset δ. Its own second harmonic (B = 0.02 rad at A = 0.2) moves the
+    /// gain beyond the pure sine's describing function, which the check
+    /// also shows, so it can tell the two apart.
+    #[test]
+    fn gravitys_gain_is_the_measured_swings_fundamental_of_the_sine() {
+        let plant = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("../../configs/plants/default.toml");
+        let mut p = Physics::from_plant(&PlantModel::from_file(&plant).unwrap(), &[1]);
+        p.gain[0] = 1.0;
+        // ω = π: three cycles are exactly 6000 samples.
+        let (w, th0, a, b, phi) = (std::f64::consts::PI, 0.785, 0.2, 0.02, 0.7);
+        let n = 6000;
+        let t: Vec<f64> = (0..n).map(|k| k as f64 * 1e-3).collect();
+        let th: Vec<f64> = t
+            .iter()
+            .map(|t| th0 + a * (w * t).cos() + b * (2.0 * w * t + phi).cos())
+            .collect();
+        let fund = |y: &dyn Fn(f64) -> f64| -> Complex64 {
+            t.iter()
+                .zip(&th)
+                .map(|(t, th)| y(*th) * Complex64::from_polar(1.0, -w * t))
+                .sum::<Complex64>()
+                * (2.0 / n as f64)
+        };
+        let g = crate::data::GravityFundamentals::new(&t[..n], &th, w).expect("measurable");
+        let mut c = Condition {
+            experiment: 1,
+            period: 1,
+            load_kg: 4.5,
+            bias_nm: 0.0,
+            alpha: 1.0,
+            amplitude_nm: 2.0,
+            theta0_rad: th0,
+            theta_amp_rad: a,
+            sin_theta_mean: th0.sin(),
+            tau_s_mean_nm: f64::NAN,
+            tau_c_mean_nm: 0.0,
+            command: None,
+            gravity: Some(g),
+            sample_period_s: 0.001,
+            start_s: 0.0,
+            elapsed_s: 0.0,
+        };
+        for delta in [0.0, 0.03] {
+            p.theta_offset = delta;
+            let want = fund(&|x| (x - delta).sin()) / fund(&|x| x);
+            let got = p.gravity_gain(&c);
+            eprintln!(
+                "δ = {delta}: off by {:.2e}",
+                (got - want).norm() / want.norm()
+            );
+            assert!(
+                (got - want).norm() < 1e-3 * want.norm(),
+                "δ = {delta}: {got} against {want}"
+            );
+        }
+        p.theta_offset = 0.0;
+        let exact = p.gravity_gain(&c);
+        c.gravity = None;
+        let pure = p.gravity_gain(&c);
+        eprintln!(
+            "harmonic's share {:.2e}",
+            (exact - pure).norm() / pure.norm()
+        );
+        assert!(
+            (exact - pure).norm() > 5e-3 * pure.norm(),
+            "the harmonic's share {} is too small to tell",
+            (exact - pure).norm() / pure.norm()
         );
     }
 

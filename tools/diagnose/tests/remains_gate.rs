@@ -37,6 +37,7 @@ fn an_amplitude_step_inside_the_noise_is_not_a_finding() {
             tau_s_mean_nm: f64::NAN,
             tau_c_mean_nm: 0.0,
             command: None,
+            gravity: None,
             sample_period_s: 0.002,
             start_s: 30.0 * i as f64,
             elapsed_s: 30.0 * i as f64,

@@ -30,6 +30,7 @@ fn condition(experiment: u32, period: u32, bias_nm: f64, sample_period_s: f64) -
         tau_s_mean_nm: f64::NAN,
         tau_c_mean_nm: 0.0,
         command: None,
+        gravity: None,
         sample_period_s,
         start_s: 5.0 * f64::from(period - 1),
         elapsed_s: 5.0 * f64::from(period - 1),
