@@ -1,6 +1,6 @@
 //! Prints every observation's residual after the nominal refit, against the
 //! measured noise alone: `experiment period tf ω |data/model|−1 (%)
-//! arg(data/model) (°) z_re z_im data−model θ₀ A` (z: residual over the
+//! arg(data/model) (°) z_re z_im model−data θ₀ A σ |data|` (z: residual over the
 //! measured σ). The
 //! raw material for calibrating the noise model and for locating a
 //! generator's systematic (docs/diagnose.md, "The noise model").
@@ -32,26 +32,29 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let d = reduce(&recs, &Reduction::default());
     let r = diagnose(&d, &model, &Settings::default())?;
     let phys = &r.refit_physics;
-    println!("experiment\tperiod\ttf\tomega\tmag_pct\tphase_deg\tz_re\tz_im\tres_re\tres_im\ttheta0\ttheta_amp");
+    println!("experiment\tperiod\ttf\tomega\tmag_pct\tphase_deg\tz_re\tz_im\tres_re\tres_im\ttheta0\ttheta_amp\tsigma_re\tsigma_im\tabs_value");
     for o in &d.observations {
         let c = &d.conditions[o.window];
         let m = phys.predict(o, c);
         let q = o.value / m;
         let res = o.value - m;
         println!(
-            "{}\t{}\t{}\t{:.3}\t{:+.3}\t{:+.3}\t{:+.2}\t{:+.2}\t{:+.4}\t{:+.4}\t{:.4}\t{:.4}",
+            "{}\t{}\t{}\t{:.3}\t{:+.3}\t{:+.3}\t{:+.2}\t{:+.2}\t{:+.4}\t{:+.4}\t{:.4}\t{:.4}\t{:.3e}\t{:.3e}\t{:.4e}",
             c.experiment,
             c.period,
             o.tf.name(),
             o.omega_rad_s,
             100.0 * (q.norm() - 1.0),
             q.arg().to_degrees(),
-            res.re / o.sigma[0].max(1e-12),
-            res.im / o.sigma[1].max(1e-12),
+            res.re / o.noise[0].max(1e-12),
+            res.im / o.noise[1].max(1e-12),
             -res.re,
             -res.im,
             c.theta0_rad,
             c.theta_amp_rad,
+            o.noise[0],
+            o.noise[1],
+            o.value.norm(),
         );
     }
     Ok(())

@@ -244,8 +244,19 @@ pub struct Observation {
     pub omega_rad_s: f64,
     /// Measured value.
     pub value: Complex64,
-    /// Standard deviation of the real and of the imaginary part (same units as `value`).
+    /// Standard deviation of the real and of the imaginary part (same units
+    /// as `value`), from the window's residual taken as white noise: what
+    /// the fits weight with.
     pub sigma: [f64; 2],
+    /// The noise measured beside the line: `sigma`, unless what the
+    /// neighbouring frequencies hold is beyond it ([`local_ratio_sigma`],
+    /// [`local_or_white`]: a transient or coloured noise near ω), then
+    /// that. Reported ([`crate::fit::noise_only_chi2`]), not judged by: it
+    /// also takes in the non-periodic response a nonlinearity makes (on our
+    /// simulator's 0.05 rad backlash, 6–15 times `sigma` in `S_h-e` near
+    /// the arm's mode), which it would hide (docs/diagnose.md, "The noise
+    /// model").
+    pub noise: [f64; 2],
     /// Index of its window in [`Dataset::conditions`].
     pub window: usize,
     /// The controller's gravity compensation `τ_gravity/θ_e` at ω (Nm/rad), measured.
@@ -602,6 +613,102 @@ pub fn reduce(recordings: &[Recording], s: &Reduction) -> Dataset {
     d
 }
 
+/// The noise of a ratio `H = Y/X` at ω measured beside the line: over a
+/// window's whole cycles `c` (samples `x`, `y` at `t`), the output error
+/// `(Y_j − H X_j)/X` at the neighbouring frequencies `ω (c + j)/c`,
+/// `0 < |j| ≤ 4`, that are neither 0 nor a harmonic of ω (orthogonal to
+/// the line and to the mean over whole cycles; the mean, a linear trend and
+/// the line itself are taken out first). White noise puts as much there per bin as the white estimate
+/// expects at the line; a transient (a lightly damped mode ringing through
+/// the window) or any coloured noise near ω puts more, which a residual
+/// variance spread over the whole band misses. Returns the standard
+/// deviation per component and the bins used (`2 × bins` degrees of
+/// freedom); `None` with fewer than two bins (one or two cycles).
+pub fn local_ratio_sigma(
+    t: &[f64],
+    x: &[f64],
+    y: &[f64],
+    w: f64,
+    h: Complex64,
+    x_line: Complex64,
+) -> Option<(f64, usize)> {
+    let n = t.len();
+    if n < 8 || x.len() != n || y.len() != n || x_line.norm() == 0.0 {
+        return None;
+    }
+    let span = t[n - 1] - t[0] + (t[n - 1] - t[0]) / (n - 1) as f64;
+    let c = (w * span / std::f64::consts::TAU).round() as i64;
+    if c < 1 {
+        return None;
+    }
+    // Each signal less its least-squares mean, trend and line (jointly:
+    // over whole cycles the line is not orthogonal to a trend, whose
+    // leakage would otherwise reach every bin).
+    let tm = t.iter().sum::<f64>() / n as f64;
+    let reg = |i: usize| {
+        let tau = t[i] - t[0];
+        nalgebra::Vector4::new(1.0, t[i] - tm, (w * tau).cos(), (w * tau).sin())
+    };
+    let mut gram = nalgebra::Matrix4::<f64>::zeros();
+    for i in 0..n {
+        let a = reg(i);
+        gram += a * a.transpose();
+    }
+    let inv = gram.try_inverse()?;
+    let detrended = |v: &[f64]| -> Vec<f64> {
+        let mut rhs = nalgebra::Vector4::<f64>::zeros();
+        for (i, vi) in v.iter().enumerate() {
+            rhs += reg(i) * *vi;
+        }
+        let beta = inv * rhs;
+        v.iter()
+            .enumerate()
+            .map(|(i, vi)| vi - reg(i).dot(&beta))
+            .collect()
+    };
+    let (xd, yd) = (detrended(x), detrended(y));
+    let mut sum = 0.0;
+    let mut bins = 0;
+    for j in [-4i64, -3, -2, -1, 1, 2, 3, 4] {
+        let k = c + j;
+        if k <= 0 || k % c == 0 {
+            continue;
+        }
+        let wj = w * k as f64 / c as f64;
+        let (mut xj, mut yj) = (Complex64::new(0.0, 0.0), Complex64::new(0.0, 0.0));
+        for i in 0..n {
+            let e = Complex64::from_polar(1.0, -wj * (t[i] - t[0]));
+            xj += e * xd[i];
+            yj += e * yd[i];
+        }
+        let scale = 2.0 / n as f64;
+        let err = (yj * scale - h * xj * scale) / x_line;
+        sum += err.norm_sqr();
+        bins += 1;
+    }
+    (bins >= 2).then(|| ((0.5 * sum / bins as f64).sqrt(), bins))
+}
+
+/// The white estimate `white`, unless the one measured beside the line
+/// ([`local_ratio_sigma`]) is beyond what its own scatter allows (its
+/// variance ratio above the 99th percentile of `χ²_{2m}/2m` for white
+/// noise, `m` bins): then that one, for both components.
+pub fn local_or_white(white: [f64; 2], local: (f64, usize)) -> [f64; 2] {
+    use statrs::distribution::{ChiSquared, ContinuousCDF};
+    let (sd, bins) = local;
+    let dof = 2.0 * bins as f64;
+    let Ok(chi) = ChiSquared::new(dof) else {
+        return white;
+    };
+    let limit = chi.inverse_cdf(0.99) / dof;
+    let w2 = 0.5 * (white[0] * white[0] + white[1] * white[1]);
+    if w2 > 0.0 && sd * sd / w2 > limit {
+        [sd, sd]
+    } else {
+        white
+    }
+}
+
 fn sigma_of(cov: &[[f64; 2]; 2]) -> [f64; 2] {
     [cov[0][0].max(0.0).sqrt(), cov[1][1].max(0.0).sqrt()]
 }
@@ -661,38 +768,54 @@ fn single_sine(
     } else {
         Complex64::new(0.0, 0.0)
     };
-    let mut push =
-        |tf: Tf, x: &exo_impedance::frf::SineAmplitude, y: &exo_impedance::frf::SineAmplitude| {
-            match sine_ratio(x, y) {
-                Ok(p)
-                    if p.coherence >= s.min_coherence
-                        && p.ratio.re.is_finite()
-                        && p.ratio.im.is_finite() =>
-                {
-                    d.observations.push(Observation {
-                        tf,
-                        omega_rad_s: w,
-                        value: p.ratio,
-                        sigma: sigma_of(&p.cov),
-                        window,
-                        gravity_comp,
-                        statics: [0.0; 2],
-                    })
-                }
-                Ok(p) => d.notes.push(format!(
-                    "{what}: {} left out: coherence {:.2} below {:.2}",
-                    tf.signals(),
-                    p.coherence,
-                    s.min_coherence
-                )),
-                Err(e) => d.notes.push(format!("{what}: {}: {e}", tf.signals())),
+    let whole = exo_impedance::frf::whole_cycles(&sig.t_s, w);
+    let td_filled: Vec<f64> = tau_d
+        .iter()
+        .map(|v| if v.is_finite() { *v } else { 0.0 })
+        .collect();
+    let mut push = |tf: Tf,
+                    x: &exo_impedance::frf::SineAmplitude,
+                    y: &exo_impedance::frf::SineAmplitude,
+                    xs: &[f64],
+                    ys: &[f64]| {
+        match sine_ratio(x, y) {
+            Ok(p)
+                if p.coherence >= s.min_coherence
+                    && p.ratio.re.is_finite()
+                    && p.ratio.im.is_finite() =>
+            {
+                let sigma = sigma_of(&p.cov);
+                let noise = match whole.and_then(|n| {
+                    local_ratio_sigma(&sig.t_s[..n], &xs[..n], &ys[..n], w, p.ratio, x.amplitude)
+                }) {
+                    Some(local) => local_or_white(sigma, local),
+                    None => sigma,
+                };
+                d.observations.push(Observation {
+                    tf,
+                    omega_rad_s: w,
+                    value: p.ratio,
+                    sigma,
+                    noise,
+                    window,
+                    gravity_comp,
+                    statics: [0.0; 2],
+                })
             }
-        };
-    push(Tf::Sh, &a_th, &a_tc);
+            Ok(p) => d.notes.push(format!(
+                "{what}: {} left out: coherence {:.2} below {:.2}",
+                tf.signals(),
+                p.coherence,
+                s.min_coherence
+            )),
+            Err(e) => d.notes.push(format!("{what}: {}: {e}", tf.signals())),
+        }
+    };
+    push(Tf::Sh, &a_th, &a_tc, &sig.theta_rad, &sig.tau_c_nm);
     if has_command {
-        push(Tf::She, &a_th, &a_tsn);
+        push(Tf::She, &a_th, &a_tsn, &sig.theta_rad, &sig.tau_s_net_nm);
         if a_ts.amplitude.norm() > 0.0 {
-            push(Tf::Sea, &a_td, &a_ts);
+            push(Tf::Sea, &a_td, &a_ts, &td_filled, tau_s_raw);
         }
         if let Some(n) = exo_impedance::frf::whole_cycles(&sig.t_s, w) {
             cond.gravity = GravityFundamentals::new(&sig.t_s[..n], &sig.theta_rad[..n], w);
@@ -739,6 +862,7 @@ fn balance(
         omega_rad_s: 0.0,
         value: Complex64::new(mean, 0.0),
         sigma: [se, se],
+        noise: [se, se],
         window,
         gravity_comp: Complex64::new(0.0, 0.0),
         statics: [g_mean, c_mean],
@@ -815,6 +939,7 @@ fn broadband(
             omega_rad_s: b.omega_rad_s,
             value: b.h,
             sigma: sd(&b),
+            noise: sd(&b),
             window,
             gravity_comp: zero,
             statics: [0.0; 2],
@@ -829,6 +954,7 @@ fn broadband(
                             omega_rad_s: bb.omega_rad_s,
                             value: bb.h,
                             sigma: sd(&bb),
+                            noise: sd(&bb),
                             window,
                             gravity_comp,
                             statics: [0.0; 2],

@@ -118,17 +118,19 @@ pub fn lack_of_fit_chi2_of(
     (chi, n)
 }
 
-/// χ² per real residual of one transfer function against the measured
-/// noise alone (no accuracy floor): how the noise estimate compares with the
-/// misfit, for calibrating it (docs/diagnose.md, "The noise model").
+/// χ² per real residual of one transfer function against the noise measured
+/// beside each line (`Observation::noise`: transients and coloured noise
+/// included) with no accuracy floor: how the noise estimate compares with
+/// the misfit, for calibrating it (docs/diagnose.md, "The noise model").
+/// Reported, not judged by: see `Observation::noise`.
 pub fn noise_only_chi2(d: &Dataset, phys: &Physics, tf: crate::data::Tf) -> f64 {
     let (mut chi, mut n) = (0.0, 0usize);
     for o in d.observations.iter().filter(|o| o.tf == tf) {
         let r = phys.predict(o, &d.conditions[o.window]) - o.value;
-        chi += (r.re / o.sigma[0].max(1e-12)).powi(2);
+        chi += (r.re / o.noise[0].max(1e-12)).powi(2);
         n += 1;
         if tf.is_dynamic() {
-            chi += (r.im / o.sigma[1].max(1e-12)).powi(2);
+            chi += (r.im / o.noise[1].max(1e-12)).powi(2);
             n += 1;
         }
     }

@@ -28,14 +28,16 @@
 //! Assumptions: the hysteretic damping is `K + jH` exactly at the excitation
 //! (the simulator's `equivalent_viscous` and `prony_matched` modes are; the
 //! plain `prony` bank differs by its few-per-cent Kramers–Kronig drift);
-//! gravity and friction are linearised (describing function) about the
-//! window's mean angle and amplitude; sensor offsets do not enter transfer
+//! gravity's moment at the fundamental is taken from the window's measured
+//! angle (about the centre of its swing, its harmonics included), friction
+//! by its describing function; sensor offsets do not enter transfer
 //! functions and are not diagnosed.
 //!
 //! Accuracy against the simulator (`tests/forward.rs`, every term alone):
-//! linear terms within 0.2 % (the fit's floor, `fit::MODEL_ACCURACY`, is
-//! 0.5 %); Coulomb friction's describing function within 1.7 % (it ignores
-//! the harmonics); an ideal actuator (no SEA dynamics) within 0.8 %.
+//! linear terms within the measured noise (the fit's floor,
+//! `fit::MODEL_ACCURACY`, is 0.5 %);
+//! Coulomb friction's describing function within 1.7 % (it ignores the
+//! harmonics); an ideal actuator (no SEA dynamics) within 0.8 %.
 
 use std::collections::BTreeMap;
 

@@ -1,8 +1,8 @@
 //! The forward model against the simulator: every term of the plant TOML,
 //! switched on alone, simulated by `exo_plant_sim::Plant` and reduced from
-//! its sensor readings, must agree with `Physics::predict` within the
-//! forward model's stated accuracy (`fit::MODEL_ACCURACY`, the floor the
-//! fit weights with).
+//! its sensor readings, must agree with `Physics::predict`: a linear term
+//! within the measured noise, a describing function within its stated
+//! accuracy.
 
 use std::path::PathBuf;
 
@@ -90,14 +90,17 @@ fn agreement(model: &PlantModel, s: &SynthSettings) -> (f64, f64) {
 fn every_term_of_the_plant_matches_the_forward_model() {
     let base = default_plant();
     let mut variants: Vec<(&str, PlantModel, SynthSettings)> = Vec::new();
-    // Tolerances: linear terms within the model's stated accuracy; the
-    // Coulomb describing function ignores the harmonics friction makes
-    // (measured 1.7 %); an ideal actuator's stair-shaped torque is sampled
-    // at the end of each hold (measured 0.8 % in S_h at 16 rad/s).
+    // Tolerances: the Coulomb describing function ignores the harmonics
+    // friction makes (measured 1.7 %); an ideal actuator's stair-shaped
+    // torque is sampled at the end of each hold (measured 0.8 % in S_h at
+    // 16 rad/s). Every linear term agrees within the measured noise: no
+    // value more than 4 of its standard errors off (measured ≤ 1.8), finer
+    // than the forward model's stated accuracy (`fit::MODEL_ACCURACY`,
+    // 0.5 %, which the noise here, up to 0.4 %, would not test).
     let tolerance = |name: &str| match name {
-        "coulomb" => 0.025,
-        "ideal actuator" => 0.01,
-        _ => exo_diagnose::fit::MODEL_ACCURACY,
+        "coulomb" => Some(0.025),
+        "ideal actuator" => Some(0.01),
+        _ => None,
     };
     // Long settling and at least two cycles per window: the comparison is
     // of steady states, not of the protocol's transients.
@@ -170,7 +173,11 @@ fn every_term_of_the_plant_matches_the_forward_model() {
     for (name, m, s) in &variants {
         let (z, rel) = agreement(m, s);
         eprintln!("{name}: worst z {z:.2}, worst relative error {rel:.4}");
-        if rel >= tolerance(name) {
+        let bad = match tolerance(name) {
+            Some(t) => rel >= t,
+            None => z >= 4.0,
+        };
+        if bad {
             failures.push(format!("{name}: worst z {z:.2}, relative {rel:.4}"));
         }
     }
