@@ -114,8 +114,11 @@ pub fn locate(d: &Dataset, phys: &Physics, level: f64) -> Option<Equilibrium> {
         let value = match reference {
             PostureReference::HoldsGoal => theta,
             PostureReference::Fixed => {
+                // The forearm sits `τ_c/k_c` behind the arm through a
+                // compliant cuff, and the subject's spring holds `τ_c/K`
+                // from its neutral angle.
                 let k = phys.k.get(&c.experiment).copied().unwrap_or(f64::NAN);
-                theta - c.tau_c_mean_nm / phys.gain[1] / k
+                theta - c.tau_c_mean_nm / phys.gain[1] * (1.0 / k + phys.cuff_compliance)
             }
         };
         if value.is_finite() {
@@ -266,6 +269,32 @@ mod tests {
         let se = 0.004 * (4.0_f64 / 3.0).sqrt() / 2.0;
         assert!((one.std_error_rad - se).abs() < 1e-12, "{one:?}");
         assert!(one.differs);
+    }
+
+    /// Through a compliant cuff (`1/k_c` = 1/600 rad/Nm) the forearm sits
+    /// `τ_c/k_c` behind the arm: with 8 Nm through the cuff and K = 50, an
+    /// arm at 0.8 + 8/50 + 8/600 rad is a subject at its neutral 0.8 (on
+    /// the bench's `cuff` case, before this, a 0.013 rad posture offset
+    /// was reported in experiment 7).
+    #[test]
+    fn a_compliant_cuff_deflects_the_forearm_from_the_arm_by_its_torque() {
+        let mut p = physics(PostureReference::Fixed);
+        p.cuff_compliance = 1.0 / 600.0;
+        let mut d = Dataset::default();
+        for period in 1..=10 {
+            let wiggle = if period % 2 == 0 { 0.002 } else { -0.002 };
+            let arm = 0.8 + 8.0 / 50.0 + 8.0 / 600.0 + wiggle;
+            d.conditions.push(condition(
+                4,
+                period,
+                arm * p.gain[0] + p.theta_offset,
+                8.0 * p.gain[1],
+            ));
+        }
+        let e = locate(&d, &p, 0.05).unwrap();
+        let four = &e.experiments[0];
+        assert!(four.difference_rad.abs() < 1e-9, "{four:?}");
+        assert!(!four.differs, "{four:?}");
     }
 
     /// A subject that holds its goal: the arm's mean angle is compared, the
