@@ -100,12 +100,12 @@ fn the_bench_names_the_drives_torque_limit_at_two_sizes() {
             "{v:#}"
         );
         let name = case["case"].as_str().unwrap();
-        let updated = exo_plant_sim::PlantModel::from_file(
+        let updated = exo_plant_model::PlantModel::from_file(
             &dir.join(format!("{name}-diagnosis/updated-plant.toml")),
         )
         .unwrap();
-        let truth =
-            exo_plant_sim::PlantModel::from_file(&dir.join(format!("{name}-truth.toml"))).unwrap();
+        let truth = exo_plant_model::PlantModel::from_file(&dir.join(format!("{name}-truth.toml")))
+            .unwrap();
         assert_eq!(truth.sea.torque_limit_nm, truth_nm);
         let found = updated.sea.torque_limit_nm;
         assert!(
@@ -180,9 +180,10 @@ fn the_bench_names_a_concealed_gravity_error_and_nothing_in_a_null_case() {
         html.matches("<svg").count() >= 3,
         "Bode overlays and a time overlay"
     );
-    let updated = exo_plant_sim::PlantModel::from_file(&d.join("updated-plant.toml")).unwrap();
-    let nominal = exo_plant_sim::PlantModel::from_file(&dir.join("gravity-nominal.toml")).unwrap();
-    let truth = exo_plant_sim::PlantModel::from_file(&dir.join("gravity-truth.toml")).unwrap();
+    let updated = exo_plant_model::PlantModel::from_file(&d.join("updated-plant.toml")).unwrap();
+    let nominal =
+        exo_plant_model::PlantModel::from_file(&dir.join("gravity-nominal.toml")).unwrap();
+    let truth = exo_plant_model::PlantModel::from_file(&dir.join("gravity-truth.toml")).unwrap();
     let found_mass = updated.gravity.arm_mass_kg;
     let (n, t) = (nominal.gravity.arm_mass_kg, truth.gravity.arm_mass_kg);
     assert!(

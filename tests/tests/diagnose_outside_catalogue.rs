@@ -44,7 +44,7 @@ fn rig(dir: &Path, name: &str, extra: &[&str]) -> PathBuf {
 /// gravity for a horizontal rig.
 fn rig_model(rec: &Path, gravity: bool) -> PathBuf {
     let mut m =
-        exo_plant_sim::PlantModel::from_file(&configs_dir().join("plants/default.toml")).unwrap();
+        exo_plant_model::PlantModel::from_file(&configs_dir().join("plants/default.toml")).unwrap();
     exo_diagnose::bench::holds_goal(&mut m);
     m.gravity.enabled = gravity;
     let name = if gravity {
@@ -468,7 +468,7 @@ fn backlashs_harmonics_are_in_the_rigs_data_only_where_it_has_lost_motion() {
     let dir = scratch("lash-signature");
     let default = std::fs::read_to_string(configs_dir().join("plants/default.toml")).unwrap();
     let horizontal = default.replacen("[gravity]\nenabled = true", "[gravity]\nenabled = false", 1);
-    let model = exo_plant_sim::PlantModel::from_toml_str(&horizontal, "horizontal.toml").unwrap();
+    let model = exo_plant_model::PlantModel::from_toml_str(&horizontal, "horizontal.toml").unwrap();
     let dataset = |rec: &Path| {
         let r = exo_recording::read_recording(rec).unwrap();
         exo_diagnose::reduce(&[r], &exo_diagnose::Reduction::default())

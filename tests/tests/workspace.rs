@@ -34,3 +34,74 @@ fn every_service_binary_is_built_by_the_test_command() {
         "binary packages without an integration test of their own (their binary is not built by `cargo test --workspace`): {missing:?}"
     );
 }
+
+/// The layers the folders show (ARCHITECTURE.md, "Layers"): `shared/`
+/// below `services/` below `tools/` below `tests/`. Every workspace crate
+/// imports (normal, build and dev dependencies alike) only crates of its
+/// own layer or below (a test may use the test support of `tests/`), and a
+/// service imports no other service: each process builds, runs and
+/// restarts on its own. Read from the manifests, as `cargo metadata` would
+/// give them.
+#[test]
+fn no_crate_imports_from_a_layer_above_and_no_service_imports_another() {
+    let root = workspace_root();
+    let manifest = |dir: &std::path::Path| -> toml::Table {
+        let file = dir.join("Cargo.toml");
+        let text =
+            std::fs::read_to_string(&file).unwrap_or_else(|e| panic!("{}: {e}", file.display()));
+        text.parse()
+            .unwrap_or_else(|e| panic!("{}: {e}", file.display()))
+    };
+    let members: Vec<String> = manifest(&root)["workspace"]["members"]
+        .as_array()
+        .expect("workspace.members")
+        .iter()
+        .map(|m| m.as_str().expect("a path").to_string())
+        .collect();
+    let layer = |path: &str| match path.split('/').next() {
+        Some("shared") => 0,
+        Some("services") => 1,
+        Some("tools") => 2,
+        Some("tests") => 3,
+        other => panic!("{path}: {other:?} is no layer"),
+    };
+    // Crate name → (layer, folder).
+    let mut crates = std::collections::BTreeMap::new();
+    for m in &members {
+        let t = manifest(&root.join(m));
+        let name = t["package"]["name"]
+            .as_str()
+            .expect("package.name")
+            .to_string();
+        crates.insert(name, (layer(m), m.clone()));
+    }
+    let mut wrong = Vec::new();
+    for m in &members {
+        let t = manifest(&root.join(m));
+        let me = t["package"]["name"].as_str().expect("package.name");
+        for kind in ["dependencies", "dev-dependencies", "build-dependencies"] {
+            let Some(deps) = t.get(kind).and_then(|d| d.as_table()) else {
+                continue;
+            };
+            for dep in deps.keys() {
+                let Some(&(theirs, ref folder)) = crates.get(dep) else {
+                    continue;
+                };
+                let mine = layer(m);
+                // Tests anywhere may use the test support (`tests/`'s
+                // library: child processes, scratch directories).
+                let test_support = kind == "dev-dependencies" && theirs == 3;
+                if theirs > mine && !test_support {
+                    wrong.push(format!(
+                        "{me} ({m}) imports {dep} ({folder}) from a layer above ({kind})"
+                    ));
+                } else if mine == 1 && theirs == 1 && dep != me {
+                    wrong.push(format!(
+                        "{me} ({m}) imports the service {dep} ({folder}) ({kind})"
+                    ));
+                }
+            }
+        }
+    }
+    assert!(wrong.is_empty(), "{wrong:#?}");
+}

@@ -22,15 +22,16 @@
 
 pub mod expm;
 pub mod human;
-pub mod model;
+/// The plant model (`exo-plant-model`), which the simulator runs.
+pub use exo_plant_model as model;
 pub mod node;
 pub mod plant;
 pub mod process;
 pub mod prony;
 pub mod rng;
 
+pub use exo_plant_model::{PlantModel, PlantModelError};
 pub use human::PostureDrive;
-pub use model::{PlantModel, PlantModelError};
 pub use node::{PlantNode, StepMismatch};
 pub use plant::{HumanDrive, Plant, PlantTruth, RawSensors};
 pub use prony::PronyBank;

@@ -21,7 +21,7 @@ use std::path::Path;
 use anyhow::{bail, Context, Result};
 use exo_analysis::{Merge, Played};
 use exo_messages::status;
-use exo_recorder::Record;
+use exo_recording::Record;
 use exo_recording::{read_recording, Recording};
 
 /// A recording's control-path messages in time order.

@@ -10,7 +10,7 @@ use std::time::Duration;
 use anyhow::{Context as _, Result};
 use exo_messages::channels::ProcessName;
 use exo_messages::{ActuatorCommand, ProtocolState, SensorSample};
-use exo_recorder::Record;
+use exo_recording::Record;
 use exo_service_kit::channels::{COMMAND, PROTOCOL, SENSOR};
 use exo_service_kit::ipc::{Connect, Outbox};
 use exo_service_kit::runner::{Context, Flow, Process};

@@ -20,16 +20,15 @@
 pub mod process;
 
 use std::collections::BTreeMap;
-use std::io::{Seek, Write};
 use std::path::{Path, PathBuf};
 use std::sync::mpsc::{self, Receiver, RecvTimeoutError, SyncSender, TryRecvError, TrySendError};
 use std::time::Duration;
 
 use exo_config::RunConfig;
 use exo_messages::{
-    ActuatorCommand, BusMotorCommand, BusSensorFrame, FrfPoint, ImpedanceEstimate, OperatorCommand,
-    ProtocolState, SensorSample,
+    ActuatorCommand, BusMotorCommand, BusSensorFrame, FrfPoint, ImpedanceEstimate, SensorSample,
 };
+pub use exo_recording::Record;
 use exo_recording::{Recordable, RecordingError, RecordingWriter};
 
 /// Counts samples missed on one topic from gaps in a sequence number that
@@ -71,28 +70,6 @@ impl DropCounter {
             self.last = Some(seq);
         }
     }
-}
-
-/// One received message of any recorded channel: fixed size, copied out of
-/// shared memory by the receiving thread, written by the writing thread.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub enum Record {
-    /// `exo/sensor`.
-    Sensor(SensorSample),
-    /// `exo/command`.
-    Command(ActuatorCommand),
-    /// `exo/protocol`.
-    Protocol(ProtocolState),
-    /// `exo/identifier/frf`.
-    Frf(FrfPoint),
-    /// `exo/identifier/estimate`.
-    Estimate(ImpedanceEstimate),
-    /// `exo/operator`.
-    Operator(OperatorCommand),
-    /// `exo/bus/sensor`.
-    BusSensor(BusSensorFrame),
-    /// `exo/bus/motor`.
-    BusMotor(BusMotorCommand),
 }
 
 /// Per topic, the samples missed in what was written (sequence gaps).
@@ -159,25 +136,6 @@ impl Drops {
     /// Samples missed over all topics.
     pub fn total(&self) -> u64 {
         self.counted().iter().map(|(_, c)| c.dropped).sum()
-    }
-}
-
-impl Record {
-    /// Writes the record on its topic.
-    pub fn write_to<W: Write + Seek>(
-        &self,
-        w: &mut RecordingWriter<W>,
-    ) -> Result<(), RecordingError> {
-        match self {
-            Record::Sensor(m) => w.write(m),
-            Record::Command(m) => w.write(m),
-            Record::Protocol(m) => w.write(m),
-            Record::Frf(m) => w.write(m),
-            Record::Estimate(m) => w.write(m),
-            Record::Operator(m) => w.write(m),
-            Record::BusSensor(m) => w.write(m),
-            Record::BusMotor(m) => w.write(m),
-        }
     }
 }
 

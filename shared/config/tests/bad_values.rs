@@ -6,7 +6,7 @@
 //! key's documented range. Never a panic. A deterministic walk over every
 //! leaf (no random sampling: there are few enough to try them all).
 //!
-//! The plant model's walk is in `services/plant-sim/src/model.rs` (exo-config
+//! The plant model's walk is in `shared/plant-model/src/lib.rs` (exo-config
 //! does not load plant models).
 
 use std::panic::{catch_unwind, AssertUnwindSafe};

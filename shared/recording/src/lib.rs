@@ -25,6 +25,7 @@
 pub mod cdr;
 pub mod files;
 pub mod reader;
+pub mod record;
 pub mod ros2msg;
 pub mod schema;
 pub mod segments;
@@ -34,6 +35,7 @@ use std::path::Path;
 
 pub use cdr::{CdrError, FieldValue, Recordable};
 pub use reader::{read_recording, read_recording_bytes, read_recording_topics, Recording};
+pub use record::Record;
 pub use schema::{contract, TopicSchema};
 pub use writer::{
     RecordingWriter, CONFIG_ATTACHMENT, DEFAULT_CHUNK_BYTES, DROPS_METADATA, RUN_METADATA, SOFTWARE,

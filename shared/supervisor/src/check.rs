@@ -67,9 +67,9 @@ pub fn check_run(config: &Path) -> std::result::Result<Checked, Vec<String>> {
     };
     let plant = plant_path
         .as_ref()
-        .and_then(|p| match exo_plant_sim::PlantModel::from_file(p) {
+        .and_then(|p| match exo_plant_model::PlantModel::from_file(p) {
             Ok(m) => Some(m),
-            Err(exo_plant_sim::PlantModelError::Several(v)) => {
+            Err(exo_plant_model::PlantModelError::Several(v)) => {
                 errors.extend(v.iter().map(|e| e.to_string()));
                 None
             }
@@ -134,7 +134,7 @@ pub fn check_run(config: &Path) -> std::result::Result<Checked, Vec<String>> {
 fn check_across(
     config: &Path,
     cfg: &RunConfig,
-    plant: &exo_plant_sim::PlantModel,
+    plant: &exo_plant_model::PlantModel,
     errors: &mut Vec<String>,
     checked: &mut Vec<String>,
     warnings: &mut Vec<String>,

@@ -11,7 +11,7 @@ use std::path::Path;
 
 use exo_diagnose::data::{reduce, Reduction};
 use exo_diagnose::{diagnose, Settings};
-use exo_plant_sim::PlantModel;
+use exo_plant_model::PlantModel;
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let args: Vec<String> = std::env::args().skip(1).collect();

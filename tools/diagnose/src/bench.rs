@@ -12,7 +12,7 @@
 //! committed.
 
 use exo_config::Subject;
-use exo_plant_sim::PlantModel;
+use exo_plant_model::PlantModel;
 use serde::Serialize;
 
 use crate::{Diagnosis, Term};
@@ -47,7 +47,7 @@ fn horizontal(m: &mut PlantModel, _: &Subject) {
 /// independent rig's does (`tools/python/independent_rig.py`: a goal of 45°
 /// on average): the nominal model of the rig's recordings.
 pub fn holds_goal(m: &mut PlantModel) {
-    m.human.posture_reference = exo_plant_sim::model::PostureReference::HoldsGoal;
+    m.human.posture_reference = exo_plant_model::PostureReference::HoldsGoal;
     m.human.active_angle_rad = std::f64::consts::FRAC_PI_4;
 }
 

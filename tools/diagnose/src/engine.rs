@@ -24,7 +24,7 @@
 use std::collections::BTreeMap;
 
 use exo_impedance::ftest::f_survival;
-use exo_plant_sim::PlantModel;
+use exo_plant_model::PlantModel;
 use num_complex::Complex64;
 use serde::Serialize;
 use statrs::distribution::{ChiSquared, ContinuousCDF};

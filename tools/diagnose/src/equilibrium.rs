@@ -25,7 +25,7 @@
 
 use std::collections::BTreeMap;
 
-use exo_plant_sim::model::PostureReference;
+use exo_plant_model::PostureReference;
 use serde::Serialize;
 
 use crate::data::Dataset;
@@ -198,7 +198,7 @@ mod tests {
         let plant = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
             .join("../../configs/plants/default.toml");
         let mut p = Physics::from_plant(
-            &exo_plant_sim::PlantModel::from_file(&plant).unwrap(),
+            &exo_plant_model::PlantModel::from_file(&plant).unwrap(),
             &[1, 4],
         );
         p.posture_reference = reference;

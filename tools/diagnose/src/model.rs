@@ -41,7 +41,7 @@
 
 use std::collections::BTreeMap;
 
-use exo_plant_sim::PlantModel;
+use exo_plant_model::PlantModel;
 use num_complex::Complex64;
 use serde::Serialize;
 
@@ -284,7 +284,7 @@ pub struct Physics {
     /// [`crate::equilibrium`] compares each experiment with.
     pub active_angle_rad: f64,
     /// See [`Physics::active_angle_rad`].
-    pub posture_reference: exo_plant_sim::model::PostureReference,
+    pub posture_reference: exo_plant_model::PostureReference,
 }
 
 impl Physics {

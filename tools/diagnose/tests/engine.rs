@@ -7,7 +7,7 @@ use common::default_plant;
 use exo_diagnose::data::{reduce, Reduction};
 use exo_diagnose::synth::{synthesize, SynthPeriod, SynthSettings};
 use exo_diagnose::{diagnose, Settings, Term};
-use exo_plant_sim::PlantModel;
+use exo_plant_model::PlantModel;
 
 /// Three experiments of ten periods (Table I's frequencies from 2 rad/s),
 /// loads 0 and 4.5 kg, one with a bias torque.

@@ -9,7 +9,7 @@ use std::path::PathBuf;
 use exo_diagnose::data::{reduce, Reduction, Tf};
 use exo_diagnose::synth::{synthesize, SynthPeriod, SynthSettings};
 use exo_diagnose::Physics;
-use exo_plant_sim::PlantModel;
+use exo_plant_model::PlantModel;
 
 fn default_plant() -> PlantModel {
     let p = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../configs/plants/default.toml");
@@ -152,7 +152,7 @@ fn every_term_of_the_plant_matches_the_forward_model() {
     m.human.stretch_reflex.cutoff_rad_s = 15.0;
     variants.push(("stretch reflex", m, s));
     let mut m = base;
-    m.human.hysteretic_damping.mode = exo_plant_sim::model::HysteresisMode::PronyMatched;
+    m.human.hysteretic_damping.mode = exo_plant_model::HysteresisMode::PronyMatched;
     // The synthesis starts the arm at rest and the posture at once at 45°:
     // the matched bank's static stiffness is below K (a causal constant
     // loss), so that 0.49 rad step creeps for seconds into the first

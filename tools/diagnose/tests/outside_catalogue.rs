@@ -91,12 +91,12 @@ fn a_linear_plant_gets_no_generic_form() {
 /// its key and validates (the simulator can run it).
 fn assert_written(
     r: &exo_diagnose::Diagnosis,
-    nominal: &exo_plant_sim::PlantModel,
+    nominal: &exo_plant_model::PlantModel,
     label: &str,
     truth: f64,
     tol: f64,
     fitted: f64,
-    written: impl Fn(&exo_plant_sim::PlantModel) -> f64,
+    written: impl Fn(&exo_plant_model::PlantModel) -> f64,
 ) {
     let text = r.verdict.join("\n");
     assert!(
@@ -111,8 +111,8 @@ fn assert_written(
 /// Runs the protocol of two experiments (K_h 20 and 40 Nm/rad, bias 0 and
 /// 4 Nm) through `truth` and diagnoses it against `nominal`.
 fn diagnose_against(
-    truth: &exo_plant_sim::PlantModel,
-    nominal: &exo_plant_sim::PlantModel,
+    truth: &exo_plant_model::PlantModel,
+    nominal: &exo_plant_model::PlantModel,
 ) -> exo_diagnose::Diagnosis {
     let periods = common::protocol(&[(1, 20.0, 8.0, 4.5, 0.0), (2, 40.0, 16.0, 4.5, 4.0)]);
     let rec = synthesize(truth, &periods, &SynthSettings::default());
@@ -356,7 +356,7 @@ fn one_excitation_amplitude_cannot_decide_an_amplitude_dependence() {
         (1, 20.0, 8.0, 4.5, 0.0),
         (2, 40.0, 16.0, 4.5, 4.0),
     ]));
-    let run = |truth: &exo_plant_sim::PlantModel, nominal: &exo_plant_sim::PlantModel| {
+    let run = |truth: &exo_plant_model::PlantModel, nominal: &exo_plant_model::PlantModel| {
         let rec = synthesize(truth, &periods, &SynthSettings::default());
         let d = reduce(&[rec], &Reduction::default());
         diagnose(&d, nominal, &Settings::default()).expect("diagnosis")

@@ -249,8 +249,10 @@ fn the_torque_limits_harmonics_are_where_the_drive_clipped() {
     };
     let plant =
         std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../configs/plants/default.toml");
-    let mut before =
-        Physics::from_plant(&exo_plant_sim::PlantModel::from_file(&plant).unwrap(), &[7]);
+    let mut before = Physics::from_plant(
+        &exo_plant_model::PlantModel::from_file(&plant).unwrap(),
+        &[7],
+    );
     before.sea = None;
     let with_limit = |l: f64| {
         let mut p = before.clone();

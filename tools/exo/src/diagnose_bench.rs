@@ -24,7 +24,7 @@ use exo_diagnose::bench::{
 use exo_diagnose::data::{reduce, Reduction};
 use exo_diagnose::{diagnose, Settings};
 use exo_experiments::simulate::{default_workers, simulate_each, Job};
-use exo_plant_sim::PlantModel;
+use exo_plant_model::PlantModel;
 use exo_recording::read_recording;
 use exo_report::diagnosis::bench_table as table;
 

@@ -10,7 +10,7 @@ use anyhow::{bail, Context, Result};
 use clap::Args;
 use exo_diagnose::data::{reduce, Dataset, Reduction};
 use exo_diagnose::{diagnose, Diagnosis, Settings, Term};
-use exo_plant_sim::PlantModel;
+use exo_plant_model::PlantModel;
 use exo_recording::read_recording;
 
 use exo_report::diagnosis::{text, write_outputs};

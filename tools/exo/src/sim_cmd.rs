@@ -10,7 +10,7 @@ use std::time::Instant;
 use anyhow::{Context, Result};
 use clap::Args;
 use exo_config::TimingMode;
-use exo_plant_sim::PlantModel;
+use exo_plant_model::PlantModel;
 use exo_sim::{Ended, FileSink, Record, Sim};
 
 use crate::faults::{describe, is_fault_command, is_fault_sample};

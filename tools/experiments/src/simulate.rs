@@ -37,7 +37,7 @@ pub fn simulate(base: &RunConfig, job: &Job, dir: &Path) -> Result<PathBuf> {
     std::fs::write(&run_file, text).with_context(|| format!("writing {}", run_file.display()))?;
     // Validate as `exo run` would.
     let cfg = RunConfig::from_file(&run_file)?;
-    let model = exo_plant_sim::PlantModel::from_file(&cfg.plant_model)?;
+    let model = exo_plant_model::PlantModel::from_file(&cfg.plant_model)?;
     let recording = dir.join(format!("{name}.mcap"));
     let mut sim = exo_sim::Sim::new(&cfg, &model)
         .with_context(|| format!("simulating subject {name} ({})", run_file.display()))?;

@@ -27,8 +27,8 @@ use exo_impedance::{
     nominal_crossover, proportional_gain, AmplificationPlant, SeaModel, StiffnessRange,
 };
 use exo_messages::{ControlMode, ProtocolPhase};
-use exo_plant_sim::model::HysteresisMode;
-use exo_plant_sim::PlantModel;
+use exo_plant_model::HysteresisMode;
+use exo_plant_model::PlantModel;
 use exo_sim::Record;
 use serde::Serialize;
 

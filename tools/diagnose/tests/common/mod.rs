@@ -6,7 +6,7 @@
 use std::path::PathBuf;
 
 use exo_diagnose::synth::SynthPeriod;
-use exo_plant_sim::PlantModel;
+use exo_plant_model::PlantModel;
 
 /// `configs/plants/default.toml`.
 pub fn default_plant() -> PlantModel {

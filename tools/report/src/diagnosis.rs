@@ -12,7 +12,7 @@ use exo_diagnose::bench::Outcome;
 use exo_diagnose::data::{Dataset, Tf};
 use exo_diagnose::engine::Score;
 use exo_diagnose::{Diagnosis, Physics, Term};
-use exo_plant_sim::PlantModel;
+use exo_plant_model::PlantModel;
 use num_complex::Complex64;
 use plotters::prelude::*;
 

@@ -222,11 +222,11 @@ pub enum PostureReference {
 pub enum HysteresisMode {
     /// `B_eq = H/ω` at the running excitation frequency: exact in single-sine steady state.
     EquivalentViscous,
-    /// Causal generalised-Maxwell bank ([`crate::prony`]).
+    /// Causal generalised-Maxwell bank (the simulator's `prony` module).
     Prony,
     /// A Prony bank fitted about the running excitation frequency
     /// (`matched_band_decades`) and scaled to give `K + jH` exactly there
-    /// ([`crate::prony::PronyBank::fit_matched`]): causal, passive, damped
+    /// (the simulator's `PronyBank::fit_matched`): causal, passive, damped
     /// at every frequency as a complex stiffness is, so transients (posture
     /// moves, bias ramps) decay as they would in a human, with a static
     /// stiffness that stays a large fraction of `K` (so a bias torque does
