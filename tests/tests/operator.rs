@@ -103,6 +103,22 @@ fn op(sc: &Scenario, args: &[&str]) -> String {
     stdout(&out)
 }
 
+/// `exo op --instance <sc's> args…`, which the controller must refuse
+/// (exit 1); its standard error (the controller's reason).
+fn op_refused(sc: &Scenario, args: &[&str]) -> String {
+    let mut all = vec!["op", "--instance", &sc.instance, "--wait-s", "30"];
+    all.extend_from_slice(args);
+    let out = exo(&all);
+    assert_eq!(
+        out.status.code(),
+        Some(1),
+        "exo {all:?}:\n{}\ncontroller log:\n{}",
+        stderr(&out),
+        sc.log("exo-controller")
+    );
+    stderr(&out)
+}
+
 /// Waits (bounded) until the log of `bin` contains `text`.
 fn wait_for_log(sc: &Scenario, bin: &str, text: &str) -> String {
     let t = Instant::now();
@@ -294,6 +310,49 @@ fn start_5_ramps_out_and_runs_experiment_5() {
     assert!(log.contains("controller: experiment 5 period 1"), "{log}");
 }
 
+/// `exo op` answers with the controller's own verdict: a start at an
+/// experiment the run does not have exits 1 with the controller's reason,
+/// a stop exits 0 with what the controller did, both from its reply on
+/// `exo/operator/reply` (before it, both printed "sent … the controller's
+/// log says what it did" and exited 0).
+#[test]
+fn a_refused_command_exits_1_with_the_reason_and_an_accepted_one_exits_0_with_what_was_done() {
+    let sc = scenario("opreply", "experiments = [1, 7]", "periods = [1]");
+    let protocol = sc.collect(PROTOCOL);
+    let procs = start(&sc);
+    protocol.wait_for(WAIT, "experiment 1's settling", |p| {
+        p.iter().any(|p| key(p) == (1, 1, SETTLING))
+    });
+    let all = [
+        "op",
+        "--instance",
+        &sc.instance,
+        "--wait-s",
+        "30",
+        "start",
+        "3",
+    ];
+    let out = exo(&all);
+    assert_eq!(out.status.code(), Some(1), "exo {all:?}: {}", stderr(&out));
+    assert!(
+        stderr(&out).contains(
+            "the controller refused StartProtocol (3)"
+        ) && stderr(&out).contains(
+            "experiment 3 is not in this run's protocol (protocol.experiments = [1, 7]); nothing changed"
+        ),
+        "{}",
+        stderr(&out)
+    );
+    let stopped = op(&sc, &["stop"]);
+    assert!(
+        stopped.contains("StopProtocol (4)")
+            && stopped.contains("protocol stopped at experiment 1 period 1"),
+        "{stopped}"
+    );
+    stop_all(procs);
+    drop(protocol);
+}
+
 #[test]
 fn reset_clears_the_controllers_latched_fault() {
     let sc = scenario("opreset", "experiments = [4]", "periods = [1]");
@@ -307,8 +366,10 @@ fn reset_clears_the_controllers_latched_fault() {
         c.iter().any(|c| c.mode == SAFE_GRAVITY)
     });
     wait_for_log(&sc, "exo-controller", "safe state latched");
-    // A start is refused while latched; a stop is taken.
-    op(&sc, &["start", "4"]);
+    // A start is refused while latched (exo op exits 1 with the
+    // controller's reason); a stop is taken.
+    let refused = op_refused(&sc, &["start", "4"]);
+    assert!(refused.contains("reset it first (ResetFault)"), "{refused}");
     wait_for_log(&sc, "exo-controller", "reset it first (ResetFault)");
     op(&sc, &["stop"]);
     protocol.wait_for(WAIT, "the stopped protocol", |p| {
@@ -595,11 +656,61 @@ fn exo_op_refuses_bad_arguments_and_a_run_without_a_controller() {
     }
     let instance = format!("opnone{}", std::process::id());
     let out = exo(&["op", "--instance", &instance, "--wait-s", "0.2", "stop"]);
-    assert!(!out.status.success());
+    assert_eq!(out.status.code(), Some(2), "{}", stderr(&out));
     assert!(
         stderr(&out).contains(&format!(
             "no controller is listening on `{instance}/operator` (waited 0.2 s)"
         )),
+        "{}",
+        stderr(&out)
+    );
+}
+
+/// A replayed run has no controller: `exo op` against it exits 2, "no
+/// controller is listening" (before the replies, the player's publisher on
+/// the protocol channel was taken for a controller's and the command was
+/// "sent" to nobody).
+#[test]
+fn a_replayed_run_is_not_taken_for_a_controller() {
+    let sc = Scenario::new(
+        "opreplay",
+        &[
+            ("plant_sim = true", "plant_sim = false"),
+            ("sensor_driver = true", "sensor_driver = false"),
+            ("controller = true", "controller = false\nplayer = true"),
+        ],
+    );
+    let original = sc.dir.join("original.mcap");
+    stdout_of(python_script("write_recording.py").arg(&original).args([
+        "--k",
+        "40",
+        "--c",
+        "0.4",
+        "--periods",
+        "3",
+        "--subject",
+        "PY",
+    ]));
+    // 24 000 samples at 500 a second: the replay lasts longer than the
+    // console waits.
+    sc.append(&format!(
+        "\n[player]\nfile = \"{}\"\npace_hz = 500.0\n",
+        original.display()
+    ));
+    let protocol = sc.collect(PROTOCOL);
+    // The recorder subscribes to the operator channel, the player publishes
+    // the protocol: what the console took for a controller before.
+    let rec = sc.dir.join("replayed.mcap");
+    let player = Procs(vec![
+        sc.spawn("exo-recorder", &["--output", rec.to_str().unwrap()]),
+        sc.spawn("exo-player", &[]),
+    ]);
+    protocol.wait_for(WAIT, "the replayed protocol", |p| !p.is_empty());
+    let out = exo(&["op", "--instance", &sc.instance, "--wait-s", "1", "stop"]);
+    drop(player);
+    assert_eq!(out.status.code(), Some(2), "{}", stderr(&out));
+    assert!(
+        stderr(&out).contains("no controller is listening"),
         "{}",
         stderr(&out)
     );

@@ -231,6 +231,19 @@ pub enum OperatorOutcome {
 }
 
 impl OperatorOutcome {
+    /// The verdict the operator's console is answered with
+    /// ([`exo_messages::OperatorReply`]): a refusal is refused, a repeat a
+    /// repeat, everything else (a stop of a stopped protocol included)
+    /// accepted.
+    pub fn verdict(&self) -> exo_messages::OperatorVerdict {
+        use exo_messages::OperatorVerdict;
+        match self {
+            OperatorOutcome::Repeated { .. } => OperatorVerdict::Repeated,
+            o if o.is_refusal() => OperatorVerdict::Refused,
+            _ => OperatorVerdict::Accepted,
+        }
+    }
+
     /// Whether the command was refused (a warning for the log): an unknown
     /// kind, an invalid value or a refusal. Repeats and "already stopped"
     /// are not warnings.

@@ -9,7 +9,9 @@
 //!
 //! Operator commands (`<instance>/operator`, e.g. from `exo op`) and the
 //! identifier's estimates are taken before each sample is answered; the
-//! node decides. A stopped protocol holds gravity compensation and does
+//! node decides, and each command is answered on
+//! `<instance>/operator/reply` with the verdict and what was done or why
+//! not. A stopped protocol holds gravity compensation and does
 //! not end the run.
 
 use std::time::{Duration, Instant};
@@ -18,9 +20,11 @@ use anyhow::{bail, Result};
 use exo_config::TimingMode;
 use exo_messages::channels::ProcessName;
 use exo_messages::{
-    ActuatorCommand, ImpedanceEstimate, OperatorCommand, ProtocolState, SensorSample,
+    ActuatorCommand, ImpedanceEstimate, OperatorCommand, OperatorReply, ProtocolState, SensorSample,
 };
-use exo_service_kit::channels::{COMMAND, IDENTIFIER_ESTIMATE, OPERATOR, PROTOCOL, SENSOR};
+use exo_service_kit::channels::{
+    COMMAND, IDENTIFIER_ESTIMATE, OPERATOR, OPERATOR_REPLY, PROTOCOL, SENSOR,
+};
 use exo_service_kit::ipc::{Connect, Inbox, Outbox};
 use exo_service_kit::runner::{Context, Flow, Process};
 use exo_service_kit::{RealtimeProcess, ServiceArgs, StopFlag};
@@ -34,6 +38,7 @@ pub struct ControllerProcess {
     node: ControllerNode,
     sensor_in: Inbox<SensorSample>,
     operator_in: Inbox<OperatorCommand>,
+    reply_out: Outbox<OperatorReply>,
     command_out: Outbox<ActuatorCommand>,
     protocol_out: Outbox<ProtocolState>,
     estimate_in: Inbox<ImpedanceEstimate>,
@@ -57,6 +62,11 @@ impl Process for ControllerProcess {
         // takes a publisher on the protocol channel as the sign that the
         // controller's operator subscriber exists.
         let operator_in = ipc.inbox(OPERATOR, 16)?;
+        // Each command is answered on `exo/operator/reply`; only a
+        // controller publishes there, so `exo op` takes a publisher on it
+        // as the sign that a controller listens (a player, which also
+        // publishes the protocol, does not).
+        let reply_out = ipc.outbox(OPERATOR_REPLY)?;
         let command_out = ipc.outbox(COMMAND)?;
         let protocol_out = ipc.outbox(PROTOCOL)?;
         let estimate_in = ipc.inbox(IDENTIFIER_ESTIMATE, 16)?;
@@ -72,6 +82,7 @@ impl Process for ControllerProcess {
             node,
             sensor_in,
             operator_in,
+            reply_out,
             command_out,
             protocol_out,
             estimate_in,
@@ -99,6 +110,7 @@ impl Process for ControllerProcess {
             &self.command_out,
             &self.protocol_out,
             &self.operator_in,
+            &self.reply_out,
             &self.estimate_in,
         ]
     }
@@ -124,7 +136,13 @@ impl Process for ControllerProcess {
             }
         }
         while let Some(op) = self.operator_in.try_recv()? {
-            self.node.on_operator(&op);
+            let outcome = self.node.on_operator(&op);
+            self.reply_out.send(OperatorReply::new(
+                &op,
+                exo_service_kit::monotonic_ns(),
+                outcome.verdict(),
+                format_args!("{outcome}"),
+            ))?;
         }
         while let Some(e) = self.estimate_in.try_recv()? {
             self.node.on_estimate(&e);

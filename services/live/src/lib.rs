@@ -107,12 +107,14 @@ pub struct LiveChannels {
 }
 
 impl LiveChannels {
-    /// Advertises every channel of [`CHANNELS`] under its recording topic
-    /// with its contract schema (ros2msg) and encoding (CDR).
+    /// Advertises every recorded channel of [`CHANNELS`] (the recording
+    /// contract's) under its recording topic with its contract schema
+    /// (ros2msg) and encoding (CDR). The recorded channels come first in
+    /// the table, so a channel's index is its place here.
     pub fn new() -> anyhow::Result<Self> {
         let context = Context::new();
         let mut channels = Vec::with_capacity(CHANNELS.len());
-        for c in &CHANNELS {
+        for c in CHANNELS.iter().filter(|c| c.recorded) {
             channels.push(build_channel(&context, c)?);
         }
         Ok(LiveChannels { context, channels })

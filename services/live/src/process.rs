@@ -81,6 +81,10 @@ fn open_tap(ipc: &Ipc, live: &LiveChannels, channel: Channel) -> Result<Box<dyn 
         Channel::IdentifierFrf => Tap::boxed(ipc, live, IDENTIFIER_FRF),
         Channel::IdentifierEstimate => Tap::boxed(ipc, live, IDENTIFIER_ESTIMATE),
         Channel::Operator => Tap::boxed(ipc, live, OPERATOR),
+        Channel::OperatorReply => anyhow::bail!(
+            "{}: not in the recording contract, not shown",
+            channel.info().topic
+        ),
     }
 }
 
@@ -105,7 +109,10 @@ impl Process for LiveProcess {
         // Every tap is open before a client can connect, so a client that
         // has subscribed misses nothing published after that.
         let mut taps = vec![open_tap(cx.ipc, &channels, Channel::Sensor)?];
-        for c in CHANNELS.iter().filter(|c| c.channel != Channel::Sensor) {
+        for c in CHANNELS
+            .iter()
+            .filter(|c| c.recorded && c.channel != Channel::Sensor)
+        {
             taps.push(open_tap(cx.ipc, &channels, c.channel)?);
         }
         let server = start_server(&channels, listen)?;
@@ -119,7 +126,7 @@ impl Process for LiveProcess {
         );
         info!(
             "live: Foxglove WebSocket server on {url} ({} channels of instance {})",
-            CHANNELS.len(),
+            CHANNELS.iter().filter(|c| c.recorded).count(),
             cx.cfg.run.instance
         );
         if !listen.is_loopback() {

@@ -103,6 +103,10 @@ fn open_tap(ipc: &Ipc, channel: Channel) -> Result<Box<dyn Drain>> {
         Channel::Operator => Tap::boxed(ipc, OPERATOR, Record::Operator),
         Channel::BusSensor => Tap::boxed(ipc, BUS_SENSOR, Record::BusSensor),
         Channel::BusMotor => Tap::boxed(ipc, BUS_MOTOR, Record::BusMotor),
+        Channel::OperatorReply => anyhow::bail!(
+            "{}: not in the recording contract, not recorded",
+            channel.info().topic
+        ),
     }
 }
 

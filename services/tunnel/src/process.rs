@@ -145,6 +145,10 @@ fn port(ipc: &Ipc, session: Option<&zenoh::Session>, channel: Channel) -> Result
         Channel::IdentifierFrf => either!(IDENTIFIER_FRF),
         Channel::IdentifierEstimate => either!(IDENTIFIER_ESTIMATE),
         Channel::Operator => either!(OPERATOR),
+        Channel::OperatorReply => anyhow::bail!(
+            "{}: not in the recording contract, not tunnelled",
+            channel.info().topic
+        ),
     }
 }
 
@@ -190,12 +194,15 @@ impl Process for TunnelProcess {
                     )
                 })?;
                 let mut ports = vec![port(cx.ipc, Some(&session), Channel::Sensor)?];
-                for c in CHANNELS.iter().filter(|c| c.channel != Channel::Sensor) {
+                for c in CHANNELS
+                    .iter()
+                    .filter(|c| c.recorded && c.channel != Channel::Sensor)
+                {
                     ports.push(port(cx.ipc, Some(&session), c.channel)?);
                 }
                 info!(
                     "tunnel: exporting the {} channels of instance {} on Zenoh, listening on {} (keys {}/…)",
-                    CHANNELS.len(),
+                    CHANNELS.iter().filter(|c| c.recorded).count(),
                     cx.ipc.instance(),
                     listen.join(", "),
                     cx.ipc.instance()
@@ -221,7 +228,7 @@ impl Process for TunnelProcess {
                     .wait()
                     .map_err(|e| anyhow::anyhow!("tunnel: cannot connect to {from}: {e}"))?;
                 let mut ports = Vec::with_capacity(CHANNELS.len());
-                for c in &CHANNELS {
+                for c in CHANNELS.iter().filter(|c| c.recorded) {
                     ports.push(port(cx.ipc, None, c.channel)?);
                 }
                 let keys = format!("{remote}/**");

@@ -18,7 +18,7 @@ use core::marker::PhantomData;
 
 use crate::{
     ActuatorCommand, BusMotorCommand, BusSensorFrame, FrfPoint, ImpedanceEstimate, Message,
-    OperatorCommand, ProtocolState, SensorSample,
+    OperatorCommand, OperatorReply, ProtocolState, SensorSample,
 };
 
 /// The processes of exo.
@@ -136,6 +136,8 @@ pub enum Channel {
     IdentifierEstimate = 6,
     /// Operator commands (`OperatorCommand`).
     Operator = 7,
+    /// The controller's answers to operator commands (`OperatorReply`).
+    OperatorReply = 8,
 }
 
 /// A channel's declaration.
@@ -176,7 +178,7 @@ pub struct ChannelInfo {
 }
 
 /// Every channel of exo, in [`Channel`] order.
-pub const CHANNELS: [ChannelInfo; 8] = [
+pub const CHANNELS: [ChannelInfo; 9] = [
     ChannelInfo {
         channel: Channel::Sensor,
         topic: "exo/sensor",
@@ -325,7 +327,29 @@ pub const CHANNELS: [ChannelInfo; 8] = [
         history: DEEP,
         schema: "exo_msgs/msg/OperatorCommand",
     },
+    ChannelInfo {
+        channel: Channel::OperatorReply,
+        topic: "exo/operator/reply",
+        payload: OperatorReply::TYPE_NAME,
+        publisher: ProcessName::Controller,
+        subscribers: &[ProcessName::Operator],
+        has_event: false,
+        // One controller answers (a second is refused at start on
+        // `exo/command`).
+        max_publishers: 1,
+        max_buffer: REPLIES,
+        // Not in the recording contract (the operator's command is, and the
+        // controller's log says what it did); the replies are for the
+        // console that asked.
+        recorded: false,
+        history: 0,
+        schema: "",
+    },
 ];
+
+/// The buffer bound of the operator replies: more than a console sends
+/// before it reads.
+const REPLIES: usize = 16;
 
 /// The subscriber buffer bound of every channel today (8 s at 1 kHz).
 const DEEP: usize = 8192;
@@ -458,6 +482,9 @@ pub const IDENTIFIER_FRF: Topic<FrfPoint> = Topic::new(Channel::IdentifierFrf);
 pub const IDENTIFIER_ESTIMATE: Topic<ImpedanceEstimate> = Topic::new(Channel::IdentifierEstimate);
 /// `exo/operator`: operator commands, `exo op` → controller, sensor driver.
 pub const OPERATOR: Topic<OperatorCommand> = Topic::new(Channel::Operator);
+/// `exo/operator/reply`: the controller's answer to each operator command,
+/// controller → `exo op`.
+pub const OPERATOR_REPLY: Topic<OperatorReply> = Topic::new(Channel::OperatorReply);
 
 #[cfg(test)]
 mod tests {
@@ -522,13 +549,18 @@ mod tests {
         // that is not also its own subscriber.
         for c in &CHANNELS {
             assert!(!c.subscribers.contains(&c.publisher), "{}", c.topic);
-            // The watchers read every channel (issue 17).
+            // The watchers read every channel of the recording contract
+            // (issue 17).
             for w in [
                 ProcessName::Recorder,
                 ProcessName::Live,
                 ProcessName::Tunnel,
             ] {
-                assert!(c.subscribers.contains(&w), "{} lacks {w}", c.topic);
+                assert!(
+                    !c.recorded || c.subscribers.contains(&w),
+                    "{} lacks {w}",
+                    c.topic
+                );
             }
         }
     }

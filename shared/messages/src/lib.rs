@@ -19,6 +19,7 @@
 //! | [`BusSensorFrame`], [`BusMotorCommand`] | [`bus`] | plant simulator ↔ sensor driver (raw, as hardware) |
 //! | [`FrfPoint`], [`ImpedanceEstimate`] | [`identifier`] | identifier → operator, recorder |
 //! | [`OperatorCommand`] | [`operator`] | operator console → controller, sensor driver |
+//! | [`OperatorReply`] | [`operator`] | controller → operator console |
 //!
 //! Sign convention (the paper's): `tau_c` is the torque the cuff applies to
 //! the human, so `S_h = τ_c/θ_e`; `tau_s` is the SEA spring torque driving
@@ -55,7 +56,7 @@ pub use channels::{Channel, ChannelInfo, ProcessName, Topic, CHANNELS};
 pub use command::{ActuatorCommand, CommandLimits, ControlMode};
 pub use error::MessageError;
 pub use identifier::{FitModel, FrfPoint, ImpedanceEstimate};
-pub use operator::{OperatorCommand, OperatorCommandKind};
+pub use operator::{OperatorCommand, OperatorCommandKind, OperatorReply, OperatorVerdict};
 pub use protocol::{ProtocolPhase, ProtocolState};
 pub use sensor::{status, SensorLimits, SensorSample};
 
@@ -144,5 +145,6 @@ mod tests {
         check::<FrfPoint>();
         check::<ImpedanceEstimate>();
         check::<OperatorCommand>();
+        check::<OperatorReply>();
     }
 }

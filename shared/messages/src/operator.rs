@@ -191,10 +191,220 @@ impl OperatorCommand {
     }
 }
 
+/// What the controller did with an operator command
+/// ([`OperatorReply::verdict`] as a `u32`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+#[repr(u32)]
+pub enum OperatorVerdict {
+    /// Acted on (or nothing was left to do, e.g. a stop of a stopped
+    /// protocol); the reply's text says what.
+    Accepted = 1,
+    /// Refused: an unknown kind, an invalid value, or not in the present
+    /// state; nothing changed, the reply's text says why.
+    Refused = 2,
+    /// The `seq` was handled before; nothing done again.
+    Repeated = 3,
+}
+
+impl OperatorVerdict {
+    /// The verdict of a raw code (1–3), or `None`.
+    pub fn from_u32(code: u32) -> Option<Self> {
+        match code {
+            1 => Some(OperatorVerdict::Accepted),
+            2 => Some(OperatorVerdict::Refused),
+            3 => Some(OperatorVerdict::Repeated),
+            _ => None,
+        }
+    }
+
+    /// The raw code sent in [`OperatorReply::verdict`].
+    pub fn as_u32(self) -> u32 {
+        self as u32
+    }
+}
+
+/// The bytes of an [`OperatorReply`]'s text.
+pub const REPLY_TEXT_BYTES: usize = 240;
+
+/// The controller's answer to one [`OperatorCommand`], on
+/// `exo/operator/reply`: the command's `seq` and kind, the verdict, and the
+/// sentence the controller logs (UTF-8, cut at a character boundary to
+/// [`REPLY_TEXT_BYTES`]).
+///
+/// 280 bytes, 8-aligned, no implicit padding.
+#[derive(Debug, Clone, Copy, PartialEq, ZeroCopySend)]
+#[type_name("exo.OperatorReply.v1")]
+#[repr(C)]
+pub struct OperatorReply {
+    /// The answered command's `seq`.
+    pub seq: u64,
+    /// Time stamp (ns) on the monotonic clock when the controller handled it.
+    pub stamp_ns: u64,
+    /// The answered command's [`OperatorCommandKind`] code (as received).
+    pub kind: u32,
+    /// [`OperatorVerdict`] code.
+    pub verdict: u32,
+    /// The answered command's `value`.
+    pub value: f64,
+    /// Bytes of `text` used.
+    pub text_len: u32,
+    /// Explicit padding (always 0), so the struct has no implicit padding.
+    pub _pad: u32,
+    /// What the controller did or why it refused (UTF-8, `text_len` bytes).
+    pub text: [u8; REPLY_TEXT_BYTES],
+}
+
+impl Default for OperatorReply {
+    fn default() -> Self {
+        OperatorReply {
+            seq: 0,
+            stamp_ns: 0,
+            kind: 0,
+            verdict: 0,
+            value: 0.0,
+            text_len: 0,
+            _pad: 0,
+            text: [0; REPLY_TEXT_BYTES],
+        }
+    }
+}
+
+crate::impl_message!(OperatorReply, "exo.OperatorReply.v1", |r| [
+    "value" => r.value,
+]);
+
+/// Writes into a reply's fixed text, dropping what does not fit (at a
+/// character boundary). Allocation-free.
+struct TextWriter<'a> {
+    buf: &'a mut [u8; REPLY_TEXT_BYTES],
+    len: usize,
+}
+
+impl core::fmt::Write for TextWriter<'_> {
+    fn write_str(&mut self, s: &str) -> core::fmt::Result {
+        for ch in s.chars() {
+            let n = ch.len_utf8();
+            if self.len + n > REPLY_TEXT_BYTES {
+                return Ok(());
+            }
+            ch.encode_utf8(&mut self.buf[self.len..self.len + n]);
+            self.len += n;
+        }
+        Ok(())
+    }
+}
+
+impl OperatorReply {
+    /// The reply to `cmd` with `verdict` and the text `what` (formatted
+    /// into the fixed buffer, cut to fit; allocation-free).
+    pub fn new(
+        cmd: &OperatorCommand,
+        stamp_ns: u64,
+        verdict: OperatorVerdict,
+        what: core::fmt::Arguments<'_>,
+    ) -> Self {
+        let mut r = OperatorReply {
+            seq: cmd.seq,
+            stamp_ns,
+            kind: cmd.kind,
+            verdict: verdict.as_u32(),
+            value: cmd.value,
+            ..OperatorReply::default()
+        };
+        let mut w = TextWriter {
+            buf: &mut r.text,
+            len: 0,
+        };
+        let _ = core::fmt::Write::write_fmt(&mut w, what);
+        r.text_len = w.len as u32;
+        r
+    }
+
+    /// The verdict, or `None` if `verdict` holds an unknown code.
+    pub fn verdict(&self) -> Option<OperatorVerdict> {
+        OperatorVerdict::from_u32(self.verdict)
+    }
+
+    /// The text, or `None` if `text_len` is out of range or the bytes are
+    /// not UTF-8.
+    pub fn text(&self) -> Option<&str> {
+        let n = usize::try_from(self.text_len).ok()?;
+        core::str::from_utf8(self.text.get(..n)?).ok()
+    }
+
+    /// Checks the verdict code, the text and that `value` is finite (a
+    /// reply that does not decode is never taken for an acceptance).
+    pub fn validate(&self) -> Result<(), MessageError> {
+        const M: &str = "OperatorReply";
+        check_finite(M, self.first_non_finite())?;
+        if self.verdict().is_none() {
+            return Err(MessageError::UnknownCode {
+                message: M,
+                field: "verdict",
+                value: self.verdict,
+            });
+        }
+        if self.text().is_none() {
+            return Err(MessageError::UnknownCode {
+                message: M,
+                field: "text",
+                value: self.text_len,
+            });
+        }
+        Ok(())
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
     use core::mem::{align_of, offset_of, size_of};
+
+    #[test]
+    fn reply_layout_text_and_verdicts() {
+        assert_eq!(size_of::<OperatorReply>(), 280);
+        assert_eq!(align_of::<OperatorReply>(), 8);
+        assert_eq!(offset_of!(OperatorReply, seq), 0);
+        assert_eq!(offset_of!(OperatorReply, stamp_ns), 8);
+        assert_eq!(offset_of!(OperatorReply, kind), 16);
+        assert_eq!(offset_of!(OperatorReply, verdict), 20);
+        assert_eq!(offset_of!(OperatorReply, value), 24);
+        assert_eq!(offset_of!(OperatorReply, text_len), 32);
+        assert_eq!(offset_of!(OperatorReply, _pad), 36);
+        assert_eq!(offset_of!(OperatorReply, text), 40);
+        let cmd = OperatorCommand::new(7, 1, OperatorCommandKind::StartProtocol, 3.0);
+        let r = OperatorReply::new(
+            &cmd,
+            2,
+            OperatorVerdict::Refused,
+            format_args!("experiment {} is not in this run", 3),
+        );
+        assert_eq!((r.seq, r.kind, r.value), (7, 3, 3.0));
+        assert_eq!(r.verdict(), Some(OperatorVerdict::Refused));
+        assert_eq!(r.text(), Some("experiment 3 is not in this run"));
+        assert_eq!(r.validate(), Ok(()));
+        // Cut at a character boundary: 200 three-byte characters are 600
+        // bytes; 80 of them fit.
+        let long = "€".repeat(200);
+        let r = OperatorReply::new(&cmd, 2, OperatorVerdict::Accepted, format_args!("{long}"));
+        assert_eq!(r.text_len, 240);
+        assert_eq!(r.text().map(|t| t.chars().count()), Some(80));
+        for v in [
+            OperatorVerdict::Accepted,
+            OperatorVerdict::Refused,
+            OperatorVerdict::Repeated,
+        ] {
+            assert_eq!(OperatorVerdict::from_u32(v.as_u32()), Some(v));
+        }
+        assert_eq!(OperatorVerdict::from_u32(0), None);
+        let bad = OperatorReply { verdict: 9, ..r };
+        assert_eq!(bad.validate().unwrap_err().field(), "verdict");
+        let bad = OperatorReply { text_len: 241, ..r };
+        assert_eq!(bad.validate().unwrap_err().field(), "text");
+        let mut bad = r;
+        bad.text[0] = 0xff;
+        assert_eq!(bad.validate().unwrap_err().field(), "text");
+    }
 
     #[test]
     fn layout() {

@@ -96,6 +96,8 @@ fn main() {
         eprintln!("exo: error: {err:#}");
         let code = if err.downcast_ref::<faults::FinishedWithFaults>().is_some() {
             faults::FINISHED_WITH_FAULTS
+        } else if let Some(op) = err.downcast_ref::<op_cmd::OpFailure>() {
+            op.exit_code()
         } else {
             1
         };

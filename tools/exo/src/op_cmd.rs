@@ -2,11 +2,13 @@
 //! running system on its `<instance>/operator` channel: reset a latched
 //! fault, adopt a fractional order f, start or stop the protocol.
 //!
-//! It opens an iceoryx2 node like the other tools, waits (bounded) until a
-//! controller listens, sends the command once with a `seq` unique per send
-//! (the wall clock in ns) and keeps its publisher a moment so the command
-//! reaches the receivers, which act on each `seq` once and log what they did.
-//! The controller's log says whether it was acted on or refused (and why).
+//! It opens an iceoryx2 node like the other tools, subscribes to the
+//! controller's answers (`<instance>/operator/reply`), waits (bounded)
+//! until a controller listens, sends the command once with a `seq` unique
+//! per send (the wall clock in ns) and waits (bounded by `--wait-s`) for
+//! the answer to that `seq`: it prints what the controller did and exits 0,
+//! or what it refused and why and exits 1; no controller or no answer
+//! exits 2, naming the instance.
 
 use std::path::PathBuf;
 use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
@@ -14,13 +16,12 @@ use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
 use anyhow::{bail, Context, Result};
 use clap::{Args, Subcommand};
 use exo_config::RunConfig;
-use exo_messages::{OperatorCommand, OperatorCommandKind};
-use exo_service_kit::channels::{OPERATOR, PROTOCOL};
+use exo_messages::{OperatorCommand, OperatorCommandKind, OperatorVerdict};
+use exo_service_kit::channels::{OPERATOR, OPERATOR_REPLY};
 use exo_service_kit::ipc::Ipc;
 
-/// How long the publisher stays after sending: the receivers take operator
-/// commands once per control tick, and a subscriber connecting meanwhile
-/// still gets the command from the publisher's history.
+/// The least time given to an answer after sending, whatever `--wait-s`:
+/// the controller takes operator commands once per control tick.
 const LINGER: Duration = Duration::from_millis(300);
 
 /// Arguments of `exo op`.
@@ -98,7 +99,31 @@ impl OpAction {
     }
 }
 
-/// Runs `exo op`.
+/// Why `exo op` did not succeed, with its exit code: a refusal (1) or no
+/// answer (2). Bad arguments and other errors exit 1 as every command's do.
+#[derive(Debug, thiserror::Error)]
+pub enum OpFailure {
+    /// The controller refused the command (its reason in the text).
+    #[error("{0}")]
+    Refused(String),
+    /// No controller listens, none answered within `--wait-s`, or its answer
+    /// did not decode.
+    #[error("{0}")]
+    NoAnswer(String),
+}
+
+impl OpFailure {
+    /// The process's exit code: 1 for a refusal, 2 for no answer.
+    pub fn exit_code(&self) -> i32 {
+        match self {
+            OpFailure::Refused(_) => 1,
+            OpFailure::NoAnswer(_) => 2,
+        }
+    }
+}
+
+/// Runs `exo op`: exits 0 only on an accepted command, 1 on a refusal, 2
+/// when no controller answers within `--wait-s`.
 pub fn run(args: &OpArgs) -> Result<()> {
     let (kind, value) = args.action.kind_and_value()?;
     if !(args.wait_s.is_finite() && args.wait_s >= 0.0) {
@@ -115,13 +140,17 @@ pub fn run(args: &OpArgs) -> Result<()> {
     let node = format!("exo_op_{}", std::process::id());
     let ipc = Ipc::open(&node, &instance, args.iceoryx2_config.as_deref())
         .context("opening the operator console's iceoryx2 node")?;
+    let replies = ipc.inbox(OPERATOR_REPLY, 16)?;
     let outbox = ipc.outbox(OPERATOR)?;
-    if !controller_listens(&ipc, Duration::from_secs_f64(args.wait_s))? {
-        bail!(
+    let patience = Duration::from_secs_f64(args.wait_s);
+    let start = Instant::now();
+    if !controller_listens(&ipc, patience)? {
+        return Err(OpFailure::NoAnswer(format!(
             "no controller is listening on `{}` (waited {} s): is the run with instance `{instance}` going (exo run RUN.toml)?",
             outbox.name(),
             args.wait_s
-        );
+        ))
+        .into());
     }
     let seq = SystemTime::now()
         .duration_since(UNIX_EPOCH)
@@ -130,23 +159,60 @@ pub fn run(args: &OpArgs) -> Result<()> {
     cmd.validate()
         .with_context(|| format!("operator command {kind}"))?;
     outbox.send(cmd)?;
-    println!(
-        "exo op: sent {kind} value {value} as seq {seq} on {}; the controller's log says what it did",
-        outbox.name()
-    );
-    std::thread::sleep(LINGER);
-    Ok(())
+    // The answer, bounded by what is left of the patience (at least the
+    // controller's tick to take it: LINGER).
+    let deadline = start + patience.max(LINGER);
+    loop {
+        let left = deadline.saturating_duration_since(Instant::now());
+        let Some(reply) = replies.recv_timeout(left.min(Duration::from_millis(50)))? else {
+            if left.is_zero() {
+                return Err(OpFailure::NoAnswer(format!(
+                    "sent {kind} value {value} as seq {seq} on {}, but no answer came on `{instance}/operator/reply` within {} s",
+                    outbox.name(),
+                    args.wait_s
+                ))
+                .into());
+            }
+            continue;
+        };
+        if reply.seq != seq {
+            continue; // another console's
+        }
+        if let Err(e) = reply.validate() {
+            return Err(OpFailure::NoAnswer(format!(
+                "the controller's answer to seq {seq} does not decode ({e}); not taken for an acceptance"
+            ))
+            .into());
+        }
+        let text = reply.text().unwrap_or_default();
+        return match reply.verdict() {
+            Some(OperatorVerdict::Accepted) => {
+                println!("exo op: {kind} value {value} (seq {seq}): {text}");
+                Ok(())
+            }
+            Some(OperatorVerdict::Refused) => Err(OpFailure::Refused(format!(
+                "the controller refused {kind} (seq {seq}): {text}"
+            ))
+            .into()),
+            // A fresh seq per send: a repeat means another console sent
+            // the same one.
+            Some(OperatorVerdict::Repeated) | None => Err(OpFailure::NoAnswer(format!(
+                "the controller took seq {seq} for a repeat ({text}); nothing done"
+            ))
+            .into()),
+        };
+    }
 }
 
 /// Waits until a controller listens on the operator channel: a subscriber
-/// there and a publisher on the protocol channel, which only the controller
-/// has (it opens its operator subscriber first). Bounded by `patience`;
-/// whether one does.
+/// there and a publisher on the reply channel, which only a controller has
+/// (a player replaying a run publishes the protocol, never replies).
+/// Bounded by `patience`; whether one does.
 fn controller_listens(ipc: &Ipc, patience: Duration) -> Result<bool> {
     let start = Instant::now();
     loop {
-        let listening =
-            ipc.port_counts(OPERATOR)?.subscribers > 0 && ipc.port_counts(PROTOCOL)?.publishers > 0;
+        let listening = ipc.port_counts(OPERATOR)?.subscribers > 0
+            && ipc.port_counts(OPERATOR_REPLY)?.publishers > 0;
         if listening {
             return Ok(true);
         }
