@@ -1,6 +1,6 @@
 //! The noise measured beside the line (`data::local_ratio_sigma`), checked by
 //! Monte Carlo against a known ratio: a window of a sine through a known
-//! `H`, with white noise on both signals, and with a lightly damped mode
+//! `H`, on an offset and a drift, with white noise on both signals, and with a lightly damped mode
 //! ringing through the window (a transient whose own ratio is not `H`).
 
 mod common;
@@ -35,7 +35,11 @@ fn trial(ring: f64, trials: u64) -> (f64, f64, f64) {
             .iter()
             .zip(&nx)
             .map(|(t, e)| {
-                (w * t).cos() + ring * (-zeta * wn * t).exp() * (wn * t + phase).cos() + 0.02 * e
+                // A posture and a slow drift, as a measured angle has.
+                0.8 + 0.05 * t
+                    + (w * t).cos()
+                    + ring * (-zeta * wn * t).exp() * (wn * t + phase).cos()
+                    + 0.02 * e
             })
             .collect();
         let y: Vec<f64> = t
@@ -46,7 +50,7 @@ fn trial(ring: f64, trials: u64) -> (f64, f64, f64) {
                 let tr = (h_ring
                     * Complex64::from_polar(ring * (-zeta * wn * t).exp(), wn * t + phase))
                 .re;
-                line + tr + 0.5 * e
+                3.0 - 0.2 * t + line + tr + 0.5 * e
             })
             .collect();
         let (ax, ay) = (
