@@ -41,8 +41,8 @@
 //!
 //! Heavy work (fits, spectra) happens only at window ends, never per sample.
 //!
-//! [`offline`] runs the same identifier over recordings and CSVs and
-//! analyses them as the paper does (`exo fit`).
+//! `exo fit` runs the same identifier over recordings and CSVs and
+//! analyses them as the paper does (`exo_experiments::offline`, a tool's).
 
 use std::collections::BTreeMap;
 
@@ -56,7 +56,6 @@ use exo_messages::{
     ProtocolState, SensorSample,
 };
 
-pub mod offline;
 pub mod process;
 
 pub use exo_analysis::refit::{effective_alpha, fit_models, FitSource, ModelFitError};

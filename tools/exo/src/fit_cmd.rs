@@ -1,7 +1,7 @@
 //! `exo fit RECORDING.mcap …`: the paper's post-hoc analysis of contract
 //! recordings, whoever wrote them. Each recording's samples, commands and
 //! protocol states go through the identifier's own code (the same that runs
-//! online, [`exo_identifier::offline`]), then [`exo_analysis::study`] makes
+//! online, [`exo_experiments::offline`]), then [`exo_analysis::study`] makes
 //! the paper's tables, printed by [`exo_report::fit`].
 
 use std::path::PathBuf;
@@ -9,7 +9,7 @@ use std::path::PathBuf;
 use anyhow::Result;
 use clap::{Args, ValueEnum};
 use exo_analysis::FitSource;
-use exo_identifier::offline::{fit, FitOptions};
+use exo_experiments::offline::{fit, FitOptions};
 use exo_impedance::Joint;
 use exo_report::fit::{tables, write_csv};
 
@@ -111,7 +111,7 @@ impl FitArgs {
     }
 }
 
-/// A progress line of the fit ([`exo_identifier::offline::fit`]), on stderr.
+/// A progress line of the fit ([`exo_experiments::offline::fit`]), on stderr.
 pub fn note(line: String) {
     eprintln!("{line}");
 }

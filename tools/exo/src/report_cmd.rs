@@ -7,7 +7,7 @@ use anyhow::{Context, Result};
 use clap::Args;
 
 use exo_analysis::study::FitReport;
-use exo_identifier::offline::{fit, FitOptions, Loaded};
+use exo_experiments::offline::{fit, FitOptions, Loaded};
 
 use crate::fit_cmd::{note, FitArgs};
 use exo_report::figures::{html, trace_of, TimeTrace};

@@ -24,8 +24,8 @@ use anyhow::{bail, Context, Result};
 use clap::Args;
 use exo_analysis::reproduce::{compare, Criteria};
 use exo_config::{RunConfig, Subject};
+use exo_experiments::offline::{fit, FitOptions};
 use exo_experiments::simulate::{default_workers, simulate_each, Job};
-use exo_identifier::offline::{fit, FitOptions};
 use exo_report::reproduction::tables;
 
 use crate::fit_cmd::note;

@@ -10,7 +10,7 @@ use exo_config::{ProtocolMode, RunConfig, TimingMode};
 
 use std::time::Instant;
 
-use exo_identifier::offline::{fit, FitOptions};
+use exo_experiments::offline::{fit, FitOptions};
 use exo_messages::ProtocolState;
 use exo_service_kit::channels::PROTOCOL;
 use exo_service_kit::collect::Collector;

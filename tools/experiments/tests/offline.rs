@@ -1,4 +1,4 @@
-//! `exo fit`'s pipeline (`exo_identifier::offline`) on contract recordings
+//! `exo fit`'s pipeline (`exo_experiments::offline`) on contract recordings
 //! written by this test: a human whose complex stiffness is written out
 //! here (S_h = K − M_h ω² + jH, the paper's M2 with an inertia), seen
 //! through the exoskeleton's physics τ_s − τ_g = τ_c + M_e θ̈, with sensor
@@ -10,7 +10,7 @@ use std::collections::BTreeMap;
 use std::f64::consts::TAU;
 use std::path::{Path, PathBuf};
 
-use exo_identifier::offline::{fit, FitOptions};
+use exo_experiments::offline::{fit, FitOptions};
 use exo_identifier::FitSource;
 use exo_messages::{ActuatorCommand, ProtocolPhase, ProtocolState, SensorSample};
 use exo_recording::RecordingWriter;

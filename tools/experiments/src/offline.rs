@@ -20,7 +20,7 @@ use exo_impedance::{exo_inertia_kg_m2, DampingSign, Joint};
 use exo_messages::{ActuatorCommand, FrfPoint, ProtocolState, SensorSample};
 use exo_recording::{read_recording_topics, Recordable, Recording};
 
-use crate::{Event, Identifier, IdentifierSettings};
+use exo_identifier::{Event, Identifier, IdentifierSettings};
 
 /// What to fit and how: `exo fit`'s options (the command line's names in
 /// brackets).
