@@ -90,7 +90,9 @@ pub struct TfScore {
     /// model's accuracy (1 when both are right; the model's own parameters
     /// are not subtracted here).
     pub chi2_per_residual: f64,
-    /// The same against the measured noise alone (no accuracy floor).
+    /// The same against the noise measured beside each line
+    /// (`Observation::noise`) alone, no accuracy floor: reported for
+    /// calibrating the noise model, not judged by.
     pub noise_only_chi2_per_residual: f64,
 }
 
