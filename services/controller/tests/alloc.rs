@@ -1,43 +1,18 @@
 //! The control tick makes no heap allocation (counted by a global allocator).
 
-use std::alloc::{GlobalAlloc, Layout, System};
-use std::cell::Cell;
-use std::sync::atomic::{AtomicUsize, Ordering};
-
 use exo_config::RunConfig;
 use exo_controller::{Controller, TickInput};
 use exo_messages::{OperatorCommand, OperatorCommandKind};
 
-struct Counting;
-static ALLOCATIONS: AtomicUsize = AtomicUsize::new(0);
-thread_local! {
-    // Only the test's own thread is counted: the test harness's threads
-    // allocate at times of their own (a CI run once counted 4 of theirs).
-    static ARMED: Cell<bool> = const { Cell::new(false) };
-}
-
-unsafe impl GlobalAlloc for Counting {
-    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
-        if ARMED.try_with(|a| a.get()).unwrap_or(false) {
-            ALLOCATIONS.fetch_add(1, Ordering::Relaxed);
-        }
-        unsafe { System.alloc(layout) }
-    }
-    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
-        unsafe { System.dealloc(ptr, layout) }
-    }
-}
-
 #[global_allocator]
-static GLOBAL: Counting = Counting;
+static GLOBAL: exo_test_support::CountingAllocator = exo_test_support::CountingAllocator;
 
 #[test]
 fn controller_tick_operator_commands_and_adopting_f_do_not_allocate() {
     let mut cfg = RunConfig::from_file(&exo_config::configs_dir().join("default.toml")).unwrap();
     cfg.controller.f = Some(0.44);
     let mut c = Controller::from_config(&cfg).unwrap();
-    let before = ALLOCATIONS.load(Ordering::Relaxed);
-    ARMED.with(|a| a.set(true));
+    let count = exo_test_support::ThreadCount::start();
     let mut acc = 0.0;
     // Operator commands on the way: a stop (ramp-out, then held), a start
     // at experiment 7, a repeat, an unknown kind, a refused start, a reset,
@@ -76,8 +51,7 @@ fn controller_tick_operator_commands_and_adopting_f_do_not_allocate() {
         acc += tick.tau_d_nm;
     }
     assert!(c.adopt_fractional_order(0.3));
-    ARMED.with(|a| a.set(false));
-    let allocations = ALLOCATIONS.load(Ordering::Relaxed) - before;
+    let allocations = count.stop();
     assert!(acc.is_finite());
     assert_eq!(
         allocations, 0,

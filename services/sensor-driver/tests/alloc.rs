@@ -1,43 +1,18 @@
 //! The driver's per-frame work (round-trip statistics included) makes no
 //! heap allocation.
 
-use std::alloc::{GlobalAlloc, Layout, System};
-use std::cell::Cell;
-use std::sync::atomic::{AtomicUsize, Ordering};
-
 use exo_config::{RunConfig, SafeState};
 use exo_sensor_driver::{Driver, RawFrame, RoundTrip};
 
-struct Counting;
-static ALLOCATIONS: AtomicUsize = AtomicUsize::new(0);
-thread_local! {
-    // Only the test's own thread is counted: the test harness's threads
-    // allocate at times of their own (a CI run once counted 4 of theirs).
-    static ARMED: Cell<bool> = const { Cell::new(false) };
-}
-
-unsafe impl GlobalAlloc for Counting {
-    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
-        if ARMED.try_with(|a| a.get()).unwrap_or(false) {
-            ALLOCATIONS.fetch_add(1, Ordering::Relaxed);
-        }
-        unsafe { System.alloc(layout) }
-    }
-    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
-        unsafe { System.dealloc(ptr, layout) }
-    }
-}
-
 #[global_allocator]
-static GLOBAL: Counting = Counting;
+static GLOBAL: exo_test_support::CountingAllocator = exo_test_support::CountingAllocator;
 
 #[test]
 fn frame_and_command_handling_do_not_allocate() {
     let cfg = RunConfig::from_file(&exo_config::configs_dir().join("default.toml")).unwrap();
     let mut d = Driver::new(&cfg.rig, 1000.0, SafeState::GravityOnly, 40.0, 4.5);
     let mut round_trip = RoundTrip::new(0.01);
-    let before = ALLOCATIONS.load(Ordering::Relaxed);
-    ARMED.with(|a| a.set(true));
+    let count = exo_test_support::ThreadCount::start();
     for seq in 0..100_000u64 {
         let f = RawFrame {
             seq,
@@ -57,7 +32,6 @@ fn frame_and_command_handling_do_not_allocate() {
         round_trip.record(sent_ns, sent_ns + 1_000 * (1 + seq * seq % 1_000_000));
         d.reset();
     }
-    ARMED.with(|a| a.set(false));
-    assert_eq!(ALLOCATIONS.load(Ordering::Relaxed) - before, 0);
+    assert_eq!(count.stop(), 0);
     assert_eq!(round_trip.report().unwrap().latency.count, 99_990);
 }

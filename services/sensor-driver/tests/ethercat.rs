@@ -36,26 +36,8 @@ use exo_tests::netns::{self, ip};
 use exo_tests::Scenario;
 
 /// Counts the heap allocations of the thread that arms it (the cycle's).
-struct Counting;
-static ALLOCATIONS: std::sync::atomic::AtomicUsize = std::sync::atomic::AtomicUsize::new(0);
-thread_local! {
-    static ARMED: std::cell::Cell<bool> = const { std::cell::Cell::new(false) };
-}
-
-unsafe impl std::alloc::GlobalAlloc for Counting {
-    unsafe fn alloc(&self, layout: std::alloc::Layout) -> *mut u8 {
-        if ARMED.try_with(|a| a.get()).unwrap_or(false) {
-            ALLOCATIONS.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
-        }
-        unsafe { std::alloc::System.alloc(layout) }
-    }
-    unsafe fn dealloc(&self, ptr: *mut u8, layout: std::alloc::Layout) {
-        unsafe { std::alloc::System.dealloc(ptr, layout) }
-    }
-}
-
 #[global_allocator]
-static GLOBAL: Counting = Counting;
+static GLOBAL: exo_test_support::CountingAllocator = exo_test_support::CountingAllocator;
 
 const IN_NETNS: &str = "EXO_ETHERCAT_IN_NETNS";
 const RATE_HZ: f64 = 100.0;
@@ -284,11 +266,9 @@ fn the_drive_comes_up_to_operation_enabled_and_follows_torque_set_points() {
     wkcs.reserve(2000);
     let mut allocations = 0;
     for k in 0..2000 {
-        let before = ALLOCATIONS.load(std::sync::atomic::Ordering::Relaxed);
-        ARMED.with(|a| a.set(true));
+        let count = exo_test_support::ThreadCount::start();
         let s = rig.step(tau_of(k));
-        ARMED.with(|a| a.set(false));
-        allocations += ALLOCATIONS.load(std::sync::atomic::Ordering::Relaxed) - before;
+        allocations += count.stop();
         assert_eq!(
             s.fault,
             None,

@@ -4,35 +4,16 @@
 //! listener's timed wait do not. This test pins what is true on this
 //! version, so a change in either direction is noticed.
 
-use std::alloc::{GlobalAlloc, Layout, System};
-use std::sync::atomic::{AtomicUsize, Ordering};
 use std::time::Duration;
 
 use exo_messages::SensorSample;
 use exo_service_kit::channels::SENSOR;
 use exo_service_kit::ipc::Ipc;
 
-struct Counting;
-static ALLOCATIONS: AtomicUsize = AtomicUsize::new(0);
-
-unsafe impl GlobalAlloc for Counting {
-    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
-        ALLOCATIONS.fetch_add(1, Ordering::Relaxed);
-        unsafe { System.alloc(layout) }
-    }
-    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
-        unsafe { System.dealloc(ptr, layout) }
-    }
-}
-
 #[global_allocator]
-static GLOBAL: Counting = Counting;
+static GLOBAL: exo_test_support::CountingAllocator = exo_test_support::CountingAllocator;
 
-fn count<R>(f: impl FnOnce() -> R) -> (R, usize) {
-    let before = ALLOCATIONS.load(Ordering::Relaxed);
-    let r = f();
-    (r, ALLOCATIONS.load(Ordering::Relaxed) - before)
-}
+use exo_test_support::allocations_anywhere as count;
 
 #[test]
 fn allocations_per_tick_of_the_ipc_calls() {
