@@ -1523,6 +1523,46 @@ mod tests {
         assert_eq!((t.protocol.experiment, t.mode), (0, Mode::Run));
     }
 
+    /// The console's verdict of each outcome: refusals (an unknown kind,
+    /// an invalid value, a refusal in the present state) are refused, a
+    /// repeated seq is a repeat, everything else (nothing left to do
+    /// included) accepted.
+    #[test]
+    fn each_outcome_answers_the_console_with_its_verdict() {
+        use exo_messages::OperatorVerdict::{Accepted, Refused, Repeated};
+        let k = OperatorCommandKind::StartProtocol;
+        for (outcome, verdict) in [
+            (OperatorOutcome::Repeated { seq: 3 }, Repeated),
+            (OperatorOutcome::UnknownKind { code: 99 }, Refused),
+            (
+                OperatorOutcome::InvalidValue {
+                    kind: k,
+                    value: 12.0,
+                },
+                Refused,
+            ),
+            (
+                OperatorOutcome::Refused {
+                    kind: k,
+                    reason: OperatorRefusal::ProtocolOver,
+                },
+                Refused,
+            ),
+            (OperatorOutcome::FaultReset { cleared: None }, Accepted),
+            (OperatorOutcome::AlreadyStopped, Accepted),
+            (
+                OperatorOutcome::Starting {
+                    experiment: 7,
+                    period: 1,
+                    after_s: 0.0,
+                },
+                Accepted,
+            ),
+        ] {
+            assert_eq!(outcome.verdict(), verdict, "{outcome:?}");
+        }
+    }
+
     #[test]
     fn operator_start_refusals_change_nothing() {
         let mut k = controller_of(&[1, 7]);
