@@ -5,7 +5,7 @@ use exo_config::{
     ExperimentSpec, ExperimentTable, ProtocolMode, ProtocolTiming, RigSettings, RunConfig,
     SafeState,
 };
-use exo_impedance::{nominal_crossover, proportional_gain, StiffnessRange};
+use exo_impedance::loop_shaping::FractionalLayout;
 use exo_messages::operator::{KnownKinds, SeenSeqs};
 use exo_messages::{MessageError, OperatorCommand, OperatorCommandKind};
 use thiserror::Error;
@@ -399,18 +399,9 @@ pub struct Controller {
     last_tick: Option<u64>,
     previous_tau_d_nm: f64,
     f_bounds: [f64; 2],
-    design: FractionalDesign,
+    /// What is needed to rebuild the fractional amplifier with a new f.
+    design: FractionalLayout,
     gravity_compensation: bool,
-}
-
-/// What is needed to rebuild the fractional amplifier with a new f.
-#[derive(Debug, Clone, Copy)]
-struct FractionalDesign {
-    kp: f64,
-    omega_gc_hat_rad_s: f64,
-    filters: usize,
-    p1_rad_s: f64,
-    r_pp: f64,
 }
 
 impl Controller {
@@ -479,22 +470,11 @@ impl Controller {
             }
         };
         let m_e = cfg.exo_inertia_kg_m2(load_kg);
-        let kp = match cfg.controller.kp {
-            Some(kp) => kp,
-            None => proportional_gain(m_e, subject.inertia_kg_m2)?,
-        };
-        let [k_lo, k_hi] = cfg.controller.k_range_nm_per_rad;
-        let design = FractionalDesign {
-            kp,
-            omega_gc_hat_rad_s: nominal_crossover(
-                StiffnessRange::new(k_lo, k_hi)?,
-                m_e,
-                subject.inertia_kg_m2,
-            )?,
-            filters: cfg.controller.filters,
-            p1_rad_s: cfg.controller.p1_rad_s,
-            r_pp: cfg.controller.r_pp,
-        };
+        let design = cfg
+            .controller
+            .layout(m_e, subject.inertia_kg_m2)
+            .map_err(|e| ControllerError::Design(e.source))?;
+        let kp = design.kp;
         let amplifier = match cfg.controller.f {
             Some(f) => Amplifier::fractional(
                 kp,

@@ -46,11 +46,7 @@ pub fn controller_margins(
     sea_hz: f64,
     sea_zeta: f64,
 ) -> Result<Margins, String> {
-    use exo_impedance::loop_shaping::FractionalLayout;
-    use exo_impedance::{
-        fit_power_law, nominal_crossover, proportional_gain, AmplificationPlant, SeaModel,
-        StiffnessRange,
-    };
+    use exo_impedance::{fit_power_law, AmplificationPlant, SeaModel, StiffnessRange};
     let science = |key: &str, e: exo_impedance::ScienceError| format!("{key}: {e}");
     let table = cfg.experiment_table();
     let subject = cfg.subject();
@@ -62,8 +58,7 @@ pub fn controller_margins(
     };
     let c = &cfg.controller;
     let [k_lo, k_hi] = c.k_range_nm_per_rad;
-    let range =
-        StiffnessRange::new(k_lo, k_hi).map_err(|e| science("controller.k_range_nm_per_rad", e))?;
+    StiffnessRange::new(k_lo, k_hi).map_err(|e| science("controller.k_range_nm_per_rad", e))?;
     // The subject's loss factor at any stiffness, for the design range.
     let ks: Vec<f64> = subject
         .experiment
@@ -103,18 +98,8 @@ pub fn controller_margins(
         );
         match c.f {
             Some(f) => {
-                let kp = match c.kp {
-                    Some(kp) => kp,
-                    None => proportional_gain(m_e, m_h).map_err(|e| science("controller.kp", e))?,
-                };
-                let layout = FractionalLayout {
-                    kp,
-                    omega_gc_hat_rad_s: nominal_crossover(range, m_e, m_h)
-                        .map_err(|e| science("controller.k_range_nm_per_rad", e))?,
-                    filters: c.filters,
-                    p1_rad_s: c.p1_rad_s,
-                    r_pp: c.r_pp,
-                };
+                let layout = c.layout(m_e, m_h).map_err(|e| science(e.key, e.source))?;
+                let kp = layout.kp;
                 // The controller discretises this filter at start: refuse
                 // here what it would refuse there.
                 layout
@@ -162,7 +147,7 @@ pub fn controller_margins(
             }
             None if cfg.protocol.mode == ProtocolMode::Identification && spec.alpha > 1.0 => {
                 // Constant α: the loop is (α − 1) P(s), the filter flat (f = 0).
-                let layout = FractionalLayout {
+                let layout = exo_impedance::loop_shaping::FractionalLayout {
                     kp: spec.alpha - 1.0,
                     omega_gc_hat_rad_s: 1.0,
                     filters: 1,

@@ -497,9 +497,9 @@ pub use ethercat::{
 };
 pub use experiments::{ExperimentSpec, ExperimentTable, ProtocolTiming, EXPERIMENT_RANGES};
 pub use run::{
-    BusBackend, BusSettings, ControllerSettings, LimitSettings, LiveSettings, PlayerSettings,
-    ProtocolMode, ProtocolSettings, RealtimeSettings, ReleaseSettings, RigSettings, RunConfig,
-    RunSettings, SafeState, SafetySettings, ServiceSet, TimingMode, TunnelSettings,
+    BusBackend, BusSettings, ControllerSettings, LayoutError, LimitSettings, LiveSettings,
+    PlayerSettings, ProtocolMode, ProtocolSettings, RealtimeSettings, ReleaseSettings, RigSettings,
+    RunConfig, RunSettings, SafeState, SafetySettings, ServiceSet, TimingMode, TunnelSettings,
     VoluntarySettings, GRAVITY_M_S2, RUN_RANGES,
 };
 pub use subject::{ReportedPowerLaw, Subject, SubjectExperiment, SUBJECT_RANGES};

@@ -479,6 +479,55 @@ pub struct ControllerSettings {
     pub gravity_compensation: bool,
 }
 
+/// Why a controller's lag-filter layout could not be designed: the run
+/// file's key and the science core's reason.
+#[derive(Debug, thiserror::Error)]
+#[error("{key}: {source}")]
+pub struct LayoutError {
+    /// The `[controller]` key, e.g. `"controller.kp"`.
+    pub key: &'static str,
+    /// The science core's reason.
+    #[source]
+    pub source: exo_impedance::ScienceError,
+}
+
+impl ControllerSettings {
+    /// The fractional amplifier's layout for an arm of inertia `m_e` and a
+    /// subject of inertia `m_h` (kg·m²): `k_p` as set or from the inertias
+    /// (eq. kp), the nominal crossover `ω̂_gc` of `k_range_nm_per_rad` that
+    /// sets `k_f` (eq. kf), and the lag cascade's `n`, `p_1`, `r_pp`. The one
+    /// place the controller, `exo run`'s preflight and `exo tune` design it.
+    pub fn layout(
+        &self,
+        m_e_kg_m2: f64,
+        m_h_kg_m2: f64,
+    ) -> Result<exo_impedance::loop_shaping::FractionalLayout, LayoutError> {
+        let kp = match self.kp {
+            Some(kp) => kp,
+            None => exo_impedance::proportional_gain(m_e_kg_m2, m_h_kg_m2).map_err(|source| {
+                LayoutError {
+                    key: "controller.kp",
+                    source,
+                }
+            })?,
+        };
+        let [k_lo, k_hi] = self.k_range_nm_per_rad;
+        let crossover = |source| LayoutError {
+            key: "controller.k_range_nm_per_rad",
+            source,
+        };
+        let range = exo_impedance::StiffnessRange::new(k_lo, k_hi).map_err(crossover)?;
+        Ok(exo_impedance::loop_shaping::FractionalLayout {
+            kp,
+            omega_gc_hat_rad_s: exo_impedance::nominal_crossover(range, m_e_kg_m2, m_h_kg_m2)
+                .map_err(crossover)?,
+            filters: self.filters,
+            p1_rad_s: self.p1_rad_s,
+            r_pp: self.r_pp,
+        })
+    }
+}
+
 fn default_true() -> bool {
     true
 }

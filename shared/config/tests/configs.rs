@@ -170,3 +170,30 @@ fn the_bus_backend_is_configuration_and_an_unknown_one_names_the_choices() {
     assert!(err.contains("run.timing"), "{err}");
     let _ = std::fs::remove_dir_all(&d);
 }
+
+/// The controller's layout by hand: without `kp`, eq. kp's
+/// `√((M_e + M_h)/M_h)` (0.3 and 0.1 kg·m²: 2); with it, as set; a stiffness
+/// range upside down and a subject without inertia name their keys.
+#[test]
+fn the_controllers_layout_is_eq_kp_or_the_set_gain_and_names_a_bad_key() {
+    let cfg =
+        exo_config::RunConfig::from_file(&exo_config::configs_dir().join("default.toml")).unwrap();
+    let mut c = cfg.controller.clone();
+    c.kp = None;
+    let l = c.layout(0.3, 0.1).unwrap();
+    assert!((l.kp - 2.0).abs() < 1e-12, "{}", l.kp);
+    assert_eq!(
+        (l.filters, l.p1_rad_s, l.r_pp),
+        (c.filters, c.p1_rad_s, c.r_pp)
+    );
+    assert!(l.omega_gc_hat_rad_s > 0.0);
+    c.kp = Some(3.2);
+    assert_eq!(c.layout(0.3, 0.1).unwrap().kp, 3.2);
+    c.k_range_nm_per_rad = [100.0, 10.0];
+    assert_eq!(
+        c.layout(0.3, 0.1).unwrap_err().key,
+        "controller.k_range_nm_per_rad"
+    );
+    c.kp = None;
+    assert_eq!(c.layout(0.3, 0.0).unwrap_err().key, "controller.kp");
+}

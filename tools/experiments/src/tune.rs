@@ -22,10 +22,8 @@ use std::path::PathBuf;
 
 use anyhow::{bail, Context, Result};
 use exo_config::{ProtocolMode, ReleaseSettings, RunConfig, TimingMode};
-use exo_impedance::loop_shaping::{marginal_fractional_order, FractionalLayout};
-use exo_impedance::{
-    nominal_crossover, proportional_gain, AmplificationPlant, SeaModel, StiffnessRange,
-};
+use exo_impedance::loop_shaping::marginal_fractional_order;
+use exo_impedance::{AmplificationPlant, SeaModel};
 use exo_messages::{ControlMode, ProtocolPhase};
 use exo_plant_model::HysteresisMode;
 use exo_plant_model::PlantModel;
@@ -354,23 +352,9 @@ pub fn tune(args: &TuneOptions, note: &mut dyn FnMut(String)) -> Result<Outcome>
             .get(experiment)
             .with_context(|| format!("subject {} has no experiment {experiment}", subject.name))?;
         let m_e = probe.exo_inertia_kg_m2(spec.load_kg);
-        let kp = match probe.controller.kp {
-            Some(kp) => kp,
-            None => proportional_gain(m_e, subject.inertia_kg_m2)?,
-        };
+        let layout = probe.controller.layout(m_e, subject.inertia_kg_m2)?;
+        let kp = layout.kp;
         kp_used = kp;
-        let [k_lo, k_hi] = probe.controller.k_range_nm_per_rad;
-        let layout = FractionalLayout {
-            kp,
-            omega_gc_hat_rad_s: nominal_crossover(
-                StiffnessRange::new(k_lo, k_hi)?,
-                m_e,
-                subject.inertia_kg_m2,
-            )?,
-            filters: probe.controller.filters,
-            p1_rad_s: probe.controller.p1_rad_s,
-            r_pp: probe.controller.r_pp,
-        };
         let plant_model = AmplificationPlant::new(
             m_e,
             subject.inertia_kg_m2,
