@@ -190,6 +190,36 @@ impl Scenario {
         Self::of("default.toml", tag, replacements)
     }
 
+    /// A replay scenario: no plant, driver or controller; the player plays
+    /// a recording of three periods of a Python-written subject (K = 40,
+    /// c = 0.4, 24 000 samples) at `pace_hz` samples a second.
+    pub fn replay(tag: &str, pace_hz: f64) -> Self {
+        let sc = Self::new(
+            tag,
+            &[
+                ("plant_sim = true", "plant_sim = false"),
+                ("sensor_driver = true", "sensor_driver = false"),
+                ("controller = true", "controller = false\nplayer = true"),
+            ],
+        );
+        let original = sc.dir.join("original.mcap");
+        stdout_of(python_script("write_recording.py").arg(&original).args([
+            "--k",
+            "40",
+            "--c",
+            "0.4",
+            "--periods",
+            "3",
+            "--subject",
+            "PY",
+        ]));
+        sc.append(&format!(
+            "\n[player]\nfile = \"{}\"\npace_hz = {pace_hz:?}\n",
+            original.display()
+        ));
+        sc
+    }
+
     /// Writes the scenario `tag` with `replacements` applied to the shipped
     /// run file `file` (in `configs/`): its paths made absolute, its
     /// instance unique, its recordings in the scenario's directory.

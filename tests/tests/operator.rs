@@ -672,31 +672,9 @@ fn exo_op_refuses_bad_arguments_and_a_run_without_a_controller() {
 /// "sent" to nobody).
 #[test]
 fn a_replayed_run_is_not_taken_for_a_controller() {
-    let sc = Scenario::new(
-        "opreplay",
-        &[
-            ("plant_sim = true", "plant_sim = false"),
-            ("sensor_driver = true", "sensor_driver = false"),
-            ("controller = true", "controller = false\nplayer = true"),
-        ],
-    );
-    let original = sc.dir.join("original.mcap");
-    stdout_of(python_script("write_recording.py").arg(&original).args([
-        "--k",
-        "40",
-        "--c",
-        "0.4",
-        "--periods",
-        "3",
-        "--subject",
-        "PY",
-    ]));
     // 24 000 samples at 500 a second: the replay lasts longer than the
     // console waits.
-    sc.append(&format!(
-        "\n[player]\nfile = \"{}\"\npace_hz = 500.0\n",
-        original.display()
-    ));
+    let sc = Scenario::replay("opreplay", 500.0);
     let protocol = sc.collect(PROTOCOL);
     // The recorder subscribes to the operator channel, the player publishes
     // the protocol: what the console took for a controller before.

@@ -342,29 +342,7 @@ fn a_recording_played_back_is_identified_again() {
     // A recording another tool wrote, played onto the run's channels by
     // exo-player (no plant, driver or controller) into the online
     // identifier and a new recording.
-    let sc = Scenario::new(
-        "replay",
-        &[
-            ("plant_sim = true", "plant_sim = false"),
-            ("sensor_driver = true", "sensor_driver = false"),
-            ("controller = true", "controller = false\nplayer = true"),
-        ],
-    );
-    let original = sc.dir.join("original.mcap");
-    stdout_of(python_script("write_recording.py").arg(&original).args([
-        "--k",
-        "40",
-        "--c",
-        "0.4",
-        "--periods",
-        "3",
-        "--subject",
-        "PY",
-    ]));
-    sc.append(&format!(
-        "\n[player]\nfile = \"{}\"\npace_hz = 20000.0\n",
-        original.display()
-    ));
+    let sc = Scenario::replay("replay", 20000.0);
     let out = exo(&["run", "--no-report", sc.config.to_str().unwrap()]);
     assert!(out.status.success(), "replay run failed:\n{}", stderr(&out));
     let rec = PathBuf::from(
