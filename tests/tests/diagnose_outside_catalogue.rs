@@ -39,14 +39,13 @@ fn rig(dir: &Path, name: &str, extra: &[&str]) -> PathBuf {
 }
 
 /// The rig's nominal model (beside the recording `rec`): the default
-/// plant with the rig subject's posture strategy, holding the arm at its
-/// goal against the bias (`exo_diagnose::bench::holds_goal`), and without
-/// gravity for a horizontal rig.
+/// plant as the rig describes itself (`exo_diagnose::bench::independent_rig`:
+/// its subject holds the arm at its goal against the bias, its own `g`),
+/// without gravity for a horizontal rig.
 fn rig_model(rec: &Path, gravity: bool) -> PathBuf {
     let mut m =
         exo_plant_model::PlantModel::from_file(&configs_dir().join("plants/default.toml")).unwrap();
-    exo_diagnose::bench::holds_goal(&mut m);
-    m.gravity.enabled = gravity;
+    exo_diagnose::bench::independent_rig(&mut m, !gravity);
     let name = if gravity {
         "rig-nominal.toml"
     } else {

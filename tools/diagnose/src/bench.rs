@@ -51,6 +51,22 @@ pub fn holds_goal(m: &mut PlantModel) {
     m.human.active_angle_rad = std::f64::consts::FRAC_PI_4;
 }
 
+/// The independent rig's gravitational acceleration (m/s²): its own
+/// constant (`G` in `tools/python/independent_rig.py`), not the standard
+/// 9.80665 of `configs/plants/default.toml`. 0.034 % of the arm's gravity
+/// moment (16 Nm at 45° with experiment 1's load) is 5 mNm, ten times the
+/// static balance's noise.
+pub const INDEPENDENT_RIG_G_M_S2: f64 = 9.81;
+
+/// The nominal model of the independent rig's recordings from the default
+/// plant: its subject's posture strategy ([`holds_goal`]), its gravity
+/// ([`INDEPENDENT_RIG_G_M_S2`]) or none for a horizontal rig.
+pub fn independent_rig(m: &mut PlantModel, horizontal: bool) {
+    holds_goal(m);
+    m.gravity.g_m_s2 = INDEPENDENT_RIG_G_M_S2;
+    m.gravity.enabled = !horizontal;
+}
+
 fn viscous_truth(m: &mut PlantModel, s: &Subject, _: f64) {
     viscous_tuned(m, s)
 }
@@ -510,5 +526,35 @@ mod tests {
         assert!((rate_upper_95(1, 100) - 0.046_560).abs() < 2e-5);
         assert_eq!(rate_upper_95(5, 5), 1.0);
         assert_eq!(rate_upper_95(0, 0), 1.0);
+    }
+
+    /// The rig's `g` as its own source sets it (`G = …` in
+    /// `tools/python/independent_rig.py`), read from that file; and the
+    /// nominal model built from it.
+    #[test]
+    fn the_independent_rigs_gravity_is_the_one_its_source_uses() {
+        let path =
+            std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../python/independent_rig.py");
+        let src = std::fs::read_to_string(&path).expect("independent_rig.py");
+        let g: f64 = src
+            .lines()
+            .find_map(|l| l.strip_prefix("G = "))
+            .and_then(|v| v.split('#').next())
+            .and_then(|v| v.trim().parse().ok())
+            .expect("a line `G = …`");
+        assert_eq!(INDEPENDENT_RIG_G_M_S2, g);
+        let plant = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("../../configs/plants/default.toml");
+        let mut m = PlantModel::from_file(&plant).expect("default plant");
+        m.gravity.enabled = false;
+        independent_rig(&mut m, false);
+        assert!(m.gravity.enabled);
+        assert_eq!(m.gravity.g_m_s2, g);
+        assert_eq!(
+            m.human.posture_reference,
+            exo_plant_model::PostureReference::HoldsGoal
+        );
+        independent_rig(&mut m, true);
+        assert!(!m.gravity.enabled);
     }
 }

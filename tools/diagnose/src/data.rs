@@ -16,7 +16,10 @@
 
 use std::collections::BTreeMap;
 
-use exo_impedance::frf::{average_bins, band_groups, sine_ratio, welch_h1, SineCorrelator};
+use exo_impedance::frf::{
+    average_bins, band_groups, local_polynomial_ratio, sine_ratio, welch_h1, LocalPolynomialPoint,
+    SineCorrelator,
+};
 use exo_recording::Recording;
 use num_complex::Complex64;
 use serde::Serialize;
@@ -248,21 +251,33 @@ pub struct Observation {
     /// as `value`), from the window's residual taken as white noise: what
     /// the fits weight with.
     pub sigma: [f64; 2],
-    /// The noise measured beside the line: `sigma`, unless what the
-    /// neighbouring frequencies hold is beyond it ([`local_ratio_sigma`],
-    /// [`local_or_white`]: a transient or coloured noise near ω), then
-    /// that. Reported ([`crate::fit::noise_only_chi2`]), not judged by: it
-    /// also takes in the non-periodic response a nonlinearity makes (on our
-    /// simulator's 0.05 rad backlash, 6–15 times `sigma` in `S_h-e` near
-    /// the arm's mode), which it would hide (docs/diagnose.md, "The noise
-    /// model").
-    pub noise: [f64; 2],
+    /// The same with the window's transient taken out, where the window
+    /// allows it: a single-sine line by the local polynomial method
+    /// (`exo_impedance::frf::local_polynomial_ratio`; three cycles or more,
+    /// neighbours that hold a smooth transient), with the white σ times
+    /// √leverage; a static balance with the mean's noise measured at zero
+    /// frequency (`exo_impedance::frf::mean_standard_error`). Reported ([`crate::fit::noise_only_chi2`],
+    /// the `residuals` example), not judged by: the polynomials also carry
+    /// part of a nonlinearity's non-periodic response out of the line (a
+    /// 0.05 rad backlash on our simulator's horizontal rig is then missed),
+    /// and the balance's own noise names a sensor gain on a null of our
+    /// simulator's viscous human (docs/diagnose.md, "The noise model").
+    pub transient_free: Option<TransientFree>,
     /// Index of its window in [`Dataset::conditions`].
     pub window: usize,
     /// The controller's gravity compensation `τ_gravity/θ_e` at ω (Nm/rad), measured.
     pub gravity_comp: Complex64,
     /// For [`Tf::Balance`]: the window's mean `τ_gravity` and mean `τ_c` (Nm).
     pub statics: [f64; 2],
+}
+
+/// A line with its window's transient taken out ([`Observation::transient_free`]).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct TransientFree {
+    /// The value (units of the observation's).
+    pub value: Complex64,
+    /// Standard deviation of its real and imaginary part.
+    pub sigma: [f64; 2],
 }
 
 /// The samples of one analysis window, kept for the time-domain comparison.
@@ -613,100 +628,25 @@ pub fn reduce(recordings: &[Recording], s: &Reduction) -> Dataset {
     d
 }
 
-/// The noise of a ratio `H = Y/X` at ω measured beside the line: over a
-/// window's whole cycles `c` (samples `x`, `y` at `t`), the output error
-/// `(Y_j − H X_j)/X` at the neighbouring frequencies `ω (c + j)/c`,
-/// `0 < |j| ≤ 4`, that are neither 0 nor a harmonic of ω (orthogonal to
-/// the line and to the mean over whole cycles; the mean, a linear trend and
-/// the line itself are taken out first). White noise puts as much there per bin as the white estimate
-/// expects at the line; a transient (a lightly damped mode ringing through
-/// the window) or any coloured noise near ω puts more, which a residual
-/// variance spread over the whole band misses. Returns the standard
-/// deviation per component and the bins used (`2 × bins` degrees of
-/// freedom); `None` with fewer than two bins (one or two cycles).
-pub fn local_ratio_sigma(
-    t: &[f64],
-    x: &[f64],
-    y: &[f64],
-    w: f64,
-    h: Complex64,
-    x_line: Complex64,
-) -> Option<(f64, usize)> {
-    let n = t.len();
-    if n < 8 || x.len() != n || y.len() != n || x_line.norm() == 0.0 {
-        return None;
-    }
-    let span = t[n - 1] - t[0] + (t[n - 1] - t[0]) / (n - 1) as f64;
-    let c = (w * span / std::f64::consts::TAU).round() as i64;
-    if c < 1 {
-        return None;
-    }
-    // Each signal less its least-squares mean, trend and line (jointly:
-    // over whole cycles the line is not orthogonal to a trend, whose
-    // leakage would otherwise reach every bin).
-    let tm = t.iter().sum::<f64>() / n as f64;
-    let reg = |i: usize| {
-        let tau = t[i] - t[0];
-        nalgebra::Vector4::new(1.0, t[i] - tm, (w * tau).cos(), (w * tau).sin())
-    };
-    let mut gram = nalgebra::Matrix4::<f64>::zeros();
-    for i in 0..n {
-        let a = reg(i);
-        gram += a * a.transpose();
-    }
-    let inv = gram.try_inverse()?;
-    let detrended = |v: &[f64]| -> Vec<f64> {
-        let mut rhs = nalgebra::Vector4::<f64>::zeros();
-        for (i, vi) in v.iter().enumerate() {
-            rhs += reg(i) * *vi;
-        }
-        let beta = inv * rhs;
-        v.iter()
-            .enumerate()
-            .map(|(i, vi)| vi - reg(i).dot(&beta))
-            .collect()
-    };
-    let (xd, yd) = (detrended(x), detrended(y));
-    let mut sum = 0.0;
-    let mut bins = 0;
-    for j in [-4i64, -3, -2, -1, 1, 2, 3, 4] {
-        let k = c + j;
-        if k <= 0 || k % c == 0 {
-            continue;
-        }
-        let wj = w * k as f64 / c as f64;
-        let (mut xj, mut yj) = (Complex64::new(0.0, 0.0), Complex64::new(0.0, 0.0));
-        for i in 0..n {
-            let e = Complex64::from_polar(1.0, -wj * (t[i] - t[0]));
-            xj += e * xd[i];
-            yj += e * yd[i];
-        }
-        let scale = 2.0 / n as f64;
-        let err = (yj * scale - h * xj * scale) / x_line;
-        sum += err.norm_sqr();
-        bins += 1;
-    }
-    (bins >= 2).then(|| ((0.5 * sum / bins as f64).sqrt(), bins))
-}
-
-/// The white estimate `white`, unless the one measured beside the line
-/// ([`local_ratio_sigma`]) is beyond what its own scatter allows (its
-/// variance ratio above the 99th percentile of `χ²_{2m}/2m` for white
-/// noise, `m` bins): then that one, for both components.
-pub fn local_or_white(white: [f64; 2], local: (f64, usize)) -> [f64; 2] {
+/// Whether what the neighbouring frequencies hold is a linear transient:
+/// smooth in frequency, so that the local polynomials leave only the white
+/// noise (their residual's variance within the 99th percentile of
+/// `χ²_{2ν}/2ν` over the white σ's, ν the fit's complex degrees of
+/// freedom). A nonlinearity's non-periodic response (the impacts of a
+/// backlash, ringing the arm's mode) or coloured noise is not, and the
+/// polynomials would carry it into the line: no transient-free value then.
+/// A fit with no degree of freedom cannot be checked and is not taken.
+pub fn smooth_transient(l: &LocalPolynomialPoint, line_sigma: [f64; 2]) -> bool {
     use statrs::distribution::{ChiSquared, ContinuousCDF};
-    let (sd, bins) = local;
-    let dof = 2.0 * bins as f64;
-    let Ok(chi) = ChiSquared::new(dof) else {
-        return white;
-    };
-    let limit = chi.inverse_cdf(0.99) / dof;
-    let w2 = 0.5 * (white[0] * white[0] + white[1] * white[1]);
-    if w2 > 0.0 && sd * sd / w2 > limit {
-        [sd, sd]
-    } else {
-        white
+    if l.dof == 0 || !l.residual_sigma.is_finite() {
+        return false;
     }
+    let dof = 2.0 * l.dof as f64;
+    let Ok(chi) = ChiSquared::new(dof) else {
+        return false;
+    };
+    let white = 0.5 * (line_sigma[0].powi(2) + line_sigma[1].powi(2)) * l.leverage.max(1.0);
+    white > 0.0 && l.residual_sigma.powi(2) / white <= chi.inverse_cdf(0.99) / dof
 }
 
 fn sigma_of(cov: &[[f64; 2]; 2]) -> [f64; 2] {
@@ -784,19 +724,25 @@ fn single_sine(
                     && p.ratio.re.is_finite()
                     && p.ratio.im.is_finite() =>
             {
-                let sigma = sigma_of(&p.cov);
-                let noise = match whole.and_then(|n| {
-                    local_ratio_sigma(&sig.t_s[..n], &xs[..n], &ys[..n], w, p.ratio, x.amplitude)
-                }) {
-                    Some(local) => local_or_white(sigma, local),
-                    None => sigma,
-                };
+                let line_sigma = sigma_of(&p.cov);
+                // The window's transient out of the line; its price (the
+                // leverage) on the white noise's σ, which stays the
+                // judgement's (docs/diagnose.md, "The noise model").
+                let lpm = whole
+                    .and_then(|n| local_polynomial_ratio(&sig.t_s[..n], &xs[..n], &ys[..n], w));
+                let transient_free = lpm.filter(|l| smooth_transient(l, line_sigma)).map(|l| {
+                    let inflate = l.leverage.max(1.0).sqrt();
+                    TransientFree {
+                        value: l.ratio,
+                        sigma: [line_sigma[0] * inflate, line_sigma[1] * inflate],
+                    }
+                });
                 d.observations.push(Observation {
                     tf,
                     omega_rad_s: w,
                     value: p.ratio,
-                    sigma,
-                    noise,
+                    sigma: line_sigma,
+                    transient_free,
                     window,
                     gravity_comp,
                     statics: [0.0; 2],
@@ -853,16 +799,26 @@ fn balance(
     cond.sin_theta_mean = sig.theta_rad[..n].iter().map(|t| t.sin()).sum::<f64>() / nf;
     // τ_s = its net part + the controller's gravity compensation.
     cond.tau_s_mean_nm = sig.tau_s_net_nm[..n].iter().sum::<f64>() / nf + g_mean;
+    // Judged with each cycle counted as one sample of the residual
+    // (conservative); the mean's own noise, measured near zero frequency,
+    // is reported beside it (docs/diagnose.md, "The noise model").
     let Ok(a) = exo_impedance::frf::sine_amplitude(&sig.t_s[..n], &y, w, true) else {
         return;
     };
     let se = (a.residual_var.max(0.0) / a.cycles.max(1) as f64).sqrt();
+    let transient_free =
+        exo_impedance::frf::mean_standard_error(&sig.t_s[..n], &y, w).map(|(se, _)| {
+            TransientFree {
+                value: Complex64::new(mean, 0.0),
+                sigma: [se, se],
+            }
+        });
     d.observations.push(Observation {
         tf: Tf::Balance,
         omega_rad_s: 0.0,
         value: Complex64::new(mean, 0.0),
         sigma: [se, se],
-        noise: [se, se],
+        transient_free,
         window,
         gravity_comp: Complex64::new(0.0, 0.0),
         statics: [g_mean, c_mean],
@@ -939,7 +895,7 @@ fn broadband(
             omega_rad_s: b.omega_rad_s,
             value: b.h,
             sigma: sd(&b),
-            noise: sd(&b),
+            transient_free: None,
             window,
             gravity_comp: zero,
             statics: [0.0; 2],
@@ -954,7 +910,7 @@ fn broadband(
                             omega_rad_s: bb.omega_rad_s,
                             value: bb.h,
                             sigma: sd(&bb),
-                            noise: sd(&bb),
+                            transient_free: None,
                             window,
                             gravity_comp,
                             statics: [0.0; 2],

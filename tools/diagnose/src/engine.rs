@@ -90,9 +90,10 @@ pub struct TfScore {
     /// model's accuracy (1 when both are right; the model's own parameters
     /// are not subtracted here).
     pub chi2_per_residual: f64,
-    /// The same against the noise measured beside each line
-    /// (`Observation::noise`) alone, no accuracy floor: reported for
-    /// calibrating the noise model, not judged by.
+    /// The same of the transient-free values against their own noise
+    /// alone (`Observation::transient_free`), no accuracy floor: reported
+    /// for calibrating the noise model, not judged by (null in JSON when no
+    /// window allows a transient-free value).
     pub noise_only_chi2_per_residual: f64,
 }
 

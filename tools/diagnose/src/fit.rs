@@ -48,7 +48,11 @@ impl Fitted {
 
 /// Accuracy of the linearised forward model relative to the simulator
 /// (fraction of `|value|`): the worst disagreement measured over every term
-/// of the plant TOML in `tests/forward.rs` is below it.
+/// of the plant TOML in `tests/forward.rs` is below it. Every observation
+/// is held to it, and it is the size below which a form's signature cannot
+/// be told from the model's own error (a smaller floor with the windows'
+/// transients out is measured in docs/diagnose.md, "The noise model", and
+/// not taken).
 pub const MODEL_ACCURACY: f64 = 0.005;
 
 /// The standard deviation used to weight one component: the noise measured
@@ -71,10 +75,10 @@ fn absolute_floor(tf: crate::data::Tf) -> f64 {
     }
 }
 
-/// The forward model's accuracy for one transfer function (fraction of
-/// `|value|`), measured against the simulator in `tests/forward.rs`: Coulomb
-/// friction's describing function ignores the harmonics it makes (worst
-/// 1.7 % in `S_h-e`, 2.5 % allowed); every linear term is within
+/// The forward model's accuracy at `o` for the physics `phys` (fraction of
+/// `|value|`), measured against the simulator in `tests/forward.rs`:
+/// Coulomb friction's describing function ignores the harmonics it makes
+/// (worst 1.7 % in `S_h-e`, 2.5 % allowed); every linear term is within
 /// [`MODEL_ACCURACY`].
 pub fn model_accuracy(phys: &Physics, tf: crate::data::Tf) -> f64 {
     if phys.coulomb_nm > 0.0 && tf == crate::data::Tf::She {
@@ -118,23 +122,30 @@ pub fn lack_of_fit_chi2_of(
     (chi, n)
 }
 
-/// χ² per real residual of one transfer function against the noise measured
-/// beside each line (`Observation::noise`: transients and coloured noise
-/// included) with no accuracy floor: how the noise estimate compares with
-/// the misfit, for calibrating it (docs/diagnose.md, "The noise model").
-/// Reported, not judged by: see `Observation::noise`.
+/// χ² per real residual of one transfer function's transient-free values
+/// (`Observation::transient_free`: the window's transient out, its own
+/// noise) with no accuracy floor: how the noise model compares with the
+/// misfit, for calibrating it (docs/diagnose.md, "The noise model").
+/// Reported, not judged by. NaN with no transient-free value.
 pub fn noise_only_chi2(d: &Dataset, phys: &Physics, tf: crate::data::Tf) -> f64 {
     let (mut chi, mut n) = (0.0, 0usize);
     for o in d.observations.iter().filter(|o| o.tf == tf) {
-        let r = phys.predict(o, &d.conditions[o.window]) - o.value;
-        chi += (r.re / o.noise[0].max(1e-12)).powi(2);
+        let Some(free) = o.transient_free else {
+            continue;
+        };
+        let r = phys.predict(o, &d.conditions[o.window]) - free.value;
+        chi += (r.re / free.sigma[0].max(1e-12)).powi(2);
         n += 1;
         if tf.is_dynamic() {
-            chi += (r.im / o.noise[1].max(1e-12)).powi(2);
+            chi += (r.im / free.sigma[1].max(1e-12)).powi(2);
             n += 1;
         }
     }
-    chi / n.max(1) as f64
+    if n == 0 {
+        f64::NAN
+    } else {
+        chi / n as f64
+    }
 }
 
 /// The lack-of-fit p-value of `phys` with `p` free parameters

@@ -1,175 +1,272 @@
-//! The noise measured beside the line (`data::local_ratio_sigma`), checked by
-//! Monte Carlo against a known ratio: a window of a sine through a known
-//! `H`, on an offset and a drift, with white noise on both signals, and with a lightly damped mode
-//! ringing through the window (a transient whose own ratio is not `H`).
+//! The diagnosis's noise model, checked by Monte Carlo against a known
+//! truth: a line's ratio with the window's transient taken out by the local
+//! polynomial method (`exo_impedance::frf::local_polynomial_ratio`) and its
+//! standard error (the white σ times √leverage), and the standard error of
+//! a window's mean from the noise near zero frequency
+//! (`exo_impedance::frf::mean_standard_error`). The signals are built here
+//! from closed forms, not by any code under test.
 
 mod common;
 
-use exo_diagnose::data::{local_or_white, local_ratio_sigma};
-use exo_impedance::frf::{sine_amplitude, sine_ratio};
+use exo_impedance::frf::{
+    local_polynomial_ratio, mean_standard_error, sine_amplitude, sine_ratio, whole_cycles,
+};
 use num_complex::Complex64;
 
-/// RMS over `trials` windows of the ratio's error over the white estimate
-/// and over the one measured beside the line (per component), with a
-/// transient of amplitude `ring` (0: none), and the mean of the local
-/// variance over the white one.
-fn trial(ring: f64, trials: u64) -> (f64, f64, f64) {
-    let (w, wn, zeta) = (6.0_f64, 4.3_f64, 0.03_f64);
-    let h = Complex64::new(30.0, 6.0);
-    let h_ring = Complex64::new(12.0, -4.0);
+/// A human-like relation `y = K x + B ẋ + M ẍ` (Nm/rad, Nm·s/rad, kg·m²):
+/// it holds at every instant, so its only error at a DFT line is the
+/// window's transient.
+const K: f64 = 30.0;
+const B: f64 = 1.0;
+const M: f64 = 0.05;
+
+fn truth(w: f64) -> Complex64 {
+    Complex64::new(K - M * w * w, B * w)
+}
+
+/// Six whole cycles of ω = 6 rad/s at 1 kHz, cut by the correlator's rule.
+fn six_cycles(w: f64) -> Vec<f64> {
     let dt = 1e-3;
-    let cycles = 6.0;
-    // Six whole cycles by the correlator's own rule, as the reduction cuts
-    // its windows.
-    let longer: Vec<f64> = (0..(cycles * std::f64::consts::TAU / w / dt) as usize + 500)
+    let longer: Vec<f64> = (0..(6.0 * std::f64::consts::TAU / w / dt) as usize + 500)
         .map(|k| k as f64 * dt)
         .collect();
-    let n = exo_impedance::frf::whole_cycles(&longer[..longer.len() - 400], w).expect("cycles");
-    let t = longer[..n].to_vec();
-    let (mut zw, mut zl, mut ratio, mut m) = (0.0, 0.0, 0.0, 0.0);
+    let n = whole_cycles(&longer[..longer.len() - 400], w).expect("cycles");
+    longer[..n].to_vec()
+}
+
+/// What [`trial`] measures over its windows.
+struct Trial {
+    /// RMS error of the line alone over its white σ.
+    z_line: f64,
+    /// RMS error of the local polynomial estimate over its σ (white ×
+    /// √leverage).
+    z_lpm: f64,
+    /// RMS error per component of the line alone and of the local
+    /// polynomial estimate (Nm/rad).
+    err_line: f64,
+    err_lpm: f64,
+    /// Mean white σ per component (Nm/rad) and mean leverage.
+    sigma_white: f64,
+    leverage: f64,
+}
+
+/// The line's frequency (rad/s).
+const W: f64 = 6.0;
+
+/// One window over `t` (seed `s`): `x` is a unit line at [`W`] on a
+/// posture and a drift, plus a mode at 4.3 rad/s (ζ = 0.03, so it rings
+/// through the whole window) of amplitude `ring` at the start; `y` is the
+/// relation's output; both get white noise.
+fn window(t: &[f64], ring: f64, s: u64) -> (Vec<f64>, Vec<f64>) {
+    let (w, wn, zeta) = (W, 4.3_f64, 0.03_f64);
+    let n = t.len();
+    let nx = common::normals((1000 + s).wrapping_mul(0x9E37_79B9_7F4A_7C15), n);
+    let ny = common::normals((5000 + s).wrapping_mul(0x9E37_79B9_7F4A_7C15), n);
+    let phase = 0.7 * s as f64;
+    // x(t) and its derivatives in closed form: the ringing as the real
+    // part of a complex exponential with pole p.
+    let p = Complex64::new(-zeta * wn, wn * (1.0 - zeta * zeta).sqrt());
+    let c = Complex64::from_polar(ring, phase);
+    let (mut x, mut y) = (Vec::with_capacity(n), Vec::with_capacity(n));
+    for (i, t) in t.iter().enumerate() {
+        let e = c * (p * t).exp();
+        let x0 = 0.8 + 0.05 * t + (w * t).cos() + e.re;
+        let x1 = 0.05 - w * (w * t).sin() + (p * e).re;
+        let x2 = -w * w * (w * t).cos() + (p * p * e).re;
+        x.push(x0 + 0.002 * nx[i]);
+        y.push(K * x0 + B * x1 + M * x2 + 0.5 * ny[i]);
+    }
+    (x, y)
+}
+
+/// `trials` windows ([`window`]): `x` is a unit line on a posture and a drift, plus a
+/// mode at 4.3 rad/s (ζ = 0.03, so it rings through the whole window) of
+/// amplitude `ring` at the start; `y` is the relation's output; both get
+/// white noise.
+fn trial(ring: f64, trials: u64) -> Trial {
+    let w = W;
+    let h = truth(w);
+    let t = six_cycles(w);
+    let (mut z_line, mut z_lpm, mut e_l, mut e_p, mut sw, mut lev) = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0);
     for s in 0..trials {
-        let nx = common::normals((1000 + s).wrapping_mul(0x9E37_79B9_7F4A_7C15), n);
-        let ny = common::normals((5000 + s).wrapping_mul(0x9E37_79B9_7F4A_7C15), n);
-        let phase = 0.7 * s as f64;
-        let x: Vec<f64> = t
-            .iter()
-            .zip(&nx)
-            .map(|(t, e)| {
-                // A posture and a slow drift, as a measured angle has.
-                0.8 + 0.05 * t
-                    + (w * t).cos()
-                    + ring * (-zeta * wn * t).exp() * (wn * t + phase).cos()
-                    + 0.02 * e
-            })
-            .collect();
-        let y: Vec<f64> = t
-            .iter()
-            .zip(&ny)
-            .map(|(t, e)| {
-                let line = (h * Complex64::from_polar(1.0, w * t)).re;
-                let tr = (h_ring
-                    * Complex64::from_polar(ring * (-zeta * wn * t).exp(), wn * t + phase))
-                .re;
-                3.0 - 0.2 * t + line + tr + 0.5 * e
-            })
-            .collect();
+        let (x, y) = window(&t, ring, s);
         let (ax, ay) = (
             sine_amplitude(&t, &x, w, true).expect("x"),
             sine_amplitude(&t, &y, w, true).expect("y"),
         );
-        let p = sine_ratio(&ax, &ay).expect("ratio");
-        let white = [p.cov[0][0].sqrt(), p.cov[1][1].sqrt()];
-        let local = local_ratio_sigma(&t, &x, &y, w, p.ratio, ax.amplitude).expect("bins");
-        let judged = local_or_white(white, local);
-        let err = p.ratio - h;
-        zw += (err.re / white[0]).powi(2) + (err.im / white[1]).powi(2);
-        zl += (err.re / judged[0]).powi(2) + (err.im / judged[1]).powi(2);
-        ratio += local.0 * local.0 / (0.5 * (white[0] * white[0] + white[1] * white[1]));
-        m += 2.0;
+        let line = sine_ratio(&ax, &ay).expect("ratio");
+        let white = [line.cov[0][0].sqrt(), line.cov[1][1].sqrt()];
+        let lp = local_polynomial_ratio(&t, &x, &y, w).expect("eight neighbours");
+        let sd = lp.leverage.sqrt();
+        let (a, b) = (line.ratio - h, lp.ratio - h);
+        z_line += (a.re / white[0]).powi(2) + (a.im / white[1]).powi(2);
+        z_lpm += (b.re / (white[0] * sd)).powi(2) + (b.im / (white[1] * sd)).powi(2);
+        e_l += a.norm_sqr();
+        e_p += b.norm_sqr();
+        sw += 0.5 * (white[0] + white[1]);
+        lev += lp.leverage;
     }
-    ((zw / m).sqrt(), (zl / m).sqrt(), ratio / trials as f64)
+    let m = 2.0 * trials as f64;
+    Trial {
+        z_line: (z_line / m).sqrt(),
+        z_lpm: (z_lpm / m).sqrt(),
+        err_line: (e_l / m).sqrt(),
+        err_lpm: (e_p / m).sqrt(),
+        sigma_white: sw / trials as f64,
+        leverage: lev / trials as f64,
+    }
 }
 
-/// White noise alone: the local estimate's variance is the white one's on
-/// average (both estimate the same thing), and the estimate taken (the
-/// white one unless the local one is beyond its own 99th percentile) keeps
-/// the ratio's error at one standard error.
+/// White noise alone: the local polynomial estimate is unbiased and its
+/// error is one of its standard errors (the line's white σ times
+/// √leverage); the leverage is the price of the neighbours' fit, between 1
+/// and 2 with eight neighbours.
 #[test]
-fn with_white_noise_the_local_and_the_white_estimate_agree() {
-    let (z_white, z_taken, ratio) = trial(0.0, 200);
-    eprintln!("white noise: RMS z white {z_white:.2}, taken {z_taken:.2}, local/white {ratio:.2}");
-    assert!((0.85..1.15).contains(&z_white), "RMS z {z_white}");
-    assert!((0.85..1.15).contains(&z_taken), "RMS z {z_taken}");
-    assert!((0.85..1.2).contains(&ratio), "local/white variance {ratio}");
+fn with_white_noise_the_local_polynomial_estimate_is_within_its_standard_error() {
+    let r = trial(0.0, 200);
+    eprintln!(
+        "white noise: RMS z line {:.2}, local polynomial {:.2}, leverage {:.2}",
+        r.z_line, r.z_lpm, r.leverage
+    );
+    assert!((0.85..1.15).contains(&r.z_line), "RMS z line {}", r.z_line);
+    assert!(
+        (0.8..1.15).contains(&r.z_lpm),
+        "RMS z local polynomial {}",
+        r.z_lpm
+    );
+    assert!((1.0..2.0).contains(&r.leverage), "leverage {}", r.leverage);
 }
 
 /// A mode at 4.3 rad/s ringing through a window at 6 rad/s (a quarter of
-/// the line's amplitude at the start, ζ = 0.03): its leakage biases the
-/// ratio by many white standard errors (RMS z 5.9); measured beside the
-/// line, the noise covers it, conservatively (RMS z 0.5: the neighbouring
-/// frequencies at 4 and 5 rad/s, nearer the mode, hold more of it than
-/// leaks into the line at 6).
+/// the line's amplitude at the start, ζ = 0.03): the window is not a steady
+/// state. Against the standard error the noise alone gives (the white σ of
+/// the same windows without the ringing), the line alone is off by many;
+/// with the transient taken out the error is what the noise alone makes
+/// (its leverage included). The white σ of a ringing window counts the
+/// ringing's own variance as noise, so its z is below one: conservative
+/// (docs/diagnose.md, "The noise model").
 #[test]
-fn a_transient_ringing_through_the_window_is_in_the_local_estimate() {
-    let (z_white, z_taken, ratio) = trial(0.25, 200);
-    eprintln!("ringing: RMS z white {z_white:.2}, taken {z_taken:.2}, local/white {ratio:.2}");
-    assert!(
-        z_white > 3.0,
-        "the transient is not beyond the white noise: RMS z {z_white}"
+fn a_transient_ringing_through_the_window_is_taken_out_of_the_line() {
+    let quiet = trial(0.0, 200);
+    let r = trial(0.25, 200);
+    let noise_only = quiet.sigma_white;
+    eprintln!(
+        "ringing: RMS error line {:.4}, local polynomial {:.4}, noise alone {noise_only:.4} (√leverage {:.2}); RMS z against the window's own σ: line {:.2}, local polynomial {:.2}",
+        r.err_line, r.err_lpm, r.leverage.sqrt(), r.z_line, r.z_lpm
     );
-    assert!((0.3..1.6).contains(&z_taken), "RMS z {z_taken}");
+    assert!(
+        r.err_line > 3.0 * noise_only,
+        "the transient does not bias the line: {} against {noise_only}",
+        r.err_line
+    );
+    assert!(
+        r.err_lpm < 1.3 * noise_only * r.leverage.sqrt(),
+        "the transient is left in: {} against {noise_only}",
+        r.err_lpm
+    );
+    assert!(r.z_lpm < 1.0, "RMS z local polynomial {}", r.z_lpm);
 }
 
-/// By hand: over six whole cycles of ω = 6 rad/s the neighbouring
-/// frequencies are ω·k/6 for k = 2…10 but 6, eight of them. A disturbance
-/// of amplitude D = 0.3 in `y` exactly at ω·7/6, nothing else, with `x` a
-/// unit line: the output error is D at that frequency and 0 at the seven
-/// others, so the noise per component is `√(½ D²/8)` = D/4, less what the
-/// window's linear trend takes of the disturbance (a sine of 7 cycles is
-/// not orthogonal to a ramp: measured 1.1 % of its amplitude, 3 %
-/// allowed), and the line's ratio moves by less than 0.1 % for the same
-/// reason.
+/// In one cycle every other bin is a harmonic (a nonlinearity's periodic
+/// response is there): no estimate, and the caller keeps the line.
 #[test]
-fn a_disturbance_on_one_neighbouring_frequency_is_measured_at_its_size() {
-    let (w, dt) = (6.0_f64, 1e-3);
-    let longer: Vec<f64> = (0..7000).map(|k| k as f64 * dt).collect();
-    let n = exo_impedance::frf::whole_cycles(&longer, w).expect("cycles");
-    let t = &longer[..n];
-    let h = Complex64::new(30.0, 6.0);
-    let d = 0.3;
-    let x: Vec<f64> = t.iter().map(|t| (w * t).cos()).collect();
-    let y: Vec<f64> = t
-        .iter()
-        .map(|t| (h * Complex64::from_polar(1.0, w * t)).re + d * (w * 7.0 / 6.0 * t).sin())
-        .collect();
-    let (ax, ay) = (
-        sine_amplitude(t, &x, w, true).expect("x"),
-        sine_amplitude(t, &y, w, true).expect("y"),
-    );
-    let p = sine_ratio(&ax, &ay).expect("ratio");
-    assert!((p.ratio - h).norm() < 1e-3 * h.norm(), "{}", p.ratio);
-    let (sd, bins) = local_ratio_sigma(t, &x, &y, w, p.ratio, ax.amplitude).expect("bins");
-    assert_eq!(bins, 8);
-    assert!(
-        (sd - d / 4.0).abs() < 0.03 * d / 4.0,
-        "{sd} against {}",
-        d / 4.0
-    );
+fn a_window_of_one_cycle_has_no_neighbours() {
+    let w = 6.0_f64;
+    let t: Vec<f64> = (0..1100).map(|k| k as f64 * 1e-3).collect();
+    let n = whole_cycles(&t, w).expect("one cycle");
+    let x: Vec<f64> = t[..n].iter().map(|t| (w * t).cos()).collect();
+    let y: Vec<f64> = x.iter().map(|x| 3.0 * x).collect();
+    assert!(local_polynomial_ratio(&t[..n], &x, &y, w).is_none());
+    assert!(mean_standard_error(&t[..n], &y, w).is_none());
 }
 
-/// What the line's own ratio relates is mostly not noise: the same
-/// disturbance at ω·7/6 in `x` (amplitude 0.3) and through `H` in `y`
-/// would leave the output error `Y − H X` at zero there, but the window's
-/// trend, taken out of each signal, takes more of a sine than of a cosine
-/// and `H` turns one into the other: measured 0.38 of what the disturbance
-/// in `y` alone gives (D/4, above). Less than half of that is required
-/// (the estimate errs on the side of more noise; a conjugated DFT fails
-/// this).
+/// The mean of a window of whole cycles, by Monte Carlo: with white noise
+/// (σ = 0.5) the estimate from the lowest bins is the mean's true scatter
+/// `σ/√n` on average; with coloured noise (first-order, 0.1 s correlation
+/// time: flat below 10 rad/s) the mean scatters about 14 times more than
+/// white noise of the same variance would make it, and the estimate
+/// follows it.
 #[test]
-fn a_disturbance_the_ratio_relates_in_both_signals_is_not_noise() {
-    let (w, dt) = (6.0_f64, 1e-3);
-    let longer: Vec<f64> = (0..7000).map(|k| k as f64 * dt).collect();
-    let n = exo_impedance::frf::whole_cycles(&longer, w).expect("cycles");
-    let t = &longer[..n];
-    let h = Complex64::new(30.0, 6.0);
-    let d = Complex64::from_polar(0.3, 0.4);
-    let w7 = w * 7.0 / 6.0;
-    let x: Vec<f64> = t
+fn the_mean_s_standard_error_is_the_noise_near_zero_frequency() {
+    let w = 6.0_f64;
+    let t = six_cycles(w);
+    let n = t.len();
+    for tau_s in [0.0_f64, 0.1] {
+        let phi = if tau_s > 0.0 {
+            (-1e-3 / tau_s).exp()
+        } else {
+            0.0
+        };
+        let (mut means, mut var_est) = (Vec::new(), 0.0);
+        for s in 0..300u64 {
+            let e = common::normals((77 + s).wrapping_mul(0x9E37_79B9_7F4A_7C15), n);
+            // First-order noise of variance 0.25 whatever its colour.
+            let mut state = 0.5 * e[0];
+            let y: Vec<f64> = t
+                .iter()
+                .zip(&e)
+                .map(|(t, e)| {
+                    state = phi * state + (1.0 - phi * phi).sqrt() * 0.5 * e;
+                    1.5 + 0.3 * (w * t).sin() + state
+                })
+                .collect();
+            means.push(y.iter().sum::<f64>() / n as f64);
+            let (se, bins) = mean_standard_error(&t, &y, w).expect("bins");
+            assert_eq!(bins, 4);
+            var_est += se * se;
+        }
+        let mu = means.iter().sum::<f64>() / means.len() as f64;
+        let var_true =
+            means.iter().map(|m| (m - mu).powi(2)).sum::<f64>() / (means.len() - 1) as f64;
+        let ratio = (var_est / means.len() as f64 / var_true).sqrt();
+        let white = 0.5 / (n as f64).sqrt();
+        eprintln!(
+            "τ = {tau_s} s: estimated/true standard error {ratio:.2} (true {:.2e}, white {white:.2e})",
+            var_true.sqrt(),
+        );
+        assert!((0.85..1.2).contains(&ratio), "τ = {tau_s} s: {ratio}");
+        if tau_s > 0.0 {
+            assert!(var_true.sqrt() > 5.0 * white);
+        }
+    }
+}
+
+/// The rule that keeps a transient-free value only where the neighbours
+/// hold a smooth transient (`data::smooth_transient`): a sine on one
+/// neighbouring frequency (a non-periodic response concentrated there, as
+/// a nonlinearity's can be) is no polynomial, and its residual is far
+/// beyond the white noise, so none is made; a ringing window of a linear
+/// relation with white noise keeps one; a fit with no degree of freedom
+/// cannot be checked.
+#[test]
+fn a_transient_free_value_needs_neighbours_that_hold_a_smooth_transient() {
+    use exo_diagnose::data::smooth_transient;
+    let w = W;
+    let t = six_cycles(w);
+    let line = |x: &[f64], y: &[f64]| {
+        let (ax, ay) = (
+            sine_amplitude(&t, x, w, true).expect("x"),
+            sine_amplitude(&t, y, w, true).expect("y"),
+        );
+        let p = sine_ratio(&ax, &ay).expect("ratio");
+        [p.cov[0][0].sqrt(), p.cov[1][1].sqrt()]
+    };
+    // The relation's end effects of a ringing window: smooth.
+    let (x, y) = window(&t, 0.25, 3);
+    let lp = local_polynomial_ratio(&t, &x, &y, w).expect("fit");
+    assert!(smooth_transient(&lp, line(&x, &y)), "{lp:?}");
+    // A steady window and a disturbance on the frequency 7/6 ω alone.
+    // (In a ringing window the white σ counts the ringing as noise and the
+    // same disturbance passes for smooth: the rule is weak there.)
+    let (x, y) = window(&t, 0.0, 3);
+    let spike: Vec<f64> = t
         .iter()
-        .map(|t| (w * t).cos() + (d * Complex64::from_polar(1.0, w7 * t)).re)
+        .zip(&y)
+        .map(|(t, y)| y + 0.3 * (w * 7.0 / 6.0 * t).sin())
         .collect();
-    let y: Vec<f64> = t
-        .iter()
-        .map(|t| {
-            (h * Complex64::from_polar(1.0, w * t)).re
-                + (h * d * Complex64::from_polar(1.0, w7 * t)).re
-        })
-        .collect();
-    let (ax, ay) = (
-        sine_amplitude(t, &x, w, true).expect("x"),
-        sine_amplitude(t, &y, w, true).expect("y"),
-    );
-    let p = sine_ratio(&ax, &ay).expect("ratio");
-    let (sd, _) = local_ratio_sigma(t, &x, &y, w, p.ratio, ax.amplitude).expect("bins");
-    assert!(sd < 0.5 * 0.3 / 4.0, "{sd}");
+    let lp = local_polynomial_ratio(&t, &x, &spike, w).expect("fit");
+    assert!(!smooth_transient(&lp, line(&x, &spike)), "{lp:?}");
+    let mut none = lp;
+    none.dof = 0;
+    assert!(!smooth_transient(&none, [1.0, 1.0]));
 }

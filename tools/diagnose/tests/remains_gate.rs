@@ -47,7 +47,7 @@ fn an_amplitude_step_inside_the_noise_is_not_a_finding() {
             omega_rad_s: omega,
             value: Complex64::new(0.0, 0.0),
             sigma: [0.0; 2],
-            noise: [0.0; 2],
+            transient_free: None,
             window: i,
             gravity_comp: Complex64::new(0.0, 0.0),
             statics: [0.0; 2],

@@ -252,10 +252,7 @@ fn nulls(a: &BenchArgs, n: usize) -> Result<()> {
                     run_rig(&rec, seed, args)?;
                 }
                 let mut nominal = default_plant;
-                exo_diagnose::bench::holds_goal(&mut nominal);
-                if args.contains(&"--horizontal") {
-                    nominal.gravity.enabled = false;
-                }
+                exo_diagnose::bench::independent_rig(&mut nominal, args.contains(&"--horizontal"));
                 todo.push((g, rec, nominal));
             }
         }
