@@ -334,20 +334,10 @@ pub fn kill_9(child: &mut Child) {
     let _ = child.wait();
 }
 
-/// Stops a child with SIGTERM and waits (up to 5 s, then SIGKILL).
+/// Stops a child with SIGTERM and waits (up to 5 s, then SIGKILL); it is
+/// reaped either way.
 pub fn terminate(child: &mut Child) {
-    if let Ok(pid) = i32::try_from(child.id()) {
-        // SAFETY: signalling our own child.
-        unsafe { libc::kill(pid, libc::SIGTERM) };
-    }
-    let t = Instant::now();
-    while t.elapsed() < Duration::from_secs(5) {
-        if let Ok(Some(_)) = child.try_wait() {
-            return;
-        }
-        std::thread::sleep(Duration::from_millis(20));
-    }
-    kill_9(child);
+    let _ = exo_service_kit::child::stop_gracefully([child], Duration::from_secs(5));
 }
 
 /// Waits for a child to exit within `timeout`; kills it and panics otherwise.

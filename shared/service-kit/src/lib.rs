@@ -5,6 +5,7 @@
 
 pub mod access;
 pub mod channels;
+pub mod child;
 pub mod collect;
 pub mod ipc;
 pub mod latency;

@@ -154,38 +154,17 @@ const TAIL_LINES: usize = 15;
 
 type Tail = Arc<Mutex<VecDeque<String>>>;
 
-/// Makes the child get SIGTERM when the supervisor dies (`PR_SET_PDEATHSIG`),
-/// so a `kill -9` of `exo run` never leaves its services running as orphans:
-/// each stops as on Ctrl-C (the driver and the controller through their own
-/// safe paths). The signal follows the *thread* that spawned the child;
-/// every service is spawned from the supervisor's own thread, which lives
-/// as long as the run. If the supervisor died before the child set this up,
-/// the child ends itself at once.
-fn die_with_the_supervisor(cmd: &mut Command) {
-    use std::os::unix::process::CommandExt;
-    let supervisor = std::process::id();
-    // SAFETY: between fork and exec the closure calls only async-signal-safe
-    // functions (prctl, getppid, raise) and allocates nothing.
-    unsafe {
-        cmd.pre_exec(move || {
-            if libc::prctl(libc::PR_SET_PDEATHSIG, libc::SIGTERM) != 0 {
-                return Err(std::io::Error::last_os_error());
-            }
-            if u32::try_from(libc::getppid()) != Ok(supervisor) {
-                libc::raise(libc::SIGTERM);
-            }
-            Ok(())
-        });
-    }
-}
-
 fn spawn(spec: &ServiceSpec, logs: Logs, tail: &Tail) -> Result<Child> {
     let mut cmd = Command::new(&spec.program);
     cmd.args(&spec.args)
         .stdin(Stdio::null())
         .stdout(Stdio::piped())
         .stderr(Stdio::piped());
-    die_with_the_supervisor(&mut cmd);
+    // A `kill -9` of `exo run` leaves no service running as an orphan: each
+    // gets SIGTERM and stops as on Ctrl-C (the driver and the controller
+    // through their own safe paths). Every service is spawned from the
+    // supervisor's own thread, which lives as long as the run.
+    exo_service_kit::child::die_with_parent(&mut cmd);
     let mut child = cmd
         .spawn()
         .with_context(|| format!("starting {} ({})", spec.name, spec.program.display()))?;
@@ -227,38 +206,20 @@ fn spawn(spec: &ServiceSpec, logs: Logs, tail: &Tail) -> Result<Child> {
     Ok(child)
 }
 
-fn terminate(child: &mut Child) {
-    // SIGTERM first, so the service can release its shared memory.
-    if let Ok(pid) = i32::try_from(child.id()) {
-        // SAFETY: sending a signal to our own child's pid has no memory effects.
-        unsafe {
-            libc::kill(pid, libc::SIGTERM);
-        }
-    }
-}
-
+/// Stops every service (SIGTERM, so each can release its shared memory;
+/// SIGKILL after [`STOP_GRACE`]) and reaps them all, naming each that had
+/// to be killed.
 fn stop_all(running: &mut [Running]) {
-    for r in running.iter_mut() {
-        if matches!(r.child.try_wait(), Ok(None)) {
-            terminate(&mut r.child);
-        }
-    }
-    let deadline = Instant::now() + STOP_GRACE;
-    for r in running.iter_mut() {
-        loop {
-            match r.child.try_wait() {
-                Ok(Some(_)) | Err(_) => break,
-                Ok(None) if Instant::now() >= deadline => {
-                    eprintln!(
-                        "exo: {} did not stop within {:?}; killing it",
-                        r.spec.name, STOP_GRACE
-                    );
-                    let _ = r.child.kill();
-                    let _ = r.child.wait();
-                    break;
-                }
-                Ok(None) => std::thread::sleep(Duration::from_millis(20)),
-            }
+    let outcomes = exo_service_kit::child::stop_gracefully(
+        running.iter_mut().map(|r| &mut r.child),
+        STOP_GRACE,
+    );
+    for (r, outcome) in running.iter().zip(outcomes) {
+        if let Ok(exo_service_kit::child::Stopped::Killed(_)) = outcome {
+            eprintln!(
+                "exo: {} did not stop within {:?}; killing it",
+                r.spec.name, STOP_GRACE
+            );
         }
     }
 }

@@ -2,12 +2,12 @@
 //! error in a log file, asked to die with the bench, and always stopped
 //! (SIGTERM, then SIGKILL) and reaped, also when the row fails.
 
-use std::os::unix::process::CommandExt;
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Stdio};
-use std::time::{Duration, Instant};
+use std::time::Duration;
 
 use anyhow::{bail, Context, Result};
+use exo_service_kit::child::{stop_gracefully, Stopped};
 
 /// How long a child may take to exit after SIGTERM before it is killed.
 const TERM_PATIENCE: Duration = Duration::from_secs(5);
@@ -42,14 +42,7 @@ impl Fleet {
             .stdin(Stdio::null())
             .stdout(Stdio::null())
             .stderr(log);
-        // SAFETY: the closure runs between fork and exec and only calls
-        // prctl, which is async-signal-safe and allocates nothing.
-        unsafe {
-            cmd.pre_exec(|| {
-                libc::prctl(libc::PR_SET_PDEATHSIG, libc::SIGTERM as libc::c_ulong);
-                Ok(())
-            });
-        }
+        exo_service_kit::child::die_with_parent(&mut cmd);
         let child = cmd
             .spawn()
             .with_context(|| format!("starting {name} ({})", program.display()))?;
@@ -87,35 +80,19 @@ impl Fleet {
     /// reaped. Returns the names of those that had to be killed or exited
     /// with a failure.
     pub fn stop(&mut self) -> Vec<String> {
-        let mut trouble = Vec::new();
-        for (_, child) in &mut self.children {
-            if let (Ok(None), Ok(pid)) = (child.try_wait(), i32::try_from(child.id())) {
-                // SAFETY: signalling our own, not yet reaped, child.
-                unsafe { libc::kill(pid, libc::SIGTERM) };
-            }
-        }
-        let t = Instant::now();
-        for (name, child) in &mut self.children {
-            loop {
-                match child.try_wait() {
-                    Ok(Some(status)) => {
-                        if !status.success() {
-                            trouble.push(format!("{name} exited with {status}"));
-                        }
-                        break;
-                    }
-                    Ok(None) if t.elapsed() < TERM_PATIENCE => {
-                        std::thread::sleep(Duration::from_millis(10))
-                    }
-                    _ => {
-                        let _ = child.kill();
-                        let _ = child.wait();
-                        trouble.push(format!("{name} did not stop on SIGTERM and was killed"));
-                        break;
-                    }
+        let outcomes = stop_gracefully(self.children.iter_mut().map(|(_, c)| c), TERM_PATIENCE);
+        let trouble = self
+            .children
+            .iter()
+            .zip(outcomes)
+            .filter_map(|((name, _), outcome)| match outcome {
+                Ok(Stopped::Exited(status)) if status.success() => None,
+                Ok(Stopped::Exited(status)) => Some(format!("{name} exited with {status}")),
+                Ok(Stopped::Killed(_)) | Err(_) => {
+                    Some(format!("{name} did not stop on SIGTERM and was killed"))
                 }
-            }
-        }
+            })
+            .collect();
         self.children.clear();
         trouble
     }
