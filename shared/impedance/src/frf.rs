@@ -509,11 +509,13 @@ fn cycles_in(t_s: &[f64], omega_rad_s: f64) -> Option<i64> {
 
 /// Each signal less its mean and linear trend, fitted jointly with the
 /// line at ω (over whole cycles a trend is not orthogonal to the line, so
-/// taking it out alone would bias the line).
+/// taking it out alone would bias the line), and less the line too when
+/// `keep_line` is false.
 fn without_mean_and_trend<const M: usize>(
     t_s: &[f64],
     omega_rad_s: f64,
     signals: [&[f64]; M],
+    keep_line: bool,
 ) -> Option<[Vec<f64>; M]> {
     let n = t_s.len();
     let t0 = t_s[0];
@@ -538,10 +540,14 @@ fn without_mean_and_trend<const M: usize>(
         for (i, vi) in v.iter().enumerate() {
             rhs += reg(i) * *vi;
         }
-        let beta = inv * rhs;
+        let mut beta = inv * rhs;
+        if keep_line {
+            beta[2] = 0.0;
+            beta[3] = 0.0;
+        }
         v.iter()
             .enumerate()
-            .map(|(i, vi)| vi - beta[0] - beta[1] * (t_s[i] - tm))
+            .map(|(i, vi)| vi - reg(i).dot(&beta))
             .collect()
     }))
 }
@@ -563,15 +569,17 @@ fn dft_at(t_s: &[f64], v: &[f64], omega_rad_s: f64) -> Complex64 {
 /// frequency (slow wander, a twitch's or a mode's low-frequency content),
 /// not the residual's variance spread over the band. For white noise of
 /// variance `s²` each bin holds `E|Y_k|² = 4 s²/n`, so the mean's variance
-/// `s²/n` is `E|Y_k|²/4`. `None` with fewer than two such bins (under
-/// three whole cycles: the bins are harmonics).
+/// `s²/n` is `E|Y_k|²/4`. The line is taken out too: a block of samples
+/// is whole cycles only to a sample, and the rest of a large line would
+/// leak into the bins. `None` with fewer than two such bins (one cycle:
+/// the bins are harmonics).
 pub fn mean_standard_error(t_s: &[f64], y: &[f64], omega_rad_s: f64) -> Option<(f64, usize)> {
     let n = t_s.len();
     if n < 16 || y.len() != n || !omega_rad_s.is_finite() || omega_rad_s <= 0.0 {
         return None;
     }
     let c = cycles_in(t_s, omega_rad_s)?;
-    let [yd] = without_mean_and_trend(t_s, omega_rad_s, [y])?;
+    let [yd] = without_mean_and_trend(t_s, omega_rad_s, [y], false)?;
     let (mut sum, mut bins) = (0.0, 0usize);
     for k in (1..=4i64).filter(|k| k % c != 0) {
         let wk = omega_rad_s * k as f64 / c as f64;
@@ -632,7 +640,7 @@ pub fn local_polynomial_ratio(
         return None;
     }
     let c = cycles_in(t_s, omega_rad_s)?;
-    let [xd, yd] = without_mean_and_trend(t_s, omega_rad_s, [x, y])?;
+    let [xd, yd] = without_mean_and_trend(t_s, omega_rad_s, [x, y], true)?;
     let mut rows: Vec<(f64, Complex64, Complex64)> = Vec::with_capacity(9);
     for r in -LPM_HALF_WIDTH..=LPM_HALF_WIDTH {
         let k = c + r;

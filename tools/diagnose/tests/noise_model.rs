@@ -270,3 +270,54 @@ fn a_transient_free_value_needs_neighbours_that_hold_a_smooth_transient() {
     none.dof = 0;
     assert!(!smooth_transient(&none, [1.0, 1.0]));
 }
+
+/// The smoothness rule's threshold, against the χ² table: with four
+/// complex degrees of freedom (eight real) the 99th percentile of χ²₈ is
+/// 20.090, so the residual's variance may be 20.090/8 = 2.511 times the
+/// white σ² times the leverage: 2.45 passes, 2.58 does not.
+#[test]
+fn the_smoothness_rule_is_the_99th_percentile_of_its_chi2() {
+    use exo_diagnose::data::smooth_transient;
+    use exo_impedance::frf::LocalPolynomialPoint;
+    let (leverage, line) = (1.3, [0.8, 1.2]);
+    let white = 0.5 * (0.8_f64 * 0.8 + 1.2 * 1.2) * leverage;
+    let point = |ratio: f64| LocalPolynomialPoint {
+        ratio: Complex64::new(1.0, 0.0),
+        leverage,
+        residual_sigma: (ratio * white).sqrt(),
+        dof: 4,
+    };
+    assert!(smooth_transient(&point(2.45), line));
+    assert!(!smooth_transient(&point(2.58), line));
+}
+
+/// With the window's trend and offset far larger than its line, and a
+/// window that starts at t = 100 s: a relation that holds exactly
+/// (`y = H x` plus an offset and a drift of its own, no noise, no
+/// transient) is recovered to rounding, and a mean's noise is zero to
+/// rounding. The mean and the trend must be taken out jointly with the
+/// line, exactly.
+#[test]
+fn an_exact_relation_on_a_large_drift_is_recovered_to_rounding() {
+    let w = W;
+    let h = Complex64::new(30.0, 6.0);
+    let t: Vec<f64> = six_cycles(w).iter().map(|t| 100.0 + t).collect();
+    let t0 = t[0];
+    let x: Vec<f64> = t
+        .iter()
+        .map(|t| 0.3 + 0.5 * (t - t0) + (w * (t - t0) + 0.4).cos())
+        .collect();
+    let y: Vec<f64> = t
+        .iter()
+        .zip(&x)
+        .map(|(t, x)| {
+            let line = (h * Complex64::from_polar(1.0, w * (t - t0) + 0.4)).re;
+            let rest = x - (w * (t - t0) + 0.4).cos();
+            line + h.re * rest + 1.5 + 0.7 * (t - t0)
+        })
+        .collect();
+    let lp = local_polynomial_ratio(&t, &x, &y, w).expect("fit");
+    assert!((lp.ratio - h).norm() < 1e-9 * h.norm(), "{:?}", lp.ratio);
+    let (se, _) = mean_standard_error(&t, &y, w).expect("bins");
+    assert!(se < 1e-9, "{se}");
+}

@@ -86,3 +86,71 @@ fn an_amplitude_step_inside_the_noise_is_not_a_finding() {
     assert!(!a.significant, "but not a finding: nothing remains overall");
     assert!(r.findings.is_empty(), "{:?}", r.findings);
 }
+
+/// The transient-free χ² per residual (`fit::noise_only_chi2`), by hand:
+/// two `S_h` windows whose transient-free values sit (2, −2) and (1, 1)
+/// standard deviations from the model's prediction give (8 + 2)/4 = 2.5;
+/// a window with no transient-free value and the other transfer functions'
+/// observations do not count; the static balance counts its real part only
+/// (3 σ: 9); with no transient-free value at all there is nothing (NaN).
+#[test]
+fn the_transient_free_chi2_is_the_misfit_over_its_own_noise() {
+    use exo_diagnose::data::TransientFree;
+    use exo_diagnose::fit::noise_only_chi2;
+    let phys = Physics::from_plant(&common::default_plant(), &[1]);
+    let mut d = Dataset::default();
+    d.supported = vec![Tf::Sh, Tf::Balance, Tf::Sea];
+    let sigma = [0.1, 0.2];
+    let offsets = [
+        (Tf::Sh, Some(Complex64::new(0.2, -0.4))),
+        (Tf::Sh, Some(Complex64::new(0.1, 0.2))),
+        (Tf::Sh, None),
+        (Tf::Balance, Some(Complex64::new(0.3, 0.0))),
+        (Tf::Sea, None),
+    ];
+    for (i, (tf, off)) in offsets.iter().enumerate() {
+        let c = Condition {
+            experiment: 1,
+            period: i as u32 + 1,
+            load_kg: 0.0,
+            bias_nm: 0.0,
+            alpha: 1.0,
+            amplitude_nm: 2.0,
+            theta0_rad: 0.0,
+            theta_amp_rad: 0.1,
+            sin_theta_mean: 0.0,
+            tau_s_mean_nm: f64::NAN,
+            tau_c_mean_nm: 0.0,
+            command: None,
+            gravity: None,
+            sample_period_s: 0.002,
+            start_s: 30.0 * i as f64,
+            elapsed_s: 30.0 * i as f64,
+        };
+        let mut o = Observation {
+            tf: *tf,
+            omega_rad_s: if *tf == Tf::Balance { 0.0 } else { 4.0 },
+            value: Complex64::new(0.0, 0.0),
+            sigma: [1.0; 2],
+            transient_free: None,
+            window: i,
+            gravity_comp: Complex64::new(0.0, 0.0),
+            statics: [0.0; 2],
+        };
+        let pred = phys.predict(&o, &c);
+        // The line itself far off: only the transient-free value counts.
+        o.value = pred + Complex64::new(50.0, 50.0);
+        o.transient_free = off.map(|off| TransientFree {
+            value: pred + off,
+            sigma,
+        });
+        d.conditions.push(c);
+        d.observations.push(o);
+        d.signals.push(WindowSignals::default());
+    }
+    let sh = noise_only_chi2(&d, &phys, Tf::Sh);
+    assert!((sh - 2.5).abs() < 1e-9, "S_h: {sh}");
+    let bal = noise_only_chi2(&d, &phys, Tf::Balance);
+    assert!((bal - 9.0).abs() < 1e-9, "balance: {bal}");
+    assert!(noise_only_chi2(&d, &phys, Tf::Sea).is_nan());
+}
