@@ -10,6 +10,47 @@ use exo_diagnose::remains::characterise;
 use exo_diagnose::Physics;
 use num_complex::Complex64;
 
+/// Window `i` of experiment 1 (period `period`, 30 s apart) at rest about
+/// 0 rad, with an observation of `tf` at ω (value and σ to be set).
+fn window(
+    i: usize,
+    period: u32,
+    tf: Tf,
+    omega: f64,
+    amplitude_nm: f64,
+    theta_amp_rad: f64,
+) -> (Condition, Observation) {
+    let c = Condition {
+        experiment: 1,
+        period,
+        load_kg: 0.0,
+        bias_nm: 0.0,
+        alpha: 1.0,
+        amplitude_nm,
+        theta0_rad: 0.0,
+        theta_amp_rad,
+        sin_theta_mean: 0.0,
+        tau_s_mean_nm: f64::NAN,
+        tau_c_mean_nm: 0.0,
+        command: None,
+        gravity: None,
+        sample_period_s: 0.002,
+        start_s: 30.0 * i as f64,
+        elapsed_s: 30.0 * i as f64,
+    };
+    let o = Observation {
+        tf,
+        omega_rad_s: omega,
+        value: Complex64::new(0.0, 0.0),
+        sigma: [1.0; 2],
+        transient_free: None,
+        window: i,
+        gravity_comp: Complex64::new(0.0, 0.0),
+        statics: [0.0; 2],
+    };
+    (c, o)
+}
+
 #[test]
 fn an_amplitude_step_inside_the_noise_is_not_a_finding() {
     let phys = Physics::from_plant(&common::default_plant(), &[1]);
@@ -24,34 +65,14 @@ fn an_amplitude_step_inside_the_noise_is_not_a_finding() {
     for i in 0..40usize {
         let high = i >= 20;
         let omega = 2.0 * 10f64.powf(0.1 * (i % 8) as f64);
-        let c = Condition {
-            experiment: 1,
-            period: (i % 10) as u32 + 1,
-            load_kg: 0.0,
-            bias_nm: 0.0,
-            alpha: 1.0,
-            amplitude_nm: if high { 3.17 } else { 2.0 },
-            theta0_rad: 0.0,
-            theta_amp_rad: if high { 0.13 } else { 0.11 },
-            sin_theta_mean: 0.0,
-            tau_s_mean_nm: f64::NAN,
-            tau_c_mean_nm: 0.0,
-            command: None,
-            gravity: None,
-            sample_period_s: 0.002,
-            start_s: 30.0 * i as f64,
-            elapsed_s: 30.0 * i as f64,
-        };
-        let mut o = Observation {
-            tf: Tf::Sh,
-            omega_rad_s: omega,
-            value: Complex64::new(0.0, 0.0),
-            sigma: [0.0; 2],
-            transient_free: None,
-            window: i,
-            gravity_comp: Complex64::new(0.0, 0.0),
-            statics: [0.0; 2],
-        };
+        let (c, mut o) = window(
+            i,
+            (i % 10) as u32 + 1,
+            Tf::Sh,
+            omega,
+            if high { 3.17 } else { 2.0 },
+            if high { 0.13 } else { 0.11 },
+        );
         let pred = phys.predict(&o, &c);
         o.value = pred * if high { 1.015 } else { 0.985 };
         o.sigma = [0.02 * pred.norm(); 2];
@@ -109,34 +130,8 @@ fn the_transient_free_chi2_is_the_misfit_over_its_own_noise() {
         (Tf::Sea, None),
     ];
     for (i, (tf, off)) in offsets.iter().enumerate() {
-        let c = Condition {
-            experiment: 1,
-            period: i as u32 + 1,
-            load_kg: 0.0,
-            bias_nm: 0.0,
-            alpha: 1.0,
-            amplitude_nm: 2.0,
-            theta0_rad: 0.0,
-            theta_amp_rad: 0.1,
-            sin_theta_mean: 0.0,
-            tau_s_mean_nm: f64::NAN,
-            tau_c_mean_nm: 0.0,
-            command: None,
-            gravity: None,
-            sample_period_s: 0.002,
-            start_s: 30.0 * i as f64,
-            elapsed_s: 30.0 * i as f64,
-        };
-        let mut o = Observation {
-            tf: *tf,
-            omega_rad_s: if *tf == Tf::Balance { 0.0 } else { 4.0 },
-            value: Complex64::new(0.0, 0.0),
-            sigma: [1.0; 2],
-            transient_free: None,
-            window: i,
-            gravity_comp: Complex64::new(0.0, 0.0),
-            statics: [0.0; 2],
-        };
+        let omega = if *tf == Tf::Balance { 0.0 } else { 4.0 };
+        let (c, mut o) = window(i, i as u32 + 1, *tf, omega, 2.0, 0.1);
         let pred = phys.predict(&o, &c);
         // The line itself far off: only the transient-free value counts.
         o.value = pred + Complex64::new(50.0, 50.0);
