@@ -11,6 +11,7 @@ mod common;
 use exo_impedance::frf::{
     local_polynomial_ratio, mean_standard_error, sine_amplitude, sine_ratio, whole_cycles,
 };
+use exo_diagnose::data::Tf;
 use num_complex::Complex64;
 
 /// A human-like relation `y = K x + B ẋ + M ẍ` (Nm/rad, Nm·s/rad, kg·m²):
@@ -320,4 +321,29 @@ fn an_exact_relation_on_a_large_drift_is_recovered_to_rounding() {
     assert!((lp.ratio - h).norm() < 1e-9 * h.norm(), "{:?}", lp.ratio);
     let (se, _) = mean_standard_error(&t, &y, w).expect("bins");
     assert!(se < 1e-9, "{se}");
+}
+
+/// The reduction's wiring of the transient-free values, on our simulator's
+/// protocol (experiment 1): each `S_h` line's transient-free σ is its
+/// line's σ times one common factor √leverage, between 1 and √2.5 (the
+/// leverage of eight or fewer neighbours), the same for both components;
+/// windows of three cycles or more have one, and one-cycle windows none.
+#[test]
+fn the_reduction_gives_each_line_its_transient_free_value_with_sqrt_leverage() {
+    use exo_diagnose::data::{reduce, Reduction};
+    use exo_diagnose::synth::{synthesize, SynthSettings};
+    let periods = common::protocol(&[(1, 30.0, 12.0, 4.5, 0.0)]);
+    let rec = synthesize(&common::default_plant(), &periods, &SynthSettings::default());
+    let d = reduce(&[rec], &Reduction::default());
+    let mut with = 0;
+    for o in d.of(Tf::Sh) {
+        let Some(free) = o.transient_free else {
+            continue;
+        };
+        with += 1;
+        let (r0, r1) = (free.sigma[0] / o.sigma[0], free.sigma[1] / o.sigma[1]);
+        assert!((r0 - r1).abs() < 1e-9 * r0, "{r0} against {r1}");
+        assert!((1.0..=2.5_f64.sqrt()).contains(&r0), "√leverage {r0}");
+    }
+    assert!(with >= 5, "{with} windows with a transient-free value");
 }
