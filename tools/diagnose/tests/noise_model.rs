@@ -8,10 +8,10 @@
 
 mod common;
 
+use exo_diagnose::data::Tf;
 use exo_impedance::frf::{
     local_polynomial_ratio, mean_standard_error, sine_amplitude, sine_ratio, whole_cycles,
 };
-use exo_diagnose::data::Tf;
 use num_complex::Complex64;
 
 /// A human-like relation `y = K x + B ẋ + M ẍ` (Nm/rad, Nm·s/rad, kg·m²):
@@ -333,7 +333,11 @@ fn the_reduction_gives_each_line_its_transient_free_value_with_sqrt_leverage() {
     use exo_diagnose::data::{reduce, Reduction};
     use exo_diagnose::synth::{synthesize, SynthSettings};
     let periods = common::protocol(&[(1, 30.0, 12.0, 4.5, 0.0)]);
-    let rec = synthesize(&common::default_plant(), &periods, &SynthSettings::default());
+    let rec = synthesize(
+        &common::default_plant(),
+        &periods,
+        &SynthSettings::default(),
+    );
     let d = reduce(&[rec], &Reduction::default());
     let mut with = 0;
     for o in d.of(Tf::Sh) {
