@@ -6,10 +6,13 @@
 //!
 //! [`CountingAllocator`] proves a path allocation-free: a test binary
 //! installs it as its global allocator and measures a closure with
-//! [`allocations_on_this_thread`] (only the test's own thread is counted:
-//! the harness's threads allocate at times of their own, and a CI run once
-//! counted four of theirs) or [`allocations_anywhere`] (every thread, for a
-//! library that may allocate off the calling thread).
+//! [`allocations_on_this_thread`] (only the test's own thread is counted,
+//! in a counter of that thread's own: the harness's threads allocate at
+//! times of their own, a CI run once counted four of theirs, and the other
+//! tests of the same binary run in parallel threads) or
+//! [`allocations_anywhere`] (every thread, for a library that may allocate
+//! off the calling thread: meaningful only in a process where nothing else
+//! runs, which [`in_a_process_of_its_own`] gives a test).
 //!
 //! ```ignore
 //! #[global_allocator]
@@ -21,24 +24,35 @@
 
 use std::alloc::{GlobalAlloc, Layout, System};
 use std::cell::Cell;
-use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
+use std::process::Command;
+use std::sync::atomic::{AtomicUsize, Ordering};
 
-static ALLOCATIONS: AtomicUsize = AtomicUsize::new(0);
-static EVERY_THREAD: AtomicBool = AtomicBool::new(false);
+/// Allocations on any thread while at least one `allocations_anywhere`
+/// measurement is running.
+static EVERYWHERE: AtomicUsize = AtomicUsize::new(0);
+/// How many `allocations_anywhere` measurements are running.
+static EVERY_THREAD: AtomicUsize = AtomicUsize::new(0);
 thread_local! {
+    /// Whether this thread's allocations are being counted.
     static ARMED: Cell<bool> = const { Cell::new(false) };
+    /// This thread's allocations while armed (no other thread touches it).
+    static HERE: Cell<usize> = const { Cell::new(0) };
 }
 
 /// The system allocator, counting the allocations made while armed.
 pub struct CountingAllocator;
 
 // SAFETY: every call is forwarded unchanged to the system allocator; the
-// counting touches only an atomic and a thread-local flag (`try_with`, so a
-// thread being torn down is not counted and never panics).
+// counting touches only atomics and const-initialised thread-locals without
+// destructors (`try_with`, so a thread being torn down is not counted and
+// never panics).
 unsafe impl GlobalAlloc for CountingAllocator {
     unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
-        if EVERY_THREAD.load(Ordering::Relaxed) || ARMED.try_with(Cell::get).unwrap_or(false) {
-            ALLOCATIONS.fetch_add(1, Ordering::SeqCst);
+        if ARMED.try_with(Cell::get).unwrap_or(false) {
+            let _ = HERE.try_with(|n| n.set(n.get() + 1));
+        }
+        if EVERY_THREAD.load(Ordering::SeqCst) > 0 {
+            EVERYWHERE.fetch_add(1, Ordering::SeqCst);
         }
         unsafe { System.alloc(layout) }
     }
@@ -48,22 +62,25 @@ unsafe impl GlobalAlloc for CountingAllocator {
 }
 
 /// `f`'s result and the heap allocations made on this thread while it ran
-/// (0 unless the test binary installed [`CountingAllocator`]).
+/// (0 unless the test binary installed [`CountingAllocator`]). Other
+/// threads, measuring or not, never change it.
 pub fn allocations_on_this_thread<R>(f: impl FnOnce() -> R) -> (R, usize) {
-    let before = ALLOCATIONS.load(Ordering::SeqCst);
-    ARMED.with(|a| a.set(true));
+    let count = ThreadCount::start();
     let r = f();
-    ARMED.with(|a| a.set(false));
-    (r, ALLOCATIONS.load(Ordering::SeqCst) - before)
+    (r, count.stop())
 }
 
-/// `f`'s result and the heap allocations made on any thread while it ran.
+/// `f`'s result and the heap allocations made on any thread of the process
+/// while it ran. Other tests of the same binary run in parallel threads and
+/// would be counted too: call it from a test that runs
+/// [`in_a_process_of_its_own`].
 pub fn allocations_anywhere<R>(f: impl FnOnce() -> R) -> (R, usize) {
-    let before = ALLOCATIONS.load(Ordering::SeqCst);
-    EVERY_THREAD.store(true, Ordering::SeqCst);
+    EVERY_THREAD.fetch_add(1, Ordering::SeqCst);
+    let before = EVERYWHERE.load(Ordering::SeqCst);
     let r = f();
-    EVERY_THREAD.store(false, Ordering::SeqCst);
-    (r, ALLOCATIONS.load(Ordering::SeqCst) - before)
+    let n = EVERYWHERE.load(Ordering::SeqCst) - before;
+    EVERY_THREAD.fetch_sub(1, Ordering::SeqCst);
+    (r, n)
 }
 
 /// The allocations on this thread between [`ThreadCount::start`] and
@@ -76,7 +93,7 @@ pub struct ThreadCount {
 impl ThreadCount {
     /// Arms this thread's count.
     pub fn start() -> Self {
-        let before = ALLOCATIONS.load(Ordering::SeqCst);
+        let before = HERE.with(Cell::get);
         ARMED.with(|a| a.set(true));
         ThreadCount { before }
     }
@@ -84,6 +101,41 @@ impl ThreadCount {
     /// Disarms it; the allocations made on this thread since `start`.
     pub fn stop(self) -> usize {
         ARMED.with(|a| a.set(false));
-        ALLOCATIONS.load(Ordering::SeqCst) - self.before
+        HERE.with(Cell::get) - self.before
     }
+}
+
+/// The variable that marks the process [`in_a_process_of_its_own`] starts.
+const ALONE: &str = "EXO_TEST_SUPPORT_ALONE";
+
+/// For a test that must be the only one in its process (e.g. it counts
+/// [`allocations_anywhere`]), while the test binary holds other tests that
+/// the harness runs in parallel threads. `test` is the test's path as
+/// `concat!(module_path!(), "::", "name_of_the_test")` gives it.
+///
+/// In the test binary's own process: runs this binary again with only that
+/// test (`--exact`, one test thread), asserts that it ran and passed
+/// (its stderr is passed on), and returns `false`: the caller returns. In
+/// that second process: returns `true`, and the caller measures.
+pub fn in_a_process_of_its_own(test: &str) -> bool {
+    // The harness names a test without its crate, the first segment.
+    let name = test.split_once("::").map_or(test, |(_, rest)| rest);
+    if std::env::var_os(ALONE).is_some_and(|v| v == name) {
+        return true;
+    }
+    let exe = std::env::current_exe().expect("the test binary's path");
+    let out = Command::new(&exe)
+        .args(["--exact", name, "--test-threads=1", "--nocapture"])
+        .env(ALONE, name)
+        .output()
+        .unwrap_or_else(|e| panic!("running {} again: {e}", exe.display()));
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    eprint!("{stderr}");
+    assert!(
+        out.status.success() && stdout.contains("1 passed"),
+        "{name} in a process of its own ({}):\n{stdout}\n{stderr}",
+        out.status
+    );
+    false
 }
