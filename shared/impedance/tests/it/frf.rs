@@ -5,10 +5,8 @@
 use exo_impedance::frf::*;
 use exo_impedance::{Complex64, DynamicStiffness};
 
-#[global_allocator]
-static GLOBAL: exo_test_support::CountingAllocator = exo_test_support::CountingAllocator;
-
-/// Allocations `f` makes on this thread.
+/// Allocations `f` makes on this thread (the binary's allocator is the
+/// counting one, `main.rs`).
 fn allocations_in(f: impl FnOnce()) -> usize {
     exo_test_support::allocations_on_this_thread(f).1
 }

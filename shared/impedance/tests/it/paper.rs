@@ -2,10 +2,8 @@
 //! value printed in the paper; the code under test computes it from the
 //! paper's inputs (never the reverse).
 
-mod rng;
-mod table3;
-
-use rng::SplitMix64;
+use crate::rng::SplitMix64;
+use crate::table3;
 
 use exo_impedance::design::{design, DesignInputs};
 use exo_impedance::*;

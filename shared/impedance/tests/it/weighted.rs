@@ -14,9 +14,7 @@ fn omegas() -> Vec<f64> {
     (0..10).map(|i| 2.0 * 10f64.powf(0.1 * i as f64)).collect()
 }
 
-mod rng;
-
-use rng::SplitMix64 as Rng;
+use crate::rng::SplitMix64 as Rng;
 
 /// Points of `truth` with circular complex noise of `σ_k = sigma[k]`
 /// (`E|δ|² = σ²`, so σ/√2 in each part), carrying their σ.
