@@ -10,9 +10,7 @@
 //!
 //! docs/testing.md, "Safety defaults pinned (issue 35, item 3)", lists them.
 
-mod common;
-
-use common::{accepted, refused_naming};
+use crate::common::{accepted, refused_naming};
 use exo_config::{BusBackend, BusSettings, PdoRole};
 
 /// `[safety]` written with only its required keys: the other three take

@@ -1,7 +1,6 @@
 //! Helpers shared by the run file's tests: a scratch copy of `configs/`
 //! with `default.toml` (or another of its files) edited, loaded with
-//! [`RunConfig::from_file`]. Each test binary that uses them declares
-//! `mod common;`.
+//! [`RunConfig::from_file`].
 
 use std::path::PathBuf;
 

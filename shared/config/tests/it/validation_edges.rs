@@ -4,9 +4,7 @@
 //! controller and the driver's safe state use (issue 23: each was a
 //! surviving mutant of the cargo-mutants sample of exo-config).
 
-mod common;
-
-use common::{accepted, load_edited, load_edited_in, refused_naming};
+use crate::common::{accepted, load_edited, load_edited_in, refused_naming};
 use exo_config::RigSettings;
 
 #[test]

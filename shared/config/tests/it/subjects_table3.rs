@@ -6,7 +6,7 @@
 //! `\caption{Complex Stiffness Parameters for M2}`; the R² rows left out):
 //! rows in experiment order 1–9, columns subjects A–J then `Average`. The
 //! test parses them itself (it shares no code with the table copy in
-//! `shared/impedance/tests/table3.rs`) and compares each of the 180 values
+//! `shared/impedance/tests/it/table3.rs`) and compares each of the 180 values
 //! of `configs/subjects/*.toml` exactly (both are printed with two
 //! decimals), and checks the printed averages against the subjects' mean.
 
