@@ -1,9 +1,7 @@
 //! CDR encoding of every contract message: exact bytes, round trips, and
 //! errors (never panics) on short or malformed payloads.
 
-mod common;
-
-use common::*;
+use crate::common::*;
 use exo_messages::*;
 use exo_recording::cdr::{CdrError, FieldValue, ENCAPSULATION_LE};
 use exo_recording::schema::{contract, find};

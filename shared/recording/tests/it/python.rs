@@ -4,11 +4,9 @@
 //! is made once by `tools/python/ensure_venv.sh` (`target/py-venv`); when it
 //! cannot be made the tests fail, they never skip.
 
-mod common;
-
 use std::process::Command;
 
-use common::*;
+use crate::common::*;
 use exo_recording::cdr::FieldValue;
 use exo_recording::*;
 use serde_json::Value;

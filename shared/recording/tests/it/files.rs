@@ -2,15 +2,13 @@
 //! writer, damaged bytes, contract violations named, and files written by
 //! other MCAP writers (unchunked, uncompressed, lz4).
 
-mod common;
-
 use std::cell::RefCell;
 use std::collections::BTreeMap;
 use std::io::{Cursor, Seek, SeekFrom, Write};
 use std::path::Path;
 use std::rc::Rc;
 
-use common::*;
+use crate::common::*;
 use exo_messages::*;
 use exo_recording::*;
 use mcap::records::MessageHeader;
