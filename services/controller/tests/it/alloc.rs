@@ -4,9 +4,6 @@ use exo_config::RunConfig;
 use exo_controller::{Controller, TickInput};
 use exo_messages::{OperatorCommand, OperatorCommandKind};
 
-#[global_allocator]
-static GLOBAL: exo_test_support::CountingAllocator = exo_test_support::CountingAllocator;
-
 #[test]
 fn controller_tick_operator_commands_and_adopting_f_do_not_allocate() {
     let mut cfg = RunConfig::from_file(&exo_config::configs_dir().join("default.toml")).unwrap();
