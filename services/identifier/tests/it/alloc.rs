@@ -5,9 +5,6 @@
 use exo_identifier::{Event, Identifier, IdentifierSettings};
 use exo_messages::{ActuatorCommand, ProtocolPhase, ProtocolState, SensorSample};
 
-#[global_allocator]
-static GLOBAL: exo_test_support::CountingAllocator = exo_test_support::CountingAllocator;
-
 use exo_test_support::allocations_on_this_thread as counted;
 
 #[test]
