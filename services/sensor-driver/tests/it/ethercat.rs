@@ -35,10 +35,6 @@ use exo_sensor_driver::{BusFault, DriverNode, HardwareBus, SafetyEvent};
 use exo_tests::netns::{self, ip};
 use exo_tests::Scenario;
 
-/// Counts the heap allocations of the thread that arms it (the cycle's).
-#[global_allocator]
-static GLOBAL: exo_test_support::CountingAllocator = exo_test_support::CountingAllocator;
-
 const IN_NETNS: &str = "EXO_ETHERCAT_IN_NETNS";
 const RATE_HZ: f64 = 100.0;
 /// Marks a child that failed on a timing fault it did not provoke.
@@ -75,7 +71,11 @@ fn netns(name: &str) -> Option<Network> {
         static ONE_AT_A_TIME: std::sync::Mutex<()> = std::sync::Mutex::new(());
         let _turn = ONE_AT_A_TIME.lock().unwrap_or_else(|e| e.into_inner());
         let dir = kickcat();
-        netns::rerun_inside(name, IN_NETNS, dir.as_os_str(), TIMING_FAULT, ATTEMPTS);
+        // The harness names the test by its path in the binary, without
+        // the crate: `ethercat::name`.
+        let module = module_path!().split_once("::").map_or("", |(_, m)| m);
+        let test = format!("{module}::{name}");
+        netns::rerun_inside(&test, IN_NETNS, dir.as_os_str(), TIMING_FAULT, ATTEMPTS);
         return None;
     }
     let dir = PathBuf::from(std::env::var_os(IN_NETNS).unwrap());

@@ -4,9 +4,6 @@
 use exo_config::{RunConfig, SafeState};
 use exo_sensor_driver::{Driver, RawFrame, RoundTrip};
 
-#[global_allocator]
-static GLOBAL: exo_test_support::CountingAllocator = exo_test_support::CountingAllocator;
-
 #[test]
 fn frame_and_command_handling_do_not_allocate() {
     let cfg = RunConfig::from_file(&exo_config::configs_dir().join("default.toml")).unwrap();
