@@ -1,6 +1,6 @@
-//! The integration tests of exo-identifier in one test binary (issue 31 item
-//! 2: the dependencies are linked once, not once per file). Each module
-//! was a test binary of its own; one of them alone:
+//! The integration tests of exo-identifier in one test binary
+//! (issue 31 item 2: the dependencies are linked once, not once per
+//! file). Each module was a test binary of its own; one of them alone:
 //! `cargo test -p exo-identifier --test it alloc::`.
 
 /// Counts the per-sample calls' allocations (`alloc`), per thread: the

@@ -1,6 +1,6 @@
-//! The integration tests of exo-config in one test binary (issue 31 item 2:
-//! the dependencies are linked once, not once per file). Each module was
-//! a test binary of its own; one of them alone:
+//! The integration tests of exo-config in one test binary
+//! (issue 31 item 2: the dependencies are linked once, not once per
+//! file). Each module was a test binary of its own; one of them alone:
 //! `cargo test -p exo-config --test it bad_values::`.
 
 mod bad_values;
