@@ -11,8 +11,9 @@
 #   tools/scripts/mutants.sh --crate exo-impedance --shard 1/4
 #   tools/scripts/mutants.sh --in-diff main       # only code changed since main (the habit before a commit)
 #   tools/scripts/mutants.sh --crate exo-impedance --file shared/impedance/src/ftest.rs \
-#       -- --in-place -- --lib --test ftest_scipy   # one file; args after -- go to cargo mutants
-#                                                   # (after a second --, to cargo test)
+#       -- --in-place -- --lib --test it   # one file; args after -- go to cargo mutants
+#                                          # (after a second --, to cargo test: here the unit
+#                                          # tests and the crate's one integration-test binary)
 #
 # Writes per crate  $OUT/<crate>/mutants.out/  (cargo-mutants' own files)
 # and the scores to $OUT/score.tsv: crate, shard, caught, missed, timeout,

@@ -34,7 +34,7 @@ pub const CONFIG_ATTACHMENT: &str = "config.toml";
 /// loss: at 1 kHz `exo/sensor` + `exo/command` make 190 kB/s of MCAP
 /// records (87 + 103 bytes a tick: a chunk every 0.35 s), and with the two
 /// bus topics 380 kB/s (a chunk every 0.17 s; a writer killed at any moment
-/// lost at most 0.17 s, measured in `tests/files.rs`). A recorder also
+/// lost at most 0.17 s, measured in `tests/it/files.rs`). A recorder also
 /// calls [`RecordingWriter::flush`] once a second, so sparse topics lose at
 /// most a second. Larger chunks compress only slightly better.
 pub const DEFAULT_CHUNK_BYTES: u64 = 64 * 1024;

@@ -1,4 +1,4 @@
-"""Offline reference values for shared/impedance/tests/ftest_scipy.rs.
+"""Offline reference values for shared/impedance/tests/it/ftest_scipy.rs.
 
 Run with a Python that has scipy (e.g. a venv made by tools/python/ensure_venv.sh
 plus `pip install scipy`); prints the Rust literals pasted into the test.

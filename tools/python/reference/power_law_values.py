@@ -1,4 +1,4 @@
-"""Offline reference values for shared/impedance/tests/power_law_numpy.rs.
+"""Offline reference values for shared/impedance/tests/it/power_law_numpy.rs.
 
 The power law log10 H = beta0 + beta1 log10 K by numpy's least squares
 (numpy.linalg.lstsq on the design [1, log10 K]), its R^2 = 1 - RSS/TSS on
