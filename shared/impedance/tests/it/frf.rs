@@ -6,7 +6,7 @@ use exo_impedance::frf::*;
 use exo_impedance::{Complex64, DynamicStiffness};
 
 /// Allocations `f` makes on this thread (the binary's allocator is the
-/// counting one, `main.rs`).
+/// counting one, `tests/it.rs`).
 fn allocations_in(f: impl FnOnce()) -> usize {
     exo_test_support::allocations_on_this_thread(f).1
 }

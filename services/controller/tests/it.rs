@@ -1,6 +1,7 @@
 //! The integration tests of exo-controller in one test binary
 //! (issue 31 item 2: the dependencies are linked once, not once per
-//! file). Each module was a test binary of its own; one of them alone:
+//! file). Each module, in `tests/it/`, was a test binary of its own; one
+//! of them alone:
 //! `cargo test -p exo-controller --test it alloc::`.
 
 /// Counts the control tick's allocations (`alloc`), per thread: the
@@ -8,5 +9,7 @@
 #[global_allocator]
 static GLOBAL: exo_test_support::CountingAllocator = exo_test_support::CountingAllocator;
 
+#[path = "it/alloc.rs"]
 mod alloc;
+#[path = "it/amplifier_closed_form.rs"]
 mod amplifier_closed_form;

@@ -1,6 +1,7 @@
 //! The integration tests of exo-sensor-driver in one test binary
 //! (issue 31 item 2: the dependencies are linked once, not once per
-//! file). Each module was a test binary of its own; one of them alone:
+//! file). Each module, in `tests/it/`, was a test binary of its own; one
+//! of them alone:
 //! `cargo test -p exo-sensor-driver --test it alloc::`.
 
 /// Counts the per-frame work's allocations (`alloc`) and the EtherCAT
@@ -9,5 +10,7 @@
 #[global_allocator]
 static GLOBAL: exo_test_support::CountingAllocator = exo_test_support::CountingAllocator;
 
+#[path = "it/alloc.rs"]
 mod alloc;
+#[path = "it/ethercat.rs"]
 mod ethercat;
