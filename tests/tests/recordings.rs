@@ -619,3 +619,132 @@ fn exo_run_restarts_a_killed_recorder_and_in_lockstep_loses_no_sample() {
         joined.warnings
     );
 }
+
+/// Runs `exo run --no-report` on `sc`, waits until `ready` holds for the
+/// run's `exo/sensor` samples, stops its recorder (SIGSTOP) for `stall`,
+/// lets it go on (SIGCONT) and waits for the end; returns the exit status,
+/// its standard error, the first segment of the recording and every sample
+/// published.
+fn run_with_a_stalled_recorder(
+    sc: &Scenario,
+    ready: impl Fn(&[exo_messages::SensorSample]) -> bool,
+    stall: Duration,
+) -> (
+    std::process::ExitStatus,
+    String,
+    PathBuf,
+    Vec<exo_messages::SensorSample>,
+) {
+    let samples = sc.collect(SENSOR);
+    let mut run = Command::new(workspace_bin("exo"))
+        .args(["run", "--no-report", sc.config.to_str().unwrap()])
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    // The output is read as it comes (a full pipe would stall the run).
+    let drain = |r: Box<dyn std::io::Read + Send>| {
+        std::thread::spawn(move || {
+            let mut s = String::new();
+            let mut r = r;
+            let _ = r.read_to_string(&mut s);
+            s
+        })
+    };
+    let out = drain(Box::new(run.stdout.take().unwrap()));
+    let err = drain(Box::new(run.stderr.take().unwrap()));
+    samples.wait_for(Duration::from_secs(120), "the run under way", &ready);
+    let recorders = children_named(run.id(), "exo-recorder");
+    assert_eq!(recorders.len(), 1, "{recorders:?}");
+    // SAFETY: a process this test's `exo run` started.
+    unsafe { libc::kill(recorders[0], libc::SIGSTOP) };
+    std::thread::sleep(stall);
+    // SAFETY: as above.
+    unsafe { libc::kill(recorders[0], libc::SIGCONT) };
+    let status = wait_exit(&mut run, Duration::from_secs(300), "exo run");
+    let (out, err) = (out.join().unwrap(), err.join().unwrap());
+    let line = err
+        .lines()
+        .find_map(|l| l.strip_prefix("exo: recording "))
+        .unwrap_or_else(|| panic!("no recording named in\n{err}\n{out}"));
+    let rec = PathBuf::from(line.trim());
+    (status, format!("{err}\n{out}"), rec, samples.finish())
+}
+
+#[test]
+fn a_recorder_stalled_in_lockstep_holds_simulated_time_and_loses_no_sample() {
+    // Issue 32 item 1: the lockstep main job (experiment 1), its recorder
+    // stopped (SIGSTOP) for 6 s at sample 20 000, then continued. Without
+    // the hold the loop ran on (thousands of frames a second), the
+    // recorder's 8192-sample buffers overflowed and the recording lost
+    // tens of thousands of samples, exit 0. With it the plant holds each
+    // frame while the recorder is more than 4096 frames behind: every
+    // exo/sensor seq from the first to the last is in the recording,
+    // nothing is named, exit 0.
+    let sc = Scenario::new("recstall", &[("experiments = [1, 7]", "experiments = [1]")]);
+    let (status, log, rec, published) =
+        run_with_a_stalled_recorder(&sc, |s| s.len() >= 20_000, Duration::from_secs(6));
+    assert_eq!(status.code(), Some(0), "{log}");
+    assert!(!log.contains("exo: fault:"), "{log}");
+    assert!(log.contains("holding simulated time at frame"), "{log}");
+    assert!(!log.contains("goes on without it"), "{log}");
+    assert_eq!(exo_recording::segments::segments(&rec).len(), 1, "{log}");
+    let r = exo_recording::read_recording(&rec).unwrap();
+    let seqs: Vec<u64> = r.sensor.iter().map(|s| s.seq).collect();
+    assert_eq!(seqs.first(), published.first().map(|s| &s.seq));
+    assert_eq!(seqs.last(), published.last().map(|s| &s.seq));
+    let missing: Vec<u64> = seqs
+        .windows(2)
+        .filter(|w| w[1] != w[0] + 1)
+        .map(|w| w[0] + 1)
+        .collect();
+    assert!(missing.is_empty(), "sensor seqs missing from {missing:?}");
+    assert_eq!(r.metadata["exo.drops"]["exo/sensor"], "0", "{log}");
+}
+
+#[test]
+fn a_recorder_stalled_in_real_time_is_named_with_what_it_missed() {
+    // Issue 32 item 1: in real time control never waits. The recorder
+    // stopped for 11 s at 1 kHz misses what its 8192-sample buffers cannot
+    // hold (about 2800 samples a channel); `exo run` names each channel it
+    // missed with the count and the first missing seq, as the recording
+    // shows them, and exits 3.
+    let sc = Scenario::new(
+        "recstallrt",
+        &[
+            ("timing = \"lockstep\"", "timing = \"realtime\""),
+            ("experiments = [1, 7]", "experiments = [1]"),
+        ],
+    );
+    sc.edit("[run]\n", "[run]\nmax_sim_time_s = 16.0\n");
+    let (status, log, rec, _) =
+        run_with_a_stalled_recorder(&sc, |s| s.len() >= 1000, Duration::from_secs(11));
+    assert_eq!(status.code(), Some(3), "{log}");
+    let r = exo_recording::read_recording(&rec).unwrap();
+    let seqs: Vec<u64> = r.sensor.iter().map(|s| s.seq).collect();
+    let gaps: Vec<(u64, u64)> = seqs
+        .windows(2)
+        .filter(|w| w[1] > w[0] + 1)
+        .map(|w| (w[0] + 1, w[1] - w[0] - 1))
+        .collect();
+    assert!(!gaps.is_empty(), "an 11 s stall at 1 kHz missed nothing?");
+    let count: u64 = gaps.iter().map(|g| g.1).sum();
+    let expected = format!(
+        "exo: fault: the recorder missed {count} samples of exo/sensor (sequence gaps), the first seq {}, in {}",
+        gaps[0].0,
+        rec.display()
+    );
+    assert!(
+        log.lines().any(|l| l == expected),
+        "expected `{expected}` in:\n{log}"
+    );
+    // Every channel a sample a tick is named too.
+    for topic in ["exo/command", "exo/bus/sensor", "exo/bus/motor"] {
+        assert!(
+            log.lines()
+                .any(|l| l.starts_with("exo: fault: the recorder missed")
+                    && l.contains(&format!(" of {topic} "))),
+            "{topic} not named in:\n{log}"
+        );
+    }
+}

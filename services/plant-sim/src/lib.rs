@@ -25,6 +25,7 @@ pub mod human;
 /// The plant model (`exo-plant-model`), which the simulator runs.
 pub use exo_plant_model as model;
 pub mod node;
+pub mod pace;
 pub mod plant;
 pub mod process;
 pub mod prony;

@@ -7,7 +7,10 @@
 //! Timing: in *lockstep* each step advances one control period only once
 //! the motor command answering its frame has arrived (same seed ⇒ identical
 //! run), re-sending the frame when an answer is slow (a start-up race) and
-//! giving up after 20 s; in *real time* it advances on the wall clock with
+//! giving up after 20 s; it also holds each frame while the recorder is
+//! more than its margin behind (`exo/recorder/progress`, [`RecorderPace`]),
+//! waiting at most [`HOLD_PATIENCE`] in 20 ms waits, so that a stalled or
+//! slow recorder loses nothing; in *real time* it advances on the wall clock with
 //! absolute deadlines, holds the latest command, counts missed deadlines,
 //! and the drive's watchdog (`safety.drive_watchdog_ms`) turns the torque
 //! off when commands stop.
@@ -19,17 +22,30 @@ use std::time::{Duration, Instant};
 use anyhow::{bail, Result};
 use exo_config::TimingMode;
 use exo_messages::channels::ProcessName;
-use exo_messages::{BusMotorCommand, BusSensorFrame, ProtocolState};
-use exo_service_kit::channels::{BUS_MOTOR, BUS_SENSOR, PROTOCOL};
+use exo_messages::{BusMotorCommand, BusSensorFrame, ProtocolState, RecorderProgress};
+use exo_service_kit::channels::{BUS_MOTOR, BUS_SENSOR, PROTOCOL, RECORDER_PROGRESS};
 use exo_service_kit::ipc::{Connect, Inbox, Outbox, REALTIME_SETTLE_PLANT};
 use exo_service_kit::runner::{Context, Flow, Process};
 use exo_service_kit::{monotonic_ns, sleep_until_ns, RealtimeProcess, ServiceArgs, StopFlag};
 use tracing::{info, warn};
 
+use crate::pace::{Pace, RecorderPace};
 use crate::{PlantModel, PlantNode};
 
 const RESEND_AFTER: Duration = Duration::from_millis(200);
 const GIVE_UP_AFTER: Duration = Duration::from_secs(20);
+/// The longest the plant holds one frame for a recorder that is behind
+/// (lockstep). Below the controller's 60 s without a sample, after which it
+/// gives up on the run; the driver waits for frames without a bound in
+/// lockstep, and no sample is waiting for its command while a frame is
+/// held, so no lockstep time-out (`safety.lockstep_timeout_ms`) runs.
+pub const HOLD_PATIENCE: Duration = Duration::from_secs(30);
+/// Each wait of a hold, between looks at the stop flag and the patience.
+const HOLD_WAIT: Duration = Duration::from_millis(20);
+/// Holds logged one by one; the rest are summed at the end.
+const HOLDS_LOGGED: u64 = 5;
+/// How often a hold looks whether the recorder it waits for still lives.
+const ALIVE_EVERY: Duration = Duration::from_millis(500);
 
 /// The plant simulator process.
 pub struct PlantProcess {
@@ -37,6 +53,8 @@ pub struct PlantProcess {
     bus_out: Outbox<BusSensorFrame>,
     motor_in: Inbox<BusMotorCommand>,
     protocol_in: Inbox<ProtocolState>,
+    /// In lockstep: the recorder's progress, for which frames are held.
+    recorder: Option<RecorderWatch>,
     realtime: bool,
     log_every: u64,
     missed_deadlines: u64,
@@ -68,6 +86,17 @@ impl Process for PlantProcess {
             bus_out: ipc.outbox(BUS_SENSOR)?,
             motor_in: ipc.inbox(BUS_MOTOR, 64)?.with_spin(cfg.lockstep_spin()),
             protocol_in: ipc.inbox(PROTOCOL, 64)?,
+            // In real time control never waits for the recorder.
+            recorder: match cfg.run.timing {
+                TimingMode::Lockstep => Some(RecorderWatch {
+                    inbox: ipc.inbox(RECORDER_PROGRESS, 16)?,
+                    pace: RecorderPace::new(),
+                    holds: 0,
+                    held: Duration::ZERO,
+                    given_up: 0,
+                }),
+                TimingMode::Realtime => None,
+            },
             realtime: cfg.run.timing == TimingMode::Realtime,
             log_every: cfg.run.rate_hz as u64 * 10,
             missed_deadlines: 0,
@@ -77,7 +106,11 @@ impl Process for PlantProcess {
     }
 
     fn ports(&self) -> Vec<&dyn Connect> {
-        vec![&self.bus_out, &self.motor_in, &self.protocol_in]
+        let mut ports: Vec<&dyn Connect> = vec![&self.bus_out, &self.motor_in, &self.protocol_in];
+        if let Some(r) = &self.recorder {
+            ports.push(&r.inbox);
+        }
+        ports
     }
 
     fn step(&mut self, stop: &StopFlag) -> Result<Flow> {
@@ -85,6 +118,9 @@ impl Process for PlantProcess {
             return Ok(Flow::Done);
         }
         let wall_start = *self.wall_start.get_or_insert_with(monotonic_ns);
+        if let Some(r) = &mut self.recorder {
+            r.hold(self.node.tick(), stop)?;
+        }
         while let Some(p) = self.protocol_in.try_recv()? {
             self.node.on_protocol(&p);
         }
@@ -144,6 +180,18 @@ impl Process for PlantProcess {
     }
 
     fn finish(self) -> Result<()> {
+        if let Some(r) = self.recorder.as_ref().filter(|r| r.holds > 0) {
+            info!(
+                "plant-sim: simulated time held {} times for the recorder, {:.1} s in all{}",
+                r.holds,
+                r.held.as_secs_f64(),
+                if r.given_up > 0 {
+                    format!("; {} times it went on without it", r.given_up)
+                } else {
+                    String::new()
+                }
+            );
+        }
         if self.missed_deadlines > 0 {
             warn!(
                 "plant-sim: {} missed real-time deadlines",
@@ -152,5 +200,113 @@ impl Process for PlantProcess {
         }
         info!("plant-sim: stopped after {} ticks", self.node.tick());
         Ok(())
+    }
+}
+
+/// The recorder's progress and the holds it caused (lockstep).
+struct RecorderWatch {
+    inbox: Inbox<RecorderProgress>,
+    pace: RecorderPace,
+    holds: u64,
+    held: Duration,
+    given_up: u64,
+}
+
+impl RecorderWatch {
+    /// Holds frame `next_frame` while the recorder is more than its margin
+    /// behind: waits of [`HOLD_WAIT`] on its progress, at most
+    /// [`HOLD_PATIENCE`] in all, ended early by a stop request.
+    fn hold(&mut self, next_frame: u64, stop: &StopFlag) -> Result<()> {
+        while let Some(p) = self.inbox.try_recv()? {
+            self.pace.on_progress(&p);
+        }
+        let Pace::Hold { lag } = self.pace.check(next_frame) else {
+            return Ok(());
+        };
+        let started = Instant::now();
+        self.holds += 1;
+        if self.holds <= HOLDS_LOGGED {
+            info!(
+                "plant-sim: holding simulated time at frame {next_frame}: the recorder is {lag} frames behind (at most {} may be)",
+                RecorderProgress::MAX_LAG_FRAMES
+            );
+        }
+        let mut looked = Instant::now();
+        while !stop.requested() {
+            if looked.elapsed() >= ALIVE_EVERY {
+                looked = Instant::now();
+                if let Some(pid) = self.pace.last().map(|p| p.pid) {
+                    if !process_alive(pid) {
+                        self.pace.forget();
+                        warn!(
+                            "plant-sim: the recorder (pid {pid}) has died: simulated time goes on without it (a restarted recorder is waited for again)"
+                        );
+                        break;
+                    }
+                }
+            }
+            if let Some(p) = self.inbox.recv_timeout(HOLD_WAIT)? {
+                self.pace.on_progress(&p);
+                while let Some(p) = self.inbox.try_recv()? {
+                    self.pace.on_progress(&p);
+                }
+            }
+            let Pace::Hold { lag } = self.pace.check(next_frame) else {
+                break;
+            };
+            if started.elapsed() >= HOLD_PATIENCE {
+                self.pace.give_up();
+                self.given_up += 1;
+                warn!(
+                    "plant-sim: the recorder is still {lag} frames behind after {HOLD_PATIENCE:?} at frame {next_frame}: simulated time goes on without it (what it misses it counts, and `exo run` names)"
+                );
+                break;
+            }
+        }
+        self.held += started.elapsed();
+        Ok(())
+    }
+}
+
+/// Whether process `pid` runs (or is stopped: SIGSTOP), from
+/// `/proc/<pid>/stat`; a zombie or a missing process is dead. Pid 0 (not
+/// told) counts as alive.
+fn process_alive(pid: u32) -> bool {
+    if pid == 0 {
+        return true;
+    }
+    match std::fs::read_to_string(format!("/proc/{pid}/stat")) {
+        // pid (comm) state …: the comm may hold spaces and parentheses.
+        Ok(stat) => stat
+            .rsplit_once(')')
+            .and_then(|(_, rest)| rest.split_whitespace().next())
+            .is_some_and(|state| state != "Z" && state != "X"),
+        Err(_) => false,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::process_alive;
+
+    #[test]
+    fn a_live_process_is_alive_and_a_reaped_one_is_not() {
+        assert!(process_alive(std::process::id()));
+        let mut child = std::process::Command::new("true").spawn().unwrap();
+        let pid = child.id();
+        child.wait().unwrap();
+        assert!(!process_alive(pid));
+        // Stopped is alive: a recorder under SIGSTOP is waited for.
+        let mut sleeper = std::process::Command::new("sleep")
+            .arg("30")
+            .spawn()
+            .unwrap();
+        let pid = i32::try_from(sleeper.id()).unwrap();
+        // SAFETY: signalling a child of this test.
+        assert_eq!(unsafe { libc::kill(pid, libc::SIGSTOP) }, 0);
+        std::thread::sleep(std::time::Duration::from_millis(50));
+        assert!(process_alive(sleeper.id()));
+        let _ = sleeper.kill();
+        let _ = sleeper.wait();
     }
 }

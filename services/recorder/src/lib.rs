@@ -45,6 +45,8 @@ pub struct DropCounter {
     /// Sequence numbers the publisher itself skipped, by its own account
     /// (not missed here).
     pub skipped_upstream: u64,
+    /// The first sequence number missed, if any was.
+    pub first_missing: Option<u64>,
 }
 
 impl DropCounter {
@@ -62,7 +64,11 @@ impl DropCounter {
             Some(last) if seq > last + 1 && publisher_skipped => {
                 self.skipped_upstream += seq - last - 1
             }
-            Some(last) if seq > last => self.dropped += seq - last - 1,
+            Some(last) if seq > last + 1 => {
+                self.dropped += seq - last - 1;
+                self.first_missing.get_or_insert(last + 1);
+            }
+            Some(last) if seq > last => {}
             Some(_) => self.out_of_order += 1,
             None => {}
         }
@@ -87,6 +93,9 @@ pub struct Drops {
     pub bus_sensor: DropCounter,
     /// `exo/bus/motor`.
     pub bus_motor: DropCounter,
+    /// The highest bus frame `seq` written, and the highest a written motor
+    /// command answered (`frame_seq`).
+    frames: [Option<u64>; 2],
 }
 
 impl Drops {
@@ -102,8 +111,24 @@ impl Drops {
             Record::Protocol(_) | Record::Operator(_) => {}
             Record::Frf(m) => self.frf.see(m.seq),
             Record::Estimate(m) => self.estimate.see(m.seq),
-            Record::BusSensor(m) => self.bus_sensor.see(m.seq),
-            Record::BusMotor(m) => self.bus_motor.see(m.seq),
+            Record::BusSensor(m) => {
+                self.bus_sensor.see(m.seq);
+                self.frames[0] = self.frames[0].max(Some(m.seq));
+            }
+            Record::BusMotor(m) => {
+                self.bus_motor.see(m.seq);
+                self.frames[1] = self.frames[1].max(Some(m.frame_seq));
+            }
+        }
+    }
+
+    /// Frames written ([`exo_messages::RecorderProgress::frames_written`]):
+    /// one more than the highest bus frame through which both the frame
+    /// and the motor command answering it were written; 0 before both.
+    pub fn frames_written(&self) -> u64 {
+        match self.frames {
+            [Some(frame), Some(answered)] => frame.min(answered) + 1,
+            _ => 0,
         }
     }
 
@@ -119,12 +144,22 @@ impl Drops {
         ]
     }
 
-    /// The `exo.drops` metadata record: per topic, samples missed; how many
-    /// records the writer's queue discarded (`discarded`); and the frames
-    /// the sensor driver itself skipped (its own gaps, not missed here).
+    /// The `exo.drops` metadata record: per topic, samples missed and,
+    /// where any were, the first missing seq (`<topic>.first_missing`); how
+    /// many records the writer's queue discarded (`discarded`); and the
+    /// frames the sensor driver itself skipped (its own gaps, not missed
+    /// here).
     pub fn metadata(&self, discarded: u64) -> BTreeMap<String, String> {
         let counted = self.counted();
         let mut m = drops_metadata(counted.iter().copied());
+        for (topic, c) in counted {
+            if let Some(first) = c.first_missing {
+                m.insert(
+                    format!("{topic}{}", exo_recording::drops::FIRST_MISSING),
+                    first.to_string(),
+                );
+            }
+        }
         m.insert("writer_queue_discarded".into(), discarded.to_string());
         m.insert(
             "exo/sensor.skipped_by_driver".into(),
@@ -354,6 +389,81 @@ mod tests {
         assert_eq!(c.received, 9);
         assert_eq!(c.dropped, 2 + 2);
         assert_eq!(c.out_of_order, 2);
+        assert_eq!(c.first_missing, Some(3));
+    }
+
+    #[test]
+    fn the_misses_are_named_per_topic_with_the_first_missing_seq() {
+        // A recorder stalled past its buffers (SIGSTOP, a slow disk): what
+        // it wrote of exo/sensor jumps from 2300 to 4101, exo/bus/motor
+        // from 10 to 12; the metadata names the counts and the first seq
+        // missed, and `exo run` reads them back as faults.
+        let mut drops = Drops::default();
+        for seq in (0..=2300).chain(4101..=4200) {
+            drops.see(&sample(seq));
+        }
+        for seq in [9, 10, 12] {
+            drops.see(&Record::BusMotor(BusMotorCommand {
+                seq,
+                ..Default::default()
+            }));
+        }
+        let m = drops.metadata(0);
+        assert_eq!(m["exo/sensor"], "1800");
+        assert_eq!(m["exo/sensor.first_missing"], "2301");
+        assert_eq!(m["exo/bus/motor.first_missing"], "11");
+        assert!(!m.contains_key("exo/command.first_missing"));
+        let missed = exo_recording::drops::missed(Path::new("run.mcap"), &m).unwrap();
+        let named: Vec<_> = missed
+            .iter()
+            .map(|x| (x.topic.as_str(), x.count, x.first_seq))
+            .collect();
+        assert_eq!(
+            named,
+            [
+                ("exo/bus/motor", 1, Some(11)),
+                ("exo/sensor", 1800, Some(2301))
+            ]
+        );
+        // Nothing missed: the record is as it always was (no first_missing
+        // keys), so `exo sim`'s and `exo run`'s files stay alike.
+        let clean = Drops::default().metadata(0);
+        assert!(clean.keys().all(|k| !k.ends_with(".first_missing")));
+    }
+
+    #[test]
+    fn frames_written_count_a_frame_once_its_answer_is_written_too() {
+        let mut drops = Drops::default();
+        assert_eq!(drops.frames_written(), 0);
+        let frame = |seq| {
+            Record::BusSensor(BusSensorFrame {
+                seq,
+                ..Default::default()
+            })
+        };
+        let motor = |frame_seq| {
+            Record::BusMotor(BusMotorCommand {
+                seq: frame_seq,
+                frame_seq,
+                ..Default::default()
+            })
+        };
+        drops.see(&frame(0));
+        assert_eq!(
+            drops.frames_written(),
+            0,
+            "frame 0's answer not yet written"
+        );
+        drops.see(&motor(0));
+        drops.see(&frame(1));
+        drops.see(&frame(2));
+        assert_eq!(drops.frames_written(), 1);
+        drops.see(&motor(1));
+        drops.see(&motor(2));
+        assert_eq!(drops.frames_written(), 3);
+        // A re-sent frame (lockstep, a slow answer) does not go back.
+        drops.see(&frame(1));
+        assert_eq!(drops.frames_written(), 3);
     }
 
     fn sample(seq: u64) -> Record {

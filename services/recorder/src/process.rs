@@ -13,8 +13,16 @@
 //! the hand-off (or sleeps on the sensor channel's wake-up) and hands a
 //! batch over when it is full or [`BATCH_MAX_AGE`] old; the writing thread
 //! encodes, compresses and writes.
+//!
+//! Each step also publishes how far the file reaches
+//! (`exo/recorder/progress`, [`RecorderProgress`]: the frames the writing
+//! thread has written), by which the plant holds simulated time in
+//! lockstep while the recorder is behind, so that a stalled or slow
+//! recorder loses nothing there.
 
 use std::path::PathBuf;
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::Arc;
 use std::thread::JoinHandle;
 use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
 
@@ -22,12 +30,12 @@ use anyhow::{Context, Result};
 use exo_messages::channels::ProcessName;
 use exo_messages::channels::{
     Channel, Topic, BUS_MOTOR, BUS_SENSOR, CHANNELS, COMMAND, IDENTIFIER_ESTIMATE, IDENTIFIER_FRF,
-    OPERATOR, PROTOCOL, SENSOR,
+    OPERATOR, PROTOCOL, RECORDER_PROGRESS, SENSOR,
 };
-use exo_messages::Message;
-use exo_service_kit::ipc::{Connect, Inbox, Ipc, DEEPEST, OFF_PATH_COALESCE};
+use exo_messages::{Message, RecorderProgress};
+use exo_service_kit::ipc::{Connect, Inbox, Ipc, Outbox, DEEPEST, OFF_PATH_COALESCE};
 use exo_service_kit::runner::{Context as RunContext, Flow, Process};
-use exo_service_kit::{RealtimeProcess, ServiceArgs, StopFlag};
+use exo_service_kit::{monotonic_ns, RealtimeProcess, ServiceArgs, StopFlag};
 use tracing::{info, warn};
 
 use crate::{
@@ -48,6 +56,9 @@ pub const BATCH_MAX_AGE: Duration = Duration::from_millis(100);
 /// The writer closes a chunk at least this often, so a SIGKILL loses at
 /// most about this much.
 const FLUSH_EVERY: Duration = Duration::from_secs(1);
+/// The progress is published when it changed, and at least this often
+/// (so a plant that connects late hears it).
+const PROGRESS_EVERY: Duration = Duration::from_millis(50);
 
 /// One subscribed channel.
 struct Tap<T: Message> {
@@ -103,7 +114,7 @@ fn open_tap(ipc: &Ipc, channel: Channel) -> Result<Box<dyn Drain>> {
         Channel::Operator => Tap::boxed(ipc, OPERATOR, Record::Operator),
         Channel::BusSensor => Tap::boxed(ipc, BUS_SENSOR, Record::BusSensor),
         Channel::BusMotor => Tap::boxed(ipc, BUS_MOTOR, Record::BusMotor),
-        Channel::OperatorReply => anyhow::bail!(
+        Channel::OperatorReply | Channel::RecorderProgress => anyhow::bail!(
             "{}: not in the recording contract, not recorded",
             channel.info().topic
         ),
@@ -145,10 +156,25 @@ impl Taps {
     }
 }
 
+/// How far the writing thread has got, for the receiving thread to
+/// publish ([`RecorderProgress`]).
+#[derive(Default)]
+struct Written {
+    /// [`Drops::frames_written`].
+    frames: AtomicU64,
+    /// [`Drops::total`].
+    missed: AtomicU64,
+}
+
 /// The writing thread: writes every batch, counts gaps in what it writes,
-/// closes a chunk at least every [`FLUSH_EVERY`]; returns the writer and the
-/// counts once the receiving side has gone.
-fn write_batches(mut w: Writer, batches: BatchReceiver) -> Result<(Writer, Drops)> {
+/// says how far it has written (`written`), closes a chunk at least every
+/// [`FLUSH_EVERY`]; returns the writer and the counts once the receiving
+/// side has gone.
+fn write_batches(
+    mut w: Writer,
+    batches: BatchReceiver,
+    written: &Written,
+) -> Result<(Writer, Drops)> {
     let mut drops = Drops::default();
     let mut last_flush = Instant::now();
     loop {
@@ -159,6 +185,10 @@ fn write_batches(mut w: Writer, batches: BatchReceiver) -> Result<(Writer, Drops
                     r.write_to(&mut w)?;
                 }
                 batches.recycle(batch);
+                written
+                    .frames
+                    .store(drops.frames_written(), Ordering::Release);
+                written.missed.store(drops.total(), Ordering::Release);
             }
             Ok(None) => {}
             Err(WriterGone) => return Ok((w, drops)),
@@ -175,6 +205,8 @@ pub struct RecorderProcess {
     taps: Taps,
     out: BatchSender,
     writer: JoinHandle<Result<(Writer, Drops)>>,
+    written: Arc<Written>,
+    progress: Progress,
     path: PathBuf,
     received: u64,
     since_hand_off: Instant,
@@ -209,6 +241,21 @@ impl Process for RecorderProcess {
             );
         }
         let (segment, path) = exo_recording::segments::next_free_segment(&first);
+        // The progress comes first, with nothing written: once the taps are
+        // open (which `exo run` waits for), a plant that starts holds for
+        // this recorder; a restarted recorder's plant holds until it has
+        // written what the channels' history gives it.
+        let progress = Progress {
+            outbox: cx.ipc.outbox(RECORDER_PROGRESS)?,
+            last: RecorderProgress {
+                segment,
+                pid: std::process::id(),
+                stamp_ns: monotonic_ns(),
+                ..Default::default()
+            },
+            sent_at: Instant::now(),
+        };
+        progress.outbox.send(progress.last)?;
         let taps = Taps::open(cx.ipc)?;
         let mut w = start_recording(&path, cfg, &args.config)?;
         if segment > 1 {
@@ -229,14 +276,20 @@ impl Process for RecorderProcess {
         }
         info!("recorder: writing {}", path.display());
         let (out, batches) = batch_channel(BATCH_RECORDS, MAX_PENDING_BATCHES);
-        let writer = std::thread::Builder::new()
-            .name("recorder-writer".into())
-            .spawn(move || write_batches(w, batches))
-            .context("starting the writing thread")?;
+        let written = Arc::new(Written::default());
+        let writer = {
+            let written = Arc::clone(&written);
+            std::thread::Builder::new()
+                .name("recorder-writer".into())
+                .spawn(move || write_batches(w, batches, &written))
+                .context("starting the writing thread")?
+        };
         Ok(RecorderProcess {
             taps,
             out,
             writer,
+            written,
+            progress,
             path,
             received: 0,
             since_hand_off: Instant::now(),
@@ -260,6 +313,7 @@ impl Process for RecorderProcess {
             self.out.hand_off().map_err(|_| writer_gone())?;
             self.since_hand_off = Instant::now();
         }
+        self.progress.publish(&self.written)?;
         Ok(Flow::Continue)
     }
 
@@ -275,6 +329,13 @@ impl Process for RecorderProcess {
             .map_err(|_| anyhow::anyhow!("the writing thread panicked"))?
             .context("the writing thread stopped")?;
         let received = self.received + last? as u64;
+        // The last word on how far the file reaches (a plant still running
+        // goes on).
+        self.written
+            .frames
+            .store(drops.frames_written(), Ordering::Release);
+        self.written.missed.store(drops.total(), Ordering::Release);
+        self.progress.publish(&self.written)?;
         let counted = drops.counted();
         w.write_metadata("exo.drops", &drops.metadata(discarded))?;
         let written = w.messages_written();
@@ -282,7 +343,10 @@ impl Process for RecorderProcess {
         let dropped = drops.total();
         let gaps: Vec<String> = counted
             .iter()
-            .map(|(topic, c)| format!("{topic} {}", c.dropped))
+            .map(|(topic, c)| match c.first_missing {
+                Some(first) => format!("{topic} {} (the first seq {first})", c.dropped),
+                None => format!("{topic} {}", c.dropped),
+            })
             .collect();
         if dropped > 0 || discarded > 0 {
             warn!(
@@ -298,6 +362,36 @@ impl Process for RecorderProcess {
             "recorder: {written} messages in {:.1} s ({received} received), {dropped} missed, file {path}",
             self.started.elapsed().as_secs_f64(),
         );
+        Ok(())
+    }
+}
+
+/// The progress outbox and what it last said.
+struct Progress {
+    outbox: Outbox<RecorderProgress>,
+    last: RecorderProgress,
+    sent_at: Instant,
+}
+
+impl Progress {
+    /// Publishes how far the writing thread has got, when that changed or
+    /// [`PROGRESS_EVERY`] after the last.
+    fn publish(&mut self, written: &Written) -> Result<()> {
+        let frames = written.frames.load(Ordering::Acquire);
+        let missed = written.missed.load(Ordering::Acquire);
+        let changed = (frames, missed) != (self.last.frames_written, self.last.missed);
+        if !changed && self.sent_at.elapsed() < PROGRESS_EVERY {
+            return Ok(());
+        }
+        self.last = RecorderProgress {
+            seq: self.last.seq + 1,
+            stamp_ns: monotonic_ns(),
+            frames_written: frames,
+            missed,
+            ..self.last
+        };
+        self.outbox.send(self.last)?;
+        self.sent_at = Instant::now();
         Ok(())
     }
 }

@@ -18,7 +18,7 @@ use core::marker::PhantomData;
 
 use crate::{
     ActuatorCommand, BusMotorCommand, BusSensorFrame, FrfPoint, ImpedanceEstimate, Message,
-    OperatorCommand, OperatorReply, ProtocolState, SensorSample,
+    OperatorCommand, OperatorReply, ProtocolState, RecorderProgress, SensorSample,
 };
 
 /// The processes of exo.
@@ -138,6 +138,8 @@ pub enum Channel {
     Operator = 7,
     /// The controller's answers to operator commands (`OperatorReply`).
     OperatorReply = 8,
+    /// How far the recorder has written the run (`RecorderProgress`).
+    RecorderProgress = 9,
 }
 
 /// A channel's declaration.
@@ -178,7 +180,7 @@ pub struct ChannelInfo {
 }
 
 /// Every channel of exo, in [`Channel`] order.
-pub const CHANNELS: [ChannelInfo; 9] = [
+pub const CHANNELS: [ChannelInfo; 10] = [
     ChannelInfo {
         channel: Channel::Sensor,
         topic: "exo/sensor",
@@ -345,7 +347,31 @@ pub const CHANNELS: [ChannelInfo; 9] = [
         history: 0,
         schema: "",
     },
+    ChannelInfo {
+        channel: Channel::RecorderProgress,
+        topic: "exo/recorder/progress",
+        payload: RecorderProgress::TYPE_NAME,
+        publisher: ProcessName::Recorder,
+        // In lockstep the plant holds its next frame while the recorder is
+        // more than `RecorderProgress::MAX_LAG_FRAMES` behind.
+        subscribers: &[ProcessName::PlantSim],
+        // The holding plant sleeps on it.
+        has_event: true,
+        // Two: a restarted recorder's publisher must not wait for the dead
+        // one's to be cleaned up.
+        max_publishers: 2,
+        max_buffer: PROGRESS,
+        // Not in the recording contract: it says how far the recording
+        // reaches, for the plant in lockstep.
+        recorded: false,
+        // The last one, for a plant that connects after it was published.
+        history: 1,
+        schema: "",
+    },
 ];
+
+/// The buffer bound of the recorder's progress: only the last one counts.
+const PROGRESS: usize = 16;
 
 /// The buffer bound of the operator replies: more than a console sends
 /// before it reads.
@@ -485,6 +511,9 @@ pub const OPERATOR: Topic<OperatorCommand> = Topic::new(Channel::Operator);
 /// `exo/operator/reply`: the controller's answer to each operator command,
 /// controller → `exo op`.
 pub const OPERATOR_REPLY: Topic<OperatorReply> = Topic::new(Channel::OperatorReply);
+/// `exo/recorder/progress`: how far the recorder has written the run,
+/// recorder → plant simulator (which holds simulated time for it in lockstep).
+pub const RECORDER_PROGRESS: Topic<RecorderProgress> = Topic::new(Channel::RecorderProgress);
 
 #[cfg(test)]
 mod tests {

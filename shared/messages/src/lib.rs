@@ -20,6 +20,7 @@
 //! | [`FrfPoint`], [`ImpedanceEstimate`] | [`identifier`] | identifier → operator, recorder |
 //! | [`OperatorCommand`] | [`operator`] | operator console → controller, sensor driver |
 //! | [`OperatorReply`] | [`operator`] | controller → operator console |
+//! | [`RecorderProgress`] | [`recorder`] | recorder → plant simulator (lockstep: how far the file reaches) |
 //!
 //! Sign convention (the paper's): `tau_c` is the torque the cuff applies to
 //! the human, so `S_h = τ_c/θ_e`; `tau_s` is the SEA spring torque driving
@@ -45,6 +46,7 @@ pub mod error;
 pub mod identifier;
 pub mod operator;
 pub mod protocol;
+pub mod recorder;
 pub mod sensor;
 
 use core::fmt::Debug;
@@ -58,6 +60,7 @@ pub use error::MessageError;
 pub use identifier::{FitModel, FrfPoint, ImpedanceEstimate};
 pub use operator::{OperatorCommand, OperatorCommandKind, OperatorReply, OperatorVerdict};
 pub use protocol::{ProtocolPhase, ProtocolState};
+pub use recorder::RecorderProgress;
 pub use sensor::{status, SensorLimits, SensorSample};
 
 /// What every exo message is: a fixed-layout, shared-memory-safe sample with
@@ -146,5 +149,6 @@ mod tests {
         check::<ImpedanceEstimate>();
         check::<OperatorCommand>();
         check::<OperatorReply>();
+        check::<RecorderProgress>();
     }
 }

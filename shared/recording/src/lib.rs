@@ -23,6 +23,7 @@
 #![warn(missing_docs)]
 
 pub mod cdr;
+pub mod drops;
 pub mod files;
 pub mod reader;
 pub mod record;

@@ -154,6 +154,7 @@ pub fn run_config(config: &std::path::Path, logs: Logs) -> Result<Finished> {
         if segments.len() > 1 {
             faults.extend(recording_gaps(r)?);
         }
+        faults.extend(recorder_misses(&segments));
     }
     faults.extend(watch.faults()?);
     for f in &faults {
@@ -172,6 +173,42 @@ fn recording_gaps(first: &Path) -> Result<Vec<String>> {
         .into_iter()
         .filter(|w| w.contains("are in no segment"))
         .collect())
+}
+
+/// The samples the recorder missed within each segment (sequence gaps:
+/// its subscriber buffers overflowed while it was stalled or slow), one
+/// line per segment and topic, from each segment's `exo.drops` record. A
+/// segment without the record (its recorder died) is named already, as
+/// the restart or the unfinished file.
+fn recorder_misses(segments: &[PathBuf]) -> Vec<String> {
+    let mut out = Vec::new();
+    for s in segments {
+        let missed = exo_recording::drops::read_drops(s).and_then(|d| match d {
+            Some(d) => exo_recording::drops::missed(s, &d),
+            None => Ok(Vec::new()),
+        });
+        match missed {
+            Ok(missed) => out.extend(missed.iter().map(|m| describe_missed(s, m))),
+            Err(e) => out.push(format!(
+                "cannot read what the recorder missed in {}: {e}",
+                s.display()
+            )),
+        }
+    }
+    out
+}
+
+/// One topic's misses as a fault line: the count, the first missing seq,
+/// the file.
+pub fn describe_missed(file: &Path, m: &exo_recording::drops::Missed) -> String {
+    format!(
+        "the recorder missed {} samples of {} (sequence gaps){} in {}",
+        m.count,
+        m.topic,
+        m.first_seq
+            .map_or(String::new(), |s| format!(", the first seq {s},")),
+        file.display()
+    )
 }
 
 /// A run the processes finished.
@@ -279,4 +316,30 @@ pub fn fit_and_report(cfg: &RunConfig, recording: &Path, no_report: bool) -> Res
     println!("recording: {}", recording.display());
     println!("report:    {}", page.display());
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_topic_the_recorder_missed_is_named_with_its_count_and_first_seq() {
+        let m = exo_recording::drops::Missed {
+            topic: "exo/sensor".into(),
+            count: 1800,
+            first_seq: Some(2301),
+        };
+        assert_eq!(
+            describe_missed(Path::new("out/run.mcap"), &m),
+            "the recorder missed 1800 samples of exo/sensor (sequence gaps), the first seq 2301, in out/run.mcap"
+        );
+        let older = exo_recording::drops::Missed {
+            first_seq: None,
+            ..m
+        };
+        assert_eq!(
+            describe_missed(Path::new("r.mcap"), &older),
+            "the recorder missed 1800 samples of exo/sensor (sequence gaps) in r.mcap"
+        );
+    }
 }
