@@ -14,7 +14,7 @@
 //! recorder that does not catch up within the process's patience is given
 //! up ([`RecorderPace::give_up`]): simulated time goes on, the recorder
 //! counts what it misses and `exo run` names it, and the plant waits for
-//! it again only once it has written further (or a new one has started).
+//! it again only once it has taken further (or a new one has started).
 //! A recorder that has died is not waited for at all ([`RecorderPace::forget`]);
 //! `exo run` restarts it and holds simulated time itself while the new one
 //! connects.
@@ -28,7 +28,7 @@ pub enum Pace {
     Go,
     /// The recorder is `lag` frames behind, more than it may be.
     Hold {
-        /// Frames published and not yet written.
+        /// Frames published and not yet taken by the recorder.
         lag: u64,
     },
 }
@@ -48,11 +48,11 @@ impl RecorderPace {
     }
 
     /// Takes the recorder's latest progress. A recorder that was given up
-    /// is waited for again once it has written further, or once another
+    /// is waited for again once it has taken further, or once another
     /// recorder (a restart, a new segment) speaks.
     pub fn on_progress(&mut self, p: &RecorderProgress) {
         if let Some(g) = self.given_up {
-            if p.segment != g.segment || p.frames_written > g.frames_written {
+            if p.segment != g.segment || p.frames_taken > g.frames_taken {
                 self.given_up = None;
             }
         }
@@ -100,10 +100,10 @@ mod tests {
 
     const MAX: u64 = RecorderProgress::MAX_LAG_FRAMES;
 
-    fn progress(segment: u32, frames_written: u64) -> RecorderProgress {
+    fn progress(segment: u32, frames_taken: u64) -> RecorderProgress {
         RecorderProgress {
             segment,
-            frames_written,
+            frames_taken,
             ..Default::default()
         }
     }
@@ -128,8 +128,8 @@ mod tests {
 
     #[test]
     fn a_recorder_that_starts_again_is_waited_for_from_nothing() {
-        // A restarted recorder's first word: nothing written yet; the
-        // plant holds until it has written what the channels' history
+        // A restarted recorder's first word: nothing taken yet; the
+        // plant holds until it has taken what the channels' history
         // gave it.
         let mut pace = RecorderPace::new();
         pace.on_progress(&progress(1, 50_000));
@@ -161,7 +161,7 @@ mod tests {
         pace.on_progress(&progress(1, 10));
         assert_eq!(pace.check(next), Pace::Go);
         assert_eq!(pace.check(next + 100_000), Pace::Go);
-        // It has written further: it is waited for again.
+        // It has taken further: it is waited for again.
         pace.on_progress(&progress(1, 11));
         assert!(matches!(pace.check(next + 100_000), Pace::Hold { .. }));
         // A new recorder after one given up is waited for too.

@@ -93,9 +93,6 @@ pub struct Drops {
     pub bus_sensor: DropCounter,
     /// `exo/bus/motor`.
     pub bus_motor: DropCounter,
-    /// The highest bus frame `seq` written, and the highest a written motor
-    /// command answered (`frame_seq`).
-    frames: [Option<u64>; 2],
 }
 
 impl Drops {
@@ -111,24 +108,8 @@ impl Drops {
             Record::Protocol(_) | Record::Operator(_) => {}
             Record::Frf(m) => self.frf.see(m.seq),
             Record::Estimate(m) => self.estimate.see(m.seq),
-            Record::BusSensor(m) => {
-                self.bus_sensor.see(m.seq);
-                self.frames[0] = self.frames[0].max(Some(m.seq));
-            }
-            Record::BusMotor(m) => {
-                self.bus_motor.see(m.seq);
-                self.frames[1] = self.frames[1].max(Some(m.frame_seq));
-            }
-        }
-    }
-
-    /// Frames written ([`exo_messages::RecorderProgress::frames_written`]):
-    /// one more than the highest bus frame through which both the frame
-    /// and the motor command answering it were written; 0 before both.
-    pub fn frames_written(&self) -> u64 {
-        match self.frames {
-            [Some(frame), Some(answered)] => frame.min(answered) + 1,
-            _ => 0,
+            Record::BusSensor(m) => self.bus_sensor.see(m.seq),
+            Record::BusMotor(m) => self.bus_motor.see(m.seq),
         }
     }
 
@@ -171,6 +152,35 @@ impl Drops {
     /// Samples missed over all topics.
     pub fn total(&self) -> u64 {
         self.counted().iter().map(|(_, c)| c.dropped).sum()
+    }
+}
+
+/// How far the recorder has taken the run's frames
+/// ([`exo_messages::RecorderProgress::frames_taken`]): the highest bus
+/// frame `seq` taken, and the highest frame a taken motor command answered.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct FramesTaken {
+    frame: Option<u64>,
+    answered: Option<u64>,
+}
+
+impl FramesTaken {
+    /// Accounts for one record taken.
+    pub fn see(&mut self, r: &Record) {
+        match r {
+            Record::BusSensor(m) => self.frame = self.frame.max(Some(m.seq)),
+            Record::BusMotor(m) => self.answered = self.answered.max(Some(m.frame_seq)),
+            _ => {}
+        }
+    }
+
+    /// One more than the highest bus frame through which both the frame
+    /// and the motor command answering it were taken; 0 before both.
+    pub fn count(&self) -> u64 {
+        match (self.frame, self.answered) {
+            (Some(frame), Some(answered)) => frame.min(answered) + 1,
+            _ => 0,
+        }
     }
 }
 
@@ -229,6 +239,16 @@ impl BatchSender {
         }
         self.current.push(r);
         Ok(())
+    }
+
+    /// Whether the current batch is full and the writer's queue has no
+    /// room for it (tried now): the next record pushed would be discarded.
+    /// In lockstep the receiver then takes nothing more from its buffers.
+    pub fn is_full(&mut self) -> Result<bool, WriterGone> {
+        if self.current.len() >= self.batch {
+            self.hand_off()?;
+        }
+        Ok(self.current.len() >= self.batch)
     }
 
     /// Hands the current batch to the writer now if it holds anything and
@@ -432,9 +452,9 @@ mod tests {
     }
 
     #[test]
-    fn frames_written_count_a_frame_once_its_answer_is_written_too() {
-        let mut drops = Drops::default();
-        assert_eq!(drops.frames_written(), 0);
+    fn frames_taken_count_a_frame_once_its_answer_is_taken_too() {
+        let mut drops = FramesTaken::default();
+        assert_eq!(drops.count(), 0);
         let frame = |seq| {
             Record::BusSensor(BusSensorFrame {
                 seq,
@@ -449,21 +469,17 @@ mod tests {
             })
         };
         drops.see(&frame(0));
-        assert_eq!(
-            drops.frames_written(),
-            0,
-            "frame 0's answer not yet written"
-        );
+        assert_eq!(drops.count(), 0, "frame 0's answer not yet taken");
         drops.see(&motor(0));
         drops.see(&frame(1));
         drops.see(&frame(2));
-        assert_eq!(drops.frames_written(), 1);
+        assert_eq!(drops.count(), 1);
         drops.see(&motor(1));
         drops.see(&motor(2));
-        assert_eq!(drops.frames_written(), 3);
+        assert_eq!(drops.count(), 3);
         // A re-sent frame (lockstep, a slow answer) does not go back.
         drops.see(&frame(1));
-        assert_eq!(drops.frames_written(), 3);
+        assert_eq!(drops.count(), 3);
     }
 
     fn sample(seq: u64) -> Record {
@@ -545,6 +561,23 @@ mod tests {
         });
         assert_eq!(tx.finish(), Ok(12));
         assert_eq!(writer.join().unwrap(), 9);
+    }
+
+    #[test]
+    fn a_full_hand_off_says_so_before_it_discards() {
+        // One batch of two may wait; the writer takes nothing.
+        let (mut tx, rx) = batch_channel(2, 1);
+        for s in 0..4 {
+            assert!(!tx.is_full().unwrap(), "{s}");
+            tx.push(sample(s)).unwrap();
+        }
+        // 0 and 1 queued, 2 and 3 the current batch: full, nothing lost.
+        assert!(tx.is_full().unwrap());
+        assert_eq!(tx.discarded(), 0);
+        // The writer takes a batch: room again.
+        let b = rx.recv(Duration::from_millis(10)).unwrap().unwrap();
+        rx.recycle(b);
+        assert!(!tx.is_full().unwrap());
     }
 
     #[test]

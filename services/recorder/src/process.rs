@@ -14,11 +14,13 @@
 //! batch over when it is full or [`BATCH_MAX_AGE`] old; the writing thread
 //! encodes, compresses and writes.
 //!
-//! Each step also publishes how far the file reaches
-//! (`exo/recorder/progress`, [`RecorderProgress`]: the frames the writing
-//! thread has written), by which the plant holds simulated time in
+//! Each step also publishes how far it has taken the run
+//! (`exo/recorder/progress`, [`RecorderProgress`]: the frames taken out of
+//! its buffers for the file), by which the plant holds simulated time in
 //! lockstep while the recorder is behind, so that a stalled or slow
-//! recorder loses nothing there.
+//! recorder loses nothing there. In lockstep the receiver also never
+//! discards: with the writing thread a whole queue behind (a slow disk) it
+//! stops taking, its progress stops and the plant holds.
 
 use std::path::PathBuf;
 use std::sync::atomic::{AtomicU64, Ordering};
@@ -27,6 +29,7 @@ use std::thread::JoinHandle;
 use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
 
 use anyhow::{Context, Result};
+use exo_config::TimingMode;
 use exo_messages::channels::ProcessName;
 use exo_messages::channels::{
     Channel, Topic, BUS_MOTOR, BUS_SENSOR, CHANNELS, COMMAND, IDENTIFIER_ESTIMATE, IDENTIFIER_FRF,
@@ -40,7 +43,7 @@ use tracing::{info, warn};
 
 use crate::{
     batch_channel, default_output, start_recording, BatchReceiver, BatchSender, Drops, FileWriter,
-    Record, WriterGone,
+    FramesTaken, Record, WriterGone,
 };
 
 type Writer = FileWriter;
@@ -59,6 +62,20 @@ const FLUSH_EVERY: Duration = Duration::from_secs(1);
 /// The progress is published when it changed, and at least this often
 /// (so a plant that connects late hears it).
 const PROGRESS_EVERY: Duration = Duration::from_millis(50);
+/// At the end, in lockstep, how long the receiver waits for room in the
+/// writer's queue for what is still in its buffers before it discards.
+const FINISH_PATIENCE: Duration = Duration::from_secs(5);
+
+/// What the receiver does when the writer's queue is full.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum WhenFull {
+    /// Stops taking: what waits stays in the subscriber buffers, the
+    /// progress stops, and the plant holds (lockstep).
+    Stop,
+    /// Takes on and discards, counted as gaps (real time: control never
+    /// waits, and the buffers would overflow anyway).
+    Discard,
+}
 
 /// One subscribed channel.
 struct Tap<T: Message> {
@@ -68,8 +85,15 @@ struct Tap<T: Message> {
 
 /// A tap of any payload type.
 trait Drain {
-    /// Moves everything waiting into the hand-off; returns how many.
-    fn drain(&self, out: &mut BatchSender) -> Result<usize>;
+    /// Moves what waits into the hand-off (all of it, or, with
+    /// [`WhenFull::Stop`], until the hand-off is full), noting the frames
+    /// taken; returns how many.
+    fn drain(
+        &self,
+        out: &mut BatchSender,
+        taken: &mut FramesTaken,
+        full: WhenFull,
+    ) -> Result<usize>;
     /// Waits up to `timeout` for a sample's wake-up event.
     fn wait(&self, timeout: Duration) -> Result<()>;
 }
@@ -86,10 +110,23 @@ impl<T: Message> Tap<T> {
 }
 
 impl<T: Message> Drain for Tap<T> {
-    fn drain(&self, out: &mut BatchSender) -> Result<usize> {
+    fn drain(
+        &self,
+        out: &mut BatchSender,
+        taken: &mut FramesTaken,
+        full: WhenFull,
+    ) -> Result<usize> {
         let mut n = 0;
-        while let Some(m) = self.inbox.try_recv()? {
-            out.push((self.wrap)(m)).map_err(|_| writer_gone())?;
+        loop {
+            if full == WhenFull::Stop && out.is_full().map_err(|_| writer_gone())? {
+                break;
+            }
+            let Some(m) = self.inbox.try_recv()? else {
+                break;
+            };
+            let r = (self.wrap)(m);
+            taken.see(&r);
+            out.push(r).map_err(|_| writer_gone())?;
             n += 1;
         }
         Ok(n)
@@ -147,27 +184,30 @@ impl Taps {
         })
     }
 
-    fn drain(&self, out: &mut BatchSender) -> Result<usize> {
-        let mut n = self.sensor.drain(out)?;
+    fn drain(
+        &self,
+        out: &mut BatchSender,
+        taken: &mut FramesTaken,
+        full: WhenFull,
+    ) -> Result<usize> {
+        let mut n = self.sensor.drain(out, taken, full)?;
         for t in &self.others {
-            n += t.drain(out)?;
+            n += t.drain(out, taken, full)?;
         }
         Ok(n)
     }
 }
 
-/// How far the writing thread has got, for the receiving thread to
-/// publish ([`RecorderProgress`]).
+/// What the writing thread has counted, for the receiving thread to
+/// publish ([`RecorderProgress::missed`]).
 #[derive(Default)]
 struct Written {
-    /// [`Drops::frames_written`].
-    frames: AtomicU64,
     /// [`Drops::total`].
     missed: AtomicU64,
 }
 
-/// The writing thread: writes every batch, counts gaps in what it writes,
-/// says how far it has written (`written`), closes a chunk at least every
+/// The writing thread: writes every batch, counts gaps in what it writes
+/// (and says how many in `written`), closes a chunk at least every
 /// [`FLUSH_EVERY`]; returns the writer and the counts once the receiving
 /// side has gone.
 fn write_batches(
@@ -185,9 +225,6 @@ fn write_batches(
                     r.write_to(&mut w)?;
                 }
                 batches.recycle(batch);
-                written
-                    .frames
-                    .store(drops.frames_written(), Ordering::Release);
                 written.missed.store(drops.total(), Ordering::Release);
             }
             Ok(None) => {}
@@ -207,10 +244,34 @@ pub struct RecorderProcess {
     writer: JoinHandle<Result<(Writer, Drops)>>,
     written: Arc<Written>,
     progress: Progress,
+    taken: FramesTaken,
+    when_full: WhenFull,
     path: PathBuf,
     received: u64,
     since_hand_off: Instant,
     started: Instant,
+}
+
+impl RecorderProcess {
+    /// Takes what is still in the buffers at the end. In lockstep nothing
+    /// is discarded while the writer makes room, for at most
+    /// [`FINISH_PATIENCE`]; then (or in real time) what does not fit is.
+    fn drain_to_the_end(&mut self) -> Result<usize> {
+        let started = Instant::now();
+        let mut n = 0;
+        while self.when_full == WhenFull::Stop && started.elapsed() < FINISH_PATIENCE {
+            n += self
+                .taps
+                .drain(&mut self.out, &mut self.taken, WhenFull::Stop)?;
+            if !self.out.is_full().map_err(|_| writer_gone())? {
+                break;
+            }
+            std::thread::sleep(OFF_PATH_COALESCE);
+        }
+        Ok(n + self
+            .taps
+            .drain(&mut self.out, &mut self.taken, WhenFull::Discard)?)
+    }
 }
 
 impl Process for RecorderProcess {
@@ -290,6 +351,11 @@ impl Process for RecorderProcess {
             writer,
             written,
             progress,
+            taken: FramesTaken::default(),
+            when_full: match cfg.run.timing {
+                TimingMode::Lockstep => WhenFull::Stop,
+                TimingMode::Realtime => WhenFull::Discard,
+            },
             path,
             received: 0,
             since_hand_off: Instant::now(),
@@ -302,7 +368,9 @@ impl Process for RecorderProcess {
     }
 
     fn step(&mut self, _stop: &StopFlag) -> Result<Flow> {
-        let n = self.taps.drain(&mut self.out)?;
+        let n = self
+            .taps
+            .drain(&mut self.out, &mut self.taken, self.when_full)?;
         self.received += n as u64;
         if n == 0 {
             self.taps.sensor.wait(Duration::from_millis(20))?;
@@ -313,7 +381,7 @@ impl Process for RecorderProcess {
             self.out.hand_off().map_err(|_| writer_gone())?;
             self.since_hand_off = Instant::now();
         }
-        self.progress.publish(&self.written)?;
+        self.progress.publish(self.taken.count(), &self.written)?;
         Ok(Flow::Continue)
     }
 
@@ -321,7 +389,7 @@ impl Process for RecorderProcess {
         let path = self.path.display().to_string();
         // Whatever ended the receiving, hand over what is left and let the
         // writer finish the file.
-        let last = self.taps.drain(&mut self.out);
+        let last = self.drain_to_the_end();
         let discarded = self.out.finish().unwrap_or_default();
         let (mut w, drops) = self
             .writer
@@ -329,13 +397,9 @@ impl Process for RecorderProcess {
             .map_err(|_| anyhow::anyhow!("the writing thread panicked"))?
             .context("the writing thread stopped")?;
         let received = self.received + last? as u64;
-        // The last word on how far the file reaches (a plant still running
-        // goes on).
-        self.written
-            .frames
-            .store(drops.frames_written(), Ordering::Release);
+        // The last word on how far the file reaches.
         self.written.missed.store(drops.total(), Ordering::Release);
-        self.progress.publish(&self.written)?;
+        self.progress.publish(self.taken.count(), &self.written)?;
         let counted = drops.counted();
         w.write_metadata("exo.drops", &drops.metadata(discarded))?;
         let written = w.messages_written();
@@ -376,17 +440,16 @@ struct Progress {
 impl Progress {
     /// Publishes how far the writing thread has got, when that changed or
     /// [`PROGRESS_EVERY`] after the last.
-    fn publish(&mut self, written: &Written) -> Result<()> {
-        let frames = written.frames.load(Ordering::Acquire);
+    fn publish(&mut self, frames: u64, written: &Written) -> Result<()> {
         let missed = written.missed.load(Ordering::Acquire);
-        let changed = (frames, missed) != (self.last.frames_written, self.last.missed);
+        let changed = (frames, missed) != (self.last.frames_taken, self.last.missed);
         if !changed && self.sent_at.elapsed() < PROGRESS_EVERY {
             return Ok(());
         }
         self.last = RecorderProgress {
             seq: self.last.seq + 1,
             stamp_ns: monotonic_ns(),
-            frames_written: frames,
+            frames_taken: frames,
             missed,
             ..self.last
         };

@@ -11,9 +11,12 @@
 
 use iceoryx2::prelude::ZeroCopySend;
 
-/// How far the recorder has written the run: the frames whose bus frame
-/// and the motor command answering it are both in its file (handed to the
-/// MCAP writer, not only received).
+/// How far the recorder has taken the run for its file: the frames whose
+/// bus frame and the motor command answering it it has taken out of its
+/// subscriber buffers and queued for its writing thread. In lockstep it
+/// never discards what it has taken: when the writing thread is behind by
+/// its whole queue (a slow disk) it stops taking, so its progress stops
+/// and the plant holds.
 ///
 /// 40 bytes, 8-aligned, no implicit padding.
 #[derive(Debug, Clone, Copy, Default, PartialEq, ZeroCopySend)]
@@ -25,10 +28,10 @@ pub struct RecorderProgress {
     pub seq: u64,
     /// Time stamp (ns) on the monotonic clock when it was published.
     pub stamp_ns: u64,
-    /// Frames written (count): one more than the highest bus frame `seq`
-    /// through which the recorder has written both `bus/sensor` and the
-    /// `bus/motor` command answering it; 0 before it has written any.
-    pub frames_written: u64,
+    /// Frames taken (count): one more than the highest bus frame `seq`
+    /// through which the recorder has taken both `bus/sensor` and the
+    /// `bus/motor` command answering it; 0 before it has taken any.
+    pub frames_taken: u64,
     /// Samples missed so far over every recorded channel (count; sequence
     /// gaps in what it wrote), by this recorder process.
     pub missed: u64,
@@ -54,7 +57,7 @@ impl RecorderProgress {
     /// How many frames the recorder is behind when the plant is about to
     /// send frame `next_frame` (frames `0..next_frame` published).
     pub fn lag(&self, next_frame: u64) -> u64 {
-        next_frame.saturating_sub(self.frames_written)
+        next_frame.saturating_sub(self.frames_taken)
     }
 }
 
@@ -79,16 +82,16 @@ mod tests {
         assert_eq!(align_of::<RecorderProgress>(), 8);
         assert_eq!(offset_of!(RecorderProgress, seq), 0);
         assert_eq!(offset_of!(RecorderProgress, stamp_ns), 8);
-        assert_eq!(offset_of!(RecorderProgress, frames_written), 16);
+        assert_eq!(offset_of!(RecorderProgress, frames_taken), 16);
         assert_eq!(offset_of!(RecorderProgress, missed), 24);
         assert_eq!(offset_of!(RecorderProgress, segment), 32);
         assert_eq!(offset_of!(RecorderProgress, pid), 36);
     }
 
     #[test]
-    fn the_lag_is_the_frames_published_and_not_written() {
+    fn the_lag_is_the_frames_published_and_not_taken() {
         let p = RecorderProgress {
-            frames_written: 100,
+            frames_taken: 100,
             ..Default::default()
         };
         assert_eq!(p.lag(100), 0);
