@@ -34,6 +34,7 @@ pub mod loop_shaping;
 pub mod models;
 pub mod plausibility;
 pub mod power_law;
+pub mod quantiser;
 
 pub use error::{Result, ScienceError};
 pub use fit::{

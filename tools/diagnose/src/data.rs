@@ -245,24 +245,35 @@ pub struct Observation {
     pub tf: Tf,
     /// Frequency (rad/s).
     pub omega_rad_s: f64,
-    /// Measured value.
+    /// Measured value, as judged: a single-sine line's transient-free value
+    /// where there is one ([`Observation::transient_free`]), else the line
+    /// itself; a static balance's mean.
     pub value: Complex64,
     /// Standard deviation of the real and of the imaginary part (same units
-    /// as `value`), from the window's residual taken as white noise: what
-    /// the fits weight with.
+    /// as `value`), what the fits weight with: the transient-free value's
+    /// own, else the window's residual taken as white noise; a static
+    /// balance's with each cycle counted as one sample (conservative).
     pub sigma: [f64; 2],
-    /// The same with the window's transient taken out, where the window
-    /// allows it: a single-sine line by the local polynomial method
+    /// The window's transient taken out, where the window allows it: a
+    /// single-sine line by the local polynomial method
     /// (`exo_impedance::frf::local_polynomial_ratio`; three cycles or more,
     /// neighbours that hold a smooth transient), with the white σ times
     /// √leverage; a static balance with the mean's noise measured at zero
-    /// frequency (`exo_impedance::frf::mean_standard_error`). Reported ([`crate::fit::noise_only_chi2`],
-    /// the `residuals` example), not judged by: the polynomials also carry
-    /// part of a nonlinearity's non-periodic response out of the line (a
-    /// 0.05 rad backlash on our simulator's horizontal rig is then missed),
-    /// and the balance's own noise names a sensor gain on a null of our
-    /// simulator's viscous human (docs/diagnose.md, "The noise model").
+    /// frequency (`exo_impedance::frf::mean_standard_error`), reported
+    /// ([`crate::fit::noise_only_chi2`], the `residuals` example) and not
+    /// judged by: the balance's model misses a few mNm at the upper
+    /// periods of our own simulator, beyond that noise (docs/diagnose.md,
+    /// "The noise model").
     pub transient_free: Option<TransientFree>,
+    /// The systematic uncertainty beyond the noise this value is held to
+    /// (fraction of `|value|`): for a value divided by the angle, the
+    /// encoder quantiser's gain error at the window's amplitude
+    /// (`exo_impedance::quantiser::sine_gain_sd`); for a line whose
+    /// window's transient is still in it, also the forward model's
+    /// accuracy [`crate::fit::MODEL_ACCURACY`], which that transient may
+    /// reach. A physics with terms whose forward model is coarser holds
+    /// every value to more ([`crate::fit::model_accuracy`]).
+    pub accuracy: f64,
     /// Index of its window in [`Dataset::conditions`].
     pub window: usize,
     /// The controller's gravity compensation `τ_gravity/θ_e` at ω (Nm/rad), measured.
@@ -703,6 +714,8 @@ fn single_sine(
     };
     let [a_th, a_tc, a_tsn, a_ts, a_td, a_tg] = amps;
     cond.theta_amp_rad = a_th.amplitude.norm();
+    let theta_amp_rad = cond.theta_amp_rad;
+    let encoder_step_rad = exo_impedance::quantiser::quantum(&sig.theta_rad).unwrap_or(0.0);
     let gravity_comp = if has_command {
         sine_ratio(&a_th, &a_tg).map_or(Complex64::new(0.0, 0.0), |p| p.ratio)
     } else {
@@ -737,12 +750,32 @@ fn single_sine(
                         sigma: [line_sigma[0] * inflate, line_sigma[1] * inflate],
                     }
                 });
+                // The encoder's quantiser at this amplitude, for the
+                // values divided by the angle.
+                let quantiser = if tf == Tf::Sea {
+                    0.0
+                } else {
+                    exo_impedance::quantiser::sine_gain_sd(encoder_step_rad, theta_amp_rad)
+                };
+                // Judged: the transient-free value where there is one, held
+                // to the noise and the quantiser; else the line, held also
+                // to the forward model's accuracy, which its transient may
+                // reach (docs/diagnose.md, "The noise model").
+                let (value, sigma, accuracy) = match transient_free {
+                    Some(f) => (f.value, f.sigma, quantiser),
+                    None => (
+                        p.ratio,
+                        line_sigma,
+                        crate::fit::MODEL_ACCURACY.hypot(quantiser),
+                    ),
+                };
                 d.observations.push(Observation {
                     tf,
                     omega_rad_s: w,
-                    value: p.ratio,
-                    sigma: line_sigma,
+                    value,
+                    sigma,
                     transient_free,
+                    accuracy,
                     window,
                     gravity_comp,
                     statics: [0.0; 2],
@@ -819,6 +852,7 @@ fn balance(
         value: Complex64::new(mean, 0.0),
         sigma: [se, se],
         transient_free,
+        accuracy: crate::fit::MODEL_ACCURACY,
         window,
         gravity_comp: Complex64::new(0.0, 0.0),
         statics: [g_mean, c_mean],
@@ -896,6 +930,7 @@ fn broadband(
             value: b.h,
             sigma: sd(&b),
             transient_free: None,
+            accuracy: crate::fit::MODEL_ACCURACY,
             window,
             gravity_comp: zero,
             statics: [0.0; 2],
@@ -911,6 +946,7 @@ fn broadband(
                             value: bb.h,
                             sigma: sd(&bb),
                             transient_free: None,
+                            accuracy: crate::fit::MODEL_ACCURACY,
                             window,
                             gravity_comp,
                             statics: [0.0; 2],

@@ -121,6 +121,15 @@ pub enum Param {
 }
 
 impl Param {
+    /// A delay of a sensor or of the motor command (s): one of the timing
+    /// terms a sample period bounds from below (a reflex's delay is not).
+    pub fn is_delay(self) -> bool {
+        matches!(
+            self,
+            Param::DelayTheta | Param::DelayTauC | Param::DelayTauS | Param::DelayAct
+        )
+    }
+
     /// Name with unit, for tables.
     pub fn label(self) -> String {
         match self {

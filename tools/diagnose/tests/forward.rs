@@ -98,8 +98,8 @@ fn every_term_of_the_plant_matches_the_forward_model() {
     // than the forward model's stated accuracy (`fit::MODEL_ACCURACY`,
     // 0.5 %, which the noise here, up to 0.4 %, would not test).
     let tolerance = |name: &str| match name {
-        "coulomb" => Some(0.025),
-        "ideal actuator" => Some(0.01),
+        "coulomb" => Some(exo_diagnose::fit::COULOMB_ACCURACY),
+        "ideal actuator" => Some(exo_diagnose::fit::IDEAL_ACTUATOR_ACCURACY),
         _ => None,
     };
     // Long settling and at least two cycles per window: the comparison is
