@@ -2123,6 +2123,69 @@ pub fn diagnose(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::data::Condition;
+
+    /// A delay is timing only while every delay the term fits is shorter
+    /// than the recordings' longest sample period (two windows: 1 ms and
+    /// 2 ms ticks, so 2 ms is the bound); a term without a delay, or a
+    /// reflex's delay, is never timing.
+    #[test]
+    fn a_delay_is_timing_only_within_the_longest_tick() {
+        let plant = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("../../configs/plants/default.toml");
+        let mut p = Physics::from_plant(&PlantModel::from_file(&plant).unwrap(), &[1]);
+        let window = |dt: f64| Condition {
+            experiment: 1,
+            period: 1,
+            load_kg: 0.0,
+            bias_nm: 0.0,
+            alpha: 1.0,
+            amplitude_nm: 2.0,
+            theta0_rad: 0.0,
+            theta_amp_rad: 0.1,
+            sin_theta_mean: 0.0,
+            tau_s_mean_nm: f64::NAN,
+            tau_c_mean_nm: 0.0,
+            command: None,
+            gravity: None,
+            sample_period_s: dt,
+            start_s: 0.0,
+            elapsed_s: 0.0,
+        };
+        let d = Dataset {
+            conditions: vec![window(0.001), window(0.002)],
+            ..Dataset::default()
+        };
+        assert_eq!(longest_sample_period_s(&d), 0.002);
+        p.delay_s = [0.0, 0.0, 0.0, 0.00085];
+        let words = within_a_tick(&d, Term::ActuatorDelay, &p).expect("within a tick");
+        assert!(
+            words.contains("0.85 ms") && words.contains("(2.0 ms)"),
+            "{words}"
+        );
+        // A negative delay of the same size is as much within the tick.
+        p.delay_s[3] = -0.00085;
+        assert!(within_a_tick(&d, Term::ActuatorDelay, &p).is_some());
+        // Beyond the longest tick (but within the shorter one's double).
+        p.delay_s[3] = 0.0021;
+        assert_eq!(within_a_tick(&d, Term::ActuatorDelay, &p), None);
+        // Exactly one tick is not within it.
+        p.delay_s[3] = 0.002;
+        assert_eq!(within_a_tick(&d, Term::ActuatorDelay, &p), None);
+        // Each catalogue delay reads its own parameter.
+        p.delay_s = [0.0005, 0.003, 0.003, 0.003];
+        assert!(within_a_tick(&d, Term::EncoderDelay, &p).is_some());
+        assert_eq!(within_a_tick(&d, Term::CuffSensorDelay, &p), None);
+        p.delay_s = [0.003, 0.0005, 0.003, 0.003];
+        assert!(within_a_tick(&d, Term::CuffSensorDelay, &p).is_some());
+        p.delay_s = [0.003, 0.003, 0.0005, 0.003];
+        assert!(within_a_tick(&d, Term::SeaSensorDelay, &p).is_some());
+        // A term with no delay, and a reflex (its delay is physiology).
+        assert_eq!(within_a_tick(&d, Term::CuffCompliance, &p), None);
+        p.reflex = [1.0, 0.0005, 15.0];
+        assert_eq!(within_a_tick(&d, Term::StretchReflex, &p), None);
+        assert!(Param::DelayAct.is_delay() && !Param::ReflexDelay.is_delay());
+    }
 
     /// The signature rule with the numbers written out (z = 2): present
     /// beyond the noise (`β > z·se`) and between half and twice the

@@ -412,6 +412,63 @@ pub fn fit(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::data::Tf;
+    use num_complex::Complex64;
+
+    fn observation(tf: Tf, value: f64, sigma: f64, accuracy: f64) -> Observation {
+        Observation {
+            tf,
+            omega_rad_s: 3.0,
+            value: Complex64::new(value, 0.0),
+            sigma: [sigma; 2],
+            transient_free: None,
+            accuracy,
+            window: 0,
+            gravity_comp: Complex64::new(0.0, 0.0),
+            statics: [0.0; 2],
+        }
+    }
+
+    /// Each value is held to its own systematic uncertainty; a model with
+    /// Coulomb friction to 2.5 % at every dynamic transfer function, one
+    /// with an ideal actuator to at least 1 %; the static balance to its
+    /// own and its 1 mNm floor.
+    #[test]
+    fn each_value_is_held_to_its_own_accuracy_or_its_terms() {
+        let plant = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("../../configs/plants/default.toml");
+        let base = Physics::from_plant(
+            &exo_plant_model::PlantModel::from_file(&plant).unwrap(),
+            &[1],
+        );
+        assert!(base.sea.is_some() && base.coulomb_nm == 0.0);
+        let free = observation(Tf::She, 100.0, 0.3, 0.0);
+        let line = observation(Tf::Sh, 100.0, 0.3, MODEL_ACCURACY);
+        let quantised = observation(Tf::Sh, 100.0, 0.3, 0.002);
+        let balance = observation(Tf::Balance, 0.01, 1e-4, 0.0);
+        assert_eq!(model_accuracy(&base, &free), 0.0);
+        assert_eq!(model_accuracy(&base, &line), MODEL_ACCURACY);
+        assert_eq!(model_accuracy(&base, &quantised), 0.002);
+        assert_eq!(sigma_floor(&free, 0), 0.3);
+        assert!((sigma_floor(&line, 1) - 0.3f64.hypot(0.5)).abs() < 1e-12);
+        assert!((sigma_floor(&quantised, 0) - 0.3f64.hypot(0.2)).abs() < 1e-12);
+        assert_eq!(sigma_floor(&balance, 0), 1e-3);
+        let mut friction = base.clone();
+        friction.coulomb_nm = 0.3;
+        for o in [&free, &line, &quantised] {
+            assert_eq!(model_accuracy(&friction, o), COULOMB_ACCURACY, "{:?}", o.tf);
+        }
+        let sea = observation(Tf::Sea, 1.0, 1e-3, 0.0);
+        assert_eq!(model_accuracy(&friction, &sea), COULOMB_ACCURACY);
+        assert_eq!(model_accuracy(&friction, &balance), 0.0);
+        let mut ideal = base.clone();
+        ideal.sea = None;
+        assert_eq!(model_accuracy(&ideal, &free), IDEAL_ACTUATOR_ACCURACY);
+        assert_eq!(model_accuracy(&ideal, &sea), IDEAL_ACTUATOR_ACCURACY);
+        let coarse = observation(Tf::Sh, 100.0, 0.3, 0.02);
+        assert_eq!(model_accuracy(&ideal, &coarse), 0.02);
+        assert_eq!(model_accuracy(&ideal, &balance), 0.0);
+    }
 
     /// A term's share is its fall of χ² over the misfit beyond the noise
     /// before it, clamped to [0, 1]; NaN when nothing was beyond the noise.

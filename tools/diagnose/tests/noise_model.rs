@@ -9,6 +9,7 @@
 mod common;
 
 use exo_diagnose::data::Tf;
+use exo_diagnose::fit::MODEL_ACCURACY;
 use exo_impedance::frf::{
     local_polynomial_ratio, mean_standard_error, sine_amplitude, sine_ratio, whole_cycles,
 };
@@ -339,15 +340,83 @@ fn the_reduction_gives_each_line_its_transient_free_value_with_sqrt_leverage() {
         &SynthSettings::default(),
     );
     let d = reduce(&[rec], &Reduction::default());
-    let mut with = 0;
+    let (mut with, mut without) = (0, 0);
     for o in d.of(Tf::Sh) {
         let Some(free) = o.transient_free else {
+            // A line held to the forward model's accuracy besides.
+            without += 1;
+            assert!(o.accuracy >= MODEL_ACCURACY, "{}", o.accuracy);
             continue;
         };
         with += 1;
-        let (r0, r1) = (free.sigma[0] / o.sigma[0], free.sigma[1] / o.sigma[1]);
-        assert!((r0 - r1).abs() < 1e-9 * r0, "{r0} against {r1}");
-        assert!((1.0..=2.5_f64.sqrt()).contains(&r0), "√leverage {r0}");
+        // Judged: the transient-free value with its own σ, held to no
+        // floor but the quantiser's (19-bit encoder: far below 0.1 %).
+        assert_eq!(o.value, free.value);
+        assert_eq!(o.sigma, free.sigma);
+        assert!(o.accuracy < 1e-3, "{}", o.accuracy);
+        // Its σ is the line's white σ times √leverage: the line's own
+        // value and σ are those of `sine_ratio`, and √leverage lies
+        // between 1 and √2.5 for ±8 bins and a polynomial of degree 1.
+        let line_sigma = line_white_sigma(&d, o);
+        let (r0, r1) = (free.sigma[0] / line_sigma[0], free.sigma[1] / line_sigma[1]);
+        assert!((r0 - r1).abs() < 1e-3 * r0, "{r0} against {r1}");
+        assert!((0.999..=2.5_f64.sqrt()).contains(&r0), "√leverage {r0}");
     }
     assert!(with >= 5, "{with} windows with a transient-free value");
+    assert!(without >= 1, "the one-cycle window keeps its line");
+}
+
+/// The white σ of `o`'s line (`S_h`), recomputed from its window's signals.
+fn line_white_sigma(
+    d: &exo_diagnose::data::Dataset,
+    o: &exo_diagnose::data::Observation,
+) -> [f64; 2] {
+    let sig = &d.signals[o.window];
+    let w = sig.omega_rad_s;
+    let n = whole_cycles(&sig.t_s, w).expect("whole cycles");
+    let x = sine_amplitude(&sig.t_s[..n], &sig.theta_rad[..n], w, true).unwrap();
+    let y = sine_amplitude(&sig.t_s[..n], &sig.tau_c_nm[..n], w, true).unwrap();
+    let p = sine_ratio(&x, &y).unwrap();
+    [p.cov[0][0].sqrt(), p.cov[1][1].sqrt()]
+}
+
+/// With a 14-bit encoder every value divided by the angle is held to the
+/// quantiser's gain error at its window's amplitude, read off the
+/// recording's grid; `τ_s/τ_d` (no angle) to none. (The static balance
+/// keeps its per-cycle σ and the forward model's accuracy.)
+#[test]
+fn the_reduction_holds_values_of_a_quantised_angle_to_the_quantiser() {
+    use exo_diagnose::data::{reduce, Reduction};
+    use exo_diagnose::synth::{synthesize, SynthSettings};
+    let mut plant = common::default_plant();
+    plant.sensors.encoder.counts_per_rev = 16384.0;
+    let q = std::f64::consts::TAU / 16384.0;
+    let periods = common::protocol(&[(1, 30.0, 12.0, 4.5, 0.0)]);
+    let rec = synthesize(&plant, &periods, &SynthSettings::default());
+    let d = reduce(&[rec], &Reduction::default());
+    let mut checked = 0;
+    let dynamic = |o: &&exo_diagnose::data::Observation| o.tf != Tf::Balance;
+    for o in d
+        .observations
+        .iter()
+        .filter(|o| o.transient_free.is_some())
+        .filter(dynamic)
+    {
+        let a = d.conditions[o.window].theta_amp_rad;
+        let want = match o.tf {
+            Tf::Sh | Tf::She => exo_impedance::quantiser::sine_gain_sd(q, a),
+            _ => 0.0,
+        };
+        assert!(
+            (o.accuracy - want).abs() <= 1e-6 * want.max(1e-300),
+            "{:?} at {} rad/s: {} against {want}",
+            o.tf,
+            o.omega_rad_s,
+            o.accuracy
+        );
+        if want > 0.0 {
+            checked += 1;
+        }
+    }
+    assert!(checked >= 10, "{checked} values held to the quantiser");
 }
