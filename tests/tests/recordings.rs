@@ -621,12 +621,14 @@ fn exo_run_restarts_a_killed_recorder_and_in_lockstep_loses_no_sample() {
 }
 
 /// Runs `exo run --no-report` on `sc`, waits until `ready` holds for the
-/// run's `exo/sensor` samples, stops its recorder (SIGSTOP) for `stall`,
-/// lets it go on (SIGCONT) and waits for the end; returns the exit status,
-/// its standard error, the first segment of the recording and every sample
+/// run's `exo/sensor` samples, stops its process `stalled` (e.g.
+/// `exo-recorder`; SIGSTOP) for `stall`, lets it go on (SIGCONT) and waits
+/// for the end; returns the exit status, its output (standard error, then
+/// standard output), the first segment of the recording and every sample
 /// published.
-fn run_with_a_stalled_recorder(
+fn run_with_a_stalled(
     sc: &Scenario,
+    stalled: &str,
     ready: impl Fn(&[exo_messages::SensorSample]) -> bool,
     stall: Duration,
 ) -> (
@@ -654,13 +656,13 @@ fn run_with_a_stalled_recorder(
     let out = drain(Box::new(run.stdout.take().unwrap()));
     let err = drain(Box::new(run.stderr.take().unwrap()));
     samples.wait_for(Duration::from_secs(120), "the run under way", &ready);
-    let recorders = children_named(run.id(), "exo-recorder");
-    assert_eq!(recorders.len(), 1, "{recorders:?}");
+    let pids = children_named(run.id(), stalled);
+    assert_eq!(pids.len(), 1, "{stalled}: {pids:?}");
     // SAFETY: a process this test's `exo run` started.
-    unsafe { libc::kill(recorders[0], libc::SIGSTOP) };
+    unsafe { libc::kill(pids[0], libc::SIGSTOP) };
     std::thread::sleep(stall);
     // SAFETY: as above.
-    unsafe { libc::kill(recorders[0], libc::SIGCONT) };
+    unsafe { libc::kill(pids[0], libc::SIGCONT) };
     let status = wait_exit(&mut run, Duration::from_secs(300), "exo run");
     let (out, err) = (out.join().unwrap(), err.join().unwrap());
     let line = err
@@ -682,8 +684,12 @@ fn a_recorder_stalled_in_lockstep_holds_simulated_time_and_loses_no_sample() {
     // exo/sensor seq from the first to the last is in the recording,
     // nothing is named, exit 0.
     let sc = Scenario::new("recstall", &[("experiments = [1, 7]", "experiments = [1]")]);
-    let (status, log, rec, published) =
-        run_with_a_stalled_recorder(&sc, |s| s.len() >= 20_000, Duration::from_secs(6));
+    let (status, log, rec, published) = run_with_a_stalled(
+        &sc,
+        "exo-recorder",
+        |s| s.len() >= 20_000,
+        Duration::from_secs(6),
+    );
     assert_eq!(status.code(), Some(0), "{log}");
     assert!(!log.contains("exo: fault:"), "{log}");
     assert!(log.contains("holding simulated time at frame"), "{log}");
@@ -717,8 +723,12 @@ fn a_recorder_stalled_in_real_time_is_named_with_what_it_missed() {
         ],
     );
     sc.edit("[run]\n", "[run]\nmax_sim_time_s = 16.0\n");
-    let (status, log, rec, _) =
-        run_with_a_stalled_recorder(&sc, |s| s.len() >= 1000, Duration::from_secs(11));
+    let (status, log, rec, _) = run_with_a_stalled(
+        &sc,
+        "exo-recorder",
+        |s| s.len() >= 1000,
+        Duration::from_secs(11),
+    );
     assert_eq!(status.code(), Some(3), "{log}");
     let r = exo_recording::read_recording(&rec).unwrap();
     let seqs: Vec<u64> = r.sensor.iter().map(|s| s.seq).collect();
@@ -747,4 +757,36 @@ fn a_recorder_stalled_in_real_time_is_named_with_what_it_missed() {
             "{topic} not named in:\n{log}"
         );
     }
+}
+
+#[test]
+fn an_identifier_feeding_the_controller_stalled_in_lockstep_misses_no_sample() {
+    // Issue 32 item 1: with the identifier's estimates feeding the
+    // controller (`adopt_recommended_f`), the lockstep plant holds for the
+    // identifier too. Stopped 6 s at sample 20 000, it misses no sample
+    // (it logs the samples it missed, with the first seq, at its end);
+    // without the hold it missed tens of thousands.
+    let sc = Scenario::new(
+        "idstall",
+        &[
+            ("experiments = [1, 7]", "experiments = [1]"),
+            ("adopt_recommended_f = false", "adopt_recommended_f = true"),
+        ],
+    );
+    let (status, log, _, _) = run_with_a_stalled(
+        &sc,
+        "exo-identifier",
+        |s| s.len() >= 20_000,
+        Duration::from_secs(6),
+    );
+    assert!(
+        log.contains("holding simulated time at frame") && log.contains("the identifier is"),
+        "{log}"
+    );
+    assert!(
+        !log.lines()
+            .any(|l| l.contains("identifier: ") && l.contains("samples missed")),
+        "{log}"
+    );
+    assert_eq!(status.code(), Some(0), "{log}");
 }

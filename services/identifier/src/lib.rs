@@ -57,6 +57,7 @@ use exo_messages::{
 };
 
 pub mod process;
+pub mod taken;
 
 pub use exo_analysis::refit::{effective_alpha, fit_models, FitSource, ModelFitError};
 

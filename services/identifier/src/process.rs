@@ -5,19 +5,33 @@
 //! path: it only subscribes to control channels, and a slow or dead
 //! identifier costs control nothing (its subscribers overflow safely). It
 //! takes its samples in batches (a pass, then a millisecond's sleep).
+//!
+//! Each step also publishes how far it has taken the run
+//! (`<instance>/identifier/progress`, [`Taken`]): in lockstep, when its
+//! estimates feed the controller (`controller.adopt_recommended_f`), the
+//! plant holds simulated time while the identifier is behind, so it misses
+//! no sample; the samples it missed are logged at the end.
 
-use std::time::Duration;
+use std::time::{Duration, Instant};
 
 use anyhow::Result;
 use exo_messages::channels::ProcessName;
-use exo_messages::{ActuatorCommand, FrfPoint, ImpedanceEstimate, ProtocolState, SensorSample};
-use exo_service_kit::channels::{COMMAND, IDENTIFIER_ESTIMATE, IDENTIFIER_FRF, PROTOCOL, SENSOR};
+use exo_messages::{
+    ActuatorCommand, FrfPoint, ImpedanceEstimate, OffPathProgress, ProtocolState, SensorSample,
+};
+use exo_service_kit::channels::{
+    COMMAND, IDENTIFIER_ESTIMATE, IDENTIFIER_FRF, IDENTIFIER_PROGRESS, PROTOCOL, SENSOR,
+};
 use exo_service_kit::ipc::{Connect, Inbox, Outbox, DEEPEST, OFF_PATH_COALESCE};
 use exo_service_kit::runner::{Context, Flow, Process};
-use exo_service_kit::{RealtimeProcess, ServiceArgs, StopFlag};
-use tracing::info;
+use exo_service_kit::{monotonic_ns, RealtimeProcess, ServiceArgs, StopFlag};
+use tracing::{info, warn};
 
+use crate::taken::Taken;
 use crate::{Event, Identifier, IdentifierSettings};
+
+/// The progress is published when it changed, and at least this often.
+const PROGRESS_EVERY: Duration = Duration::from_millis(50);
 
 /// The identifier process.
 pub struct IdentifierProcess {
@@ -28,6 +42,10 @@ pub struct IdentifierProcess {
     protocol_in: Inbox<ProtocolState>,
     frf_out: Outbox<FrfPoint>,
     estimate_out: Outbox<ImpedanceEstimate>,
+    progress_out: Outbox<OffPathProgress>,
+    taken: Taken,
+    told: OffPathProgress,
+    told_at: Instant,
 }
 
 impl Process for IdentifierProcess {
@@ -37,6 +55,15 @@ impl Process for IdentifierProcess {
 
     fn open(cx: Context<'_, ServiceArgs>) -> Result<Self> {
         let ipc = cx.ipc;
+        // The progress first, with nothing taken (the estimate outbox,
+        // which `exo run` waits for, is the last port).
+        let progress_out = ipc.outbox(IDENTIFIER_PROGRESS)?;
+        let told = OffPathProgress {
+            stamp_ns: monotonic_ns(),
+            pid: std::process::id(),
+            ..Default::default()
+        };
+        progress_out.send(told)?;
         let p = IdentifierProcess {
             id: Identifier::new(IdentifierSettings::of_run(cx.cfg)),
             events: Vec::with_capacity(64),
@@ -45,6 +72,10 @@ impl Process for IdentifierProcess {
             protocol_in: ipc.inbox(PROTOCOL, 256)?,
             frf_out: ipc.outbox(IDENTIFIER_FRF)?,
             estimate_out: ipc.outbox(IDENTIFIER_ESTIMATE)?,
+            progress_out,
+            taken: Taken::default(),
+            told,
+            told_at: Instant::now(),
         };
         info!(
             "identifier: {} at {} Hz",
@@ -66,10 +97,12 @@ impl Process for IdentifierProcess {
         }
         while let Some(c) = self.command_in.try_recv()? {
             self.id.on_command(&c);
+            self.taken.on_command(&c);
             got = true;
         }
         while let Some(s) = self.sensor_in.try_recv()? {
             self.id.on_sample(&s, &mut self.events);
+            self.taken.on_sample(&s);
             got = true;
         }
         for e in self.events.drain(..) {
@@ -80,6 +113,17 @@ impl Process for IdentifierProcess {
                 Event::Warning(_) | Event::RefitNote(_) => {}
             }
         }
+        if !self.taken.told(&self.told) || self.told_at.elapsed() >= PROGRESS_EVERY {
+            self.told = OffPathProgress {
+                seq: self.told.seq + 1,
+                stamp_ns: monotonic_ns(),
+                frames_taken: self.taken.frames(),
+                missed: self.taken.missed,
+                ..self.told
+            };
+            self.progress_out.send(self.told)?;
+            self.told_at = Instant::now();
+        }
         if got {
             std::thread::sleep(OFF_PATH_COALESCE);
         } else {
@@ -89,6 +133,12 @@ impl Process for IdentifierProcess {
     }
 
     fn finish(self) -> Result<()> {
+        if let Some(first) = self.taken.first_missing {
+            warn!(
+                "identifier: {} samples missed (sequence gaps), the first seq {first}",
+                self.taken.missed
+            );
+        }
         info!("identifier: stopped");
         Ok(())
     }

@@ -81,10 +81,12 @@ fn open_tap(ipc: &Ipc, live: &LiveChannels, channel: Channel) -> Result<Box<dyn 
         Channel::IdentifierFrf => Tap::boxed(ipc, live, IDENTIFIER_FRF),
         Channel::IdentifierEstimate => Tap::boxed(ipc, live, IDENTIFIER_ESTIMATE),
         Channel::Operator => Tap::boxed(ipc, live, OPERATOR),
-        Channel::OperatorReply | Channel::RecorderProgress => anyhow::bail!(
-            "{}: not in the recording contract, not shown",
-            channel.info().topic
-        ),
+        Channel::OperatorReply | Channel::RecorderProgress | Channel::IdentifierProgress => {
+            anyhow::bail!(
+                "{}: not in the recording contract, not shown",
+                channel.info().topic
+            )
+        }
     }
 }
 

@@ -1,25 +1,26 @@
-//! Simulated time held for a recorder that falls behind (lockstep only).
+//! Simulated time held for a recorder (or an identifier whose estimates
+//! feed the controller) that falls behind (lockstep only).
 //!
-//! In lockstep the plant alone advances simulated time, and a recorder
-//! whose subscriber buffers overflow loses samples (iceoryx2's safe
-//! overflow drops the oldest: publishers never block). So before each
-//! frame the plant asks [`RecorderPace::check`] whether the recorder (its
-//! last [`RecorderProgress`]) is more than
-//! [`RecorderProgress::MAX_LAG_FRAMES`] frames behind, and holds the frame
+//! In lockstep the plant alone advances simulated time, and a subscriber
+//! whose buffers overflow loses samples (iceoryx2's safe overflow drops the
+//! oldest: publishers never block). So before each frame the plant asks
+//! [`OffPathPace::check`], one pace per process it waits for, whether that
+//! process (its last [`OffPathProgress`]) is more than
+//! [`OffPathProgress::MAX_LAG_FRAMES`] frames behind, and holds the frame
 //! (bounded waits, in the process) until it has caught up. The pace is a
 //! plain type: no IPC, no clock; the process feeds it the progress and
 //! decides how long to wait.
 //!
 //! No progress heard: no recorder in this run, nothing to wait for. A
 //! recorder that does not catch up within the process's patience is given
-//! up ([`RecorderPace::give_up`]): simulated time goes on, the recorder
+//! up ([`OffPathPace::give_up`]): simulated time goes on, the recorder
 //! counts what it misses and `exo run` names it, and the plant waits for
 //! it again only once it has taken further (or a new one has started).
-//! A recorder that has died is not waited for at all ([`RecorderPace::forget`]);
+//! A recorder that has died is not waited for at all ([`OffPathPace::forget`]);
 //! `exo run` restarts it and holds simulated time itself while the new one
 //! connects.
 
-use exo_messages::RecorderProgress;
+use exo_messages::OffPathProgress;
 
 /// Whether the next frame may go.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -35,13 +36,13 @@ pub enum Pace {
 
 /// The recorder's pace as the plant sees it.
 #[derive(Debug, Clone, Default)]
-pub struct RecorderPace {
-    last: Option<RecorderProgress>,
+pub struct OffPathPace {
+    last: Option<OffPathProgress>,
     /// The progress when the plant gave up waiting.
-    given_up: Option<RecorderProgress>,
+    given_up: Option<OffPathProgress>,
 }
 
-impl RecorderPace {
+impl OffPathPace {
     /// Nothing heard yet.
     pub fn new() -> Self {
         Self::default()
@@ -50,9 +51,9 @@ impl RecorderPace {
     /// Takes the recorder's latest progress. A recorder that was given up
     /// is waited for again once it has taken further, or once another
     /// recorder (a restart, a new segment) speaks.
-    pub fn on_progress(&mut self, p: &RecorderProgress) {
+    pub fn on_progress(&mut self, p: &OffPathProgress) {
         if let Some(g) = self.given_up {
-            if p.segment != g.segment || p.frames_taken > g.frames_taken {
+            if p.pid != g.pid || p.segment != g.segment || p.frames_taken > g.frames_taken {
                 self.given_up = None;
             }
         }
@@ -65,7 +66,7 @@ impl RecorderPace {
         match self.last {
             Some(p) if self.given_up.is_none() => {
                 let lag = p.lag(next_frame);
-                if lag > RecorderProgress::MAX_LAG_FRAMES {
+                if lag > OffPathProgress::MAX_LAG_FRAMES {
                     Pace::Hold { lag }
                 } else {
                     Pace::Go
@@ -89,7 +90,7 @@ impl RecorderPace {
     }
 
     /// The last progress heard, if any.
-    pub fn last(&self) -> Option<&RecorderProgress> {
+    pub fn last(&self) -> Option<&OffPathProgress> {
         self.last.as_ref()
     }
 }
@@ -98,10 +99,10 @@ impl RecorderPace {
 mod tests {
     use super::*;
 
-    const MAX: u64 = RecorderProgress::MAX_LAG_FRAMES;
+    const MAX: u64 = OffPathProgress::MAX_LAG_FRAMES;
 
-    fn progress(segment: u32, frames_taken: u64) -> RecorderProgress {
-        RecorderProgress {
+    fn progress(segment: u32, frames_taken: u64) -> OffPathProgress {
+        OffPathProgress {
             segment,
             frames_taken,
             ..Default::default()
@@ -110,14 +111,14 @@ mod tests {
 
     #[test]
     fn without_a_recorder_nothing_is_held() {
-        let pace = RecorderPace::new();
+        let pace = OffPathPace::new();
         assert_eq!(pace.check(0), Pace::Go);
         assert_eq!(pace.check(u64::MAX), Pace::Go);
     }
 
     #[test]
     fn a_recorder_more_than_its_margin_behind_holds_the_next_frame() {
-        let mut pace = RecorderPace::new();
+        let mut pace = OffPathPace::new();
         pace.on_progress(&progress(1, 1000));
         assert_eq!(pace.check(1000 + MAX), Pace::Go);
         assert_eq!(pace.check(1001 + MAX), Pace::Hold { lag: MAX + 1 });
@@ -131,7 +132,7 @@ mod tests {
         // A restarted recorder's first word: nothing taken yet; the
         // plant holds until it has taken what the channels' history
         // gave it.
-        let mut pace = RecorderPace::new();
+        let mut pace = OffPathPace::new();
         pace.on_progress(&progress(1, 50_000));
         pace.on_progress(&progress(2, 0));
         assert_eq!(pace.check(50_001), Pace::Hold { lag: 50_001 });
@@ -141,7 +142,7 @@ mod tests {
 
     #[test]
     fn a_recorder_that_has_died_is_not_waited_for_until_one_speaks_again() {
-        let mut pace = RecorderPace::new();
+        let mut pace = OffPathPace::new();
         pace.on_progress(&progress(1, 10));
         assert!(matches!(pace.check(20 + MAX), Pace::Hold { .. }));
         pace.forget();
@@ -152,7 +153,7 @@ mod tests {
 
     #[test]
     fn a_recorder_given_up_is_waited_for_again_once_it_moves() {
-        let mut pace = RecorderPace::new();
+        let mut pace = OffPathPace::new();
         pace.on_progress(&progress(1, 10));
         let next = 20 + MAX;
         assert!(matches!(pace.check(next), Pace::Hold { .. }));

@@ -7,8 +7,10 @@
 //! Timing: in *lockstep* each step advances one control period only once
 //! the motor command answering its frame has arrived (same seed ⇒ identical
 //! run), re-sending the frame when an answer is slow (a start-up race) and
-//! giving up after 20 s; it also holds each frame while the recorder is
-//! more than its margin behind (`exo/recorder/progress`, [`RecorderPace`]),
+//! giving up after 20 s; it also holds each frame while the recorder (and,
+//! when its estimates feed the controller, the identifier) is more than its
+//! margin behind (`exo/recorder/progress`, `exo/identifier/progress`,
+//! [`OffPathPace`]),
 //! waiting at most [`HOLD_PATIENCE`] in 20 ms waits, so that a stalled or
 //! slow recorder loses nothing; in *real time* it advances on the wall clock with
 //! absolute deadlines, holds the latest command, counts missed deadlines,
@@ -22,19 +24,21 @@ use std::time::{Duration, Instant};
 use anyhow::{bail, Result};
 use exo_config::TimingMode;
 use exo_messages::channels::ProcessName;
-use exo_messages::{BusMotorCommand, BusSensorFrame, ProtocolState, RecorderProgress};
-use exo_service_kit::channels::{BUS_MOTOR, BUS_SENSOR, PROTOCOL, RECORDER_PROGRESS};
+use exo_messages::{BusMotorCommand, BusSensorFrame, OffPathProgress, ProtocolState};
+use exo_service_kit::channels::{
+    BUS_MOTOR, BUS_SENSOR, IDENTIFIER_PROGRESS, PROTOCOL, RECORDER_PROGRESS,
+};
 use exo_service_kit::ipc::{Connect, Inbox, Outbox, REALTIME_SETTLE_PLANT};
 use exo_service_kit::runner::{Context, Flow, Process};
 use exo_service_kit::{monotonic_ns, sleep_until_ns, RealtimeProcess, ServiceArgs, StopFlag};
 use tracing::{info, warn};
 
-use crate::pace::{Pace, RecorderPace};
+use crate::pace::{OffPathPace, Pace};
 use crate::{PlantModel, PlantNode};
 
 const RESEND_AFTER: Duration = Duration::from_millis(200);
 const GIVE_UP_AFTER: Duration = Duration::from_secs(20);
-/// The longest the plant holds one frame for a recorder that is behind
+/// The longest the plant holds one frame for a process that is behind
 /// (lockstep). Below the controller's 60 s without a sample, after which it
 /// gives up on the run; the driver waits for frames without a bound in
 /// lockstep, and no sample is waiting for its command while a frame is
@@ -44,7 +48,7 @@ pub const HOLD_PATIENCE: Duration = Duration::from_secs(30);
 const HOLD_WAIT: Duration = Duration::from_millis(20);
 /// Holds logged one by one; the rest are summed at the end.
 const HOLDS_LOGGED: u64 = 5;
-/// How often a hold looks whether the recorder it waits for still lives.
+/// How often a hold looks whether the process it waits for still lives.
 const ALIVE_EVERY: Duration = Duration::from_millis(500);
 
 /// The plant simulator process.
@@ -53,8 +57,9 @@ pub struct PlantProcess {
     bus_out: Outbox<BusSensorFrame>,
     motor_in: Inbox<BusMotorCommand>,
     protocol_in: Inbox<ProtocolState>,
-    /// In lockstep: the recorder's progress, for which frames are held.
-    recorder: Option<RecorderWatch>,
+    /// In lockstep: the recorder's progress (and the identifier's, when its
+    /// estimates feed the controller), for which frames are held.
+    watches: Vec<Watch>,
     realtime: bool,
     log_every: u64,
     missed_deadlines: u64,
@@ -86,16 +91,22 @@ impl Process for PlantProcess {
             bus_out: ipc.outbox(BUS_SENSOR)?,
             motor_in: ipc.inbox(BUS_MOTOR, 64)?.with_spin(cfg.lockstep_spin()),
             protocol_in: ipc.inbox(PROTOCOL, 64)?,
-            // In real time control never waits for the recorder.
-            recorder: match cfg.run.timing {
-                TimingMode::Lockstep => Some(RecorderWatch {
-                    inbox: ipc.inbox(RECORDER_PROGRESS, 16)?,
-                    pace: RecorderPace::new(),
-                    holds: 0,
-                    held: Duration::ZERO,
-                    given_up: 0,
-                }),
-                TimingMode::Realtime => None,
+            // In real time control never waits for them.
+            watches: match cfg.run.timing {
+                TimingMode::Lockstep => {
+                    let mut w = vec![Watch::new(
+                        ProcessName::Recorder,
+                        ipc.inbox(RECORDER_PROGRESS, 16)?,
+                    )];
+                    if cfg.controller.adopt_recommended_f {
+                        w.push(Watch::new(
+                            ProcessName::Identifier,
+                            ipc.inbox(IDENTIFIER_PROGRESS, 16)?,
+                        ));
+                    }
+                    w
+                }
+                TimingMode::Realtime => Vec::new(),
             },
             realtime: cfg.run.timing == TimingMode::Realtime,
             log_every: cfg.run.rate_hz as u64 * 10,
@@ -107,8 +118,8 @@ impl Process for PlantProcess {
 
     fn ports(&self) -> Vec<&dyn Connect> {
         let mut ports: Vec<&dyn Connect> = vec![&self.bus_out, &self.motor_in, &self.protocol_in];
-        if let Some(r) = &self.recorder {
-            ports.push(&r.inbox);
+        for w in &self.watches {
+            ports.push(&w.inbox);
         }
         ports
     }
@@ -118,8 +129,8 @@ impl Process for PlantProcess {
             return Ok(Flow::Done);
         }
         let wall_start = *self.wall_start.get_or_insert_with(monotonic_ns);
-        if let Some(r) = &mut self.recorder {
-            r.hold(self.node.tick(), stop)?;
+        for w in &mut self.watches {
+            w.hold(self.node.tick(), stop)?;
         }
         while let Some(p) = self.protocol_in.try_recv()? {
             self.node.on_protocol(&p);
@@ -180,10 +191,11 @@ impl Process for PlantProcess {
     }
 
     fn finish(self) -> Result<()> {
-        if let Some(r) = self.recorder.as_ref().filter(|r| r.holds > 0) {
+        for r in self.watches.iter().filter(|r| r.holds > 0) {
             info!(
-                "plant-sim: simulated time held {} times for the recorder, {:.1} s in all{}",
+                "plant-sim: simulated time held {} times for the {}, {:.1} s in all{}",
                 r.holds,
+                r.who,
                 r.held.as_secs_f64(),
                 if r.given_up > 0 {
                     format!("; {} times it went on without it", r.given_up)
@@ -203,17 +215,29 @@ impl Process for PlantProcess {
     }
 }
 
-/// The recorder's progress and the holds it caused (lockstep).
-struct RecorderWatch {
-    inbox: Inbox<RecorderProgress>,
-    pace: RecorderPace,
+/// A process's progress and the holds it caused (lockstep).
+struct Watch {
+    who: ProcessName,
+    inbox: Inbox<OffPathProgress>,
+    pace: OffPathPace,
     holds: u64,
     held: Duration,
     given_up: u64,
 }
 
-impl RecorderWatch {
-    /// Holds frame `next_frame` while the recorder is more than its margin
+impl Watch {
+    fn new(who: ProcessName, inbox: Inbox<OffPathProgress>) -> Self {
+        Watch {
+            who,
+            inbox,
+            pace: OffPathPace::new(),
+            holds: 0,
+            held: Duration::ZERO,
+            given_up: 0,
+        }
+    }
+
+    /// Holds frame `next_frame` while the process is more than its margin
     /// behind: waits of [`HOLD_WAIT`] on its progress, at most
     /// [`HOLD_PATIENCE`] in all, ended early by a stop request.
     fn hold(&mut self, next_frame: u64, stop: &StopFlag) -> Result<()> {
@@ -227,8 +251,9 @@ impl RecorderWatch {
         self.holds += 1;
         if self.holds <= HOLDS_LOGGED {
             info!(
-                "plant-sim: holding simulated time at frame {next_frame}: the recorder is {lag} frames behind (at most {} may be)",
-                RecorderProgress::MAX_LAG_FRAMES
+                "plant-sim: holding simulated time at frame {next_frame}: the {} is {lag} frames behind (at most {} may be)",
+                self.who,
+                OffPathProgress::MAX_LAG_FRAMES
             );
         }
         let mut looked = Instant::now();
@@ -239,7 +264,8 @@ impl RecorderWatch {
                     if !process_alive(pid) {
                         self.pace.forget();
                         warn!(
-                            "plant-sim: the recorder (pid {pid}) has died: simulated time goes on without it (a restarted recorder is waited for again)"
+                            "plant-sim: the {} (pid {pid}) has died: simulated time goes on without it (a restarted one is waited for again)",
+                            self.who
                         );
                         break;
                     }
@@ -258,7 +284,8 @@ impl RecorderWatch {
                 self.pace.give_up();
                 self.given_up += 1;
                 warn!(
-                    "plant-sim: the recorder is still {lag} frames behind after {HOLD_PATIENCE:?} at frame {next_frame}: simulated time goes on without it (what it misses it counts, and `exo run` names)"
+                    "plant-sim: the {} is still {lag} frames behind after {HOLD_PATIENCE:?} at frame {next_frame}: simulated time goes on without it (what it misses it counts)",
+                    self.who
                 );
                 break;
             }

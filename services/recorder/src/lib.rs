@@ -156,7 +156,7 @@ impl Drops {
 }
 
 /// How far the recorder has taken the run's frames
-/// ([`exo_messages::RecorderProgress::frames_taken`]): the highest bus
+/// ([`exo_messages::OffPathProgress::frames_taken`]): the highest bus
 /// frame `seq` taken, and the highest frame a taken motor command answered.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
 pub struct FramesTaken {

@@ -15,7 +15,7 @@
 //! encodes, compresses and writes.
 //!
 //! Each step also publishes how far it has taken the run
-//! (`exo/recorder/progress`, [`RecorderProgress`]: the frames taken out of
+//! (`exo/recorder/progress`, [`OffPathProgress`]: the frames taken out of
 //! its buffers for the file), by which the plant holds simulated time in
 //! lockstep while the recorder is behind, so that a stalled or slow
 //! recorder loses nothing there. In lockstep the receiver also never
@@ -35,7 +35,7 @@ use exo_messages::channels::{
     Channel, Topic, BUS_MOTOR, BUS_SENSOR, CHANNELS, COMMAND, IDENTIFIER_ESTIMATE, IDENTIFIER_FRF,
     OPERATOR, PROTOCOL, RECORDER_PROGRESS, SENSOR,
 };
-use exo_messages::{Message, RecorderProgress};
+use exo_messages::{Message, OffPathProgress};
 use exo_service_kit::ipc::{Connect, Inbox, Ipc, Outbox, DEEPEST, OFF_PATH_COALESCE};
 use exo_service_kit::runner::{Context as RunContext, Flow, Process};
 use exo_service_kit::{monotonic_ns, RealtimeProcess, ServiceArgs, StopFlag};
@@ -151,10 +151,12 @@ fn open_tap(ipc: &Ipc, channel: Channel) -> Result<Box<dyn Drain>> {
         Channel::Operator => Tap::boxed(ipc, OPERATOR, Record::Operator),
         Channel::BusSensor => Tap::boxed(ipc, BUS_SENSOR, Record::BusSensor),
         Channel::BusMotor => Tap::boxed(ipc, BUS_MOTOR, Record::BusMotor),
-        Channel::OperatorReply | Channel::RecorderProgress => anyhow::bail!(
-            "{}: not in the recording contract, not recorded",
-            channel.info().topic
-        ),
+        Channel::OperatorReply | Channel::RecorderProgress | Channel::IdentifierProgress => {
+            anyhow::bail!(
+                "{}: not in the recording contract, not recorded",
+                channel.info().topic
+            )
+        }
     }
 }
 
@@ -199,7 +201,7 @@ impl Taps {
 }
 
 /// What the writing thread has counted, for the receiving thread to
-/// publish ([`RecorderProgress::missed`]).
+/// publish ([`OffPathProgress::missed`]).
 #[derive(Default)]
 struct Written {
     /// [`Drops::total`].
@@ -308,7 +310,7 @@ impl Process for RecorderProcess {
         // written what the channels' history gives it.
         let progress = Progress {
             outbox: cx.ipc.outbox(RECORDER_PROGRESS)?,
-            last: RecorderProgress {
+            last: OffPathProgress {
                 segment,
                 pid: std::process::id(),
                 stamp_ns: monotonic_ns(),
@@ -432,8 +434,8 @@ impl Process for RecorderProcess {
 
 /// The progress outbox and what it last said.
 struct Progress {
-    outbox: Outbox<RecorderProgress>,
-    last: RecorderProgress,
+    outbox: Outbox<OffPathProgress>,
+    last: OffPathProgress,
     sent_at: Instant,
 }
 
@@ -446,7 +448,7 @@ impl Progress {
         if !changed && self.sent_at.elapsed() < PROGRESS_EVERY {
             return Ok(());
         }
-        self.last = RecorderProgress {
+        self.last = OffPathProgress {
             seq: self.last.seq + 1,
             stamp_ns: monotonic_ns(),
             frames_taken: frames,

@@ -145,10 +145,12 @@ fn port(ipc: &Ipc, session: Option<&zenoh::Session>, channel: Channel) -> Result
         Channel::IdentifierFrf => either!(IDENTIFIER_FRF),
         Channel::IdentifierEstimate => either!(IDENTIFIER_ESTIMATE),
         Channel::Operator => either!(OPERATOR),
-        Channel::OperatorReply | Channel::RecorderProgress => anyhow::bail!(
-            "{}: not in the recording contract, not tunnelled",
-            channel.info().topic
-        ),
+        Channel::OperatorReply | Channel::RecorderProgress | Channel::IdentifierProgress => {
+            anyhow::bail!(
+                "{}: not in the recording contract, not tunnelled",
+                channel.info().topic
+            )
+        }
     }
 }
 

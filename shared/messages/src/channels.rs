@@ -18,7 +18,7 @@ use core::marker::PhantomData;
 
 use crate::{
     ActuatorCommand, BusMotorCommand, BusSensorFrame, FrfPoint, ImpedanceEstimate, Message,
-    OperatorCommand, OperatorReply, ProtocolState, RecorderProgress, SensorSample,
+    OffPathProgress, OperatorCommand, OperatorReply, ProtocolState, SensorSample,
 };
 
 /// The processes of exo.
@@ -138,8 +138,10 @@ pub enum Channel {
     Operator = 7,
     /// The controller's answers to operator commands (`OperatorReply`).
     OperatorReply = 8,
-    /// How far the recorder has written the run (`RecorderProgress`).
+    /// How far the recorder has taken the run (`OffPathProgress`).
     RecorderProgress = 9,
+    /// How far the identifier has taken the run (`OffPathProgress`).
+    IdentifierProgress = 10,
 }
 
 /// A channel's declaration.
@@ -180,7 +182,7 @@ pub struct ChannelInfo {
 }
 
 /// Every channel of exo, in [`Channel`] order.
-pub const CHANNELS: [ChannelInfo; 10] = [
+pub const CHANNELS: [ChannelInfo; 11] = [
     ChannelInfo {
         channel: Channel::Sensor,
         topic: "exo/sensor",
@@ -350,10 +352,10 @@ pub const CHANNELS: [ChannelInfo; 10] = [
     ChannelInfo {
         channel: Channel::RecorderProgress,
         topic: "exo/recorder/progress",
-        payload: RecorderProgress::TYPE_NAME,
+        payload: OffPathProgress::TYPE_NAME,
         publisher: ProcessName::Recorder,
         // In lockstep the plant holds its next frame while the recorder is
-        // more than `RecorderProgress::MAX_LAG_FRAMES` behind.
+        // more than `OffPathProgress::MAX_LAG_FRAMES` behind.
         subscribers: &[ProcessName::PlantSim],
         // The holding plant sleeps on it.
         has_event: true,
@@ -365,6 +367,23 @@ pub const CHANNELS: [ChannelInfo; 10] = [
         // reaches, for the plant in lockstep.
         recorded: false,
         // The last one, for a plant that connects after it was published.
+        history: 1,
+        schema: "",
+    },
+    ChannelInfo {
+        channel: Channel::IdentifierProgress,
+        topic: "exo/identifier/progress",
+        payload: OffPathProgress::TYPE_NAME,
+        publisher: ProcessName::Identifier,
+        // In lockstep, when the identifier's estimates feed the controller
+        // (`controller.adopt_recommended_f`), the plant holds its next
+        // frame while the identifier is more than
+        // `OffPathProgress::MAX_LAG_FRAMES` behind.
+        subscribers: &[ProcessName::PlantSim],
+        has_event: true,
+        max_publishers: 2,
+        max_buffer: PROGRESS,
+        recorded: false,
         history: 1,
         schema: "",
     },
@@ -513,7 +532,11 @@ pub const OPERATOR: Topic<OperatorCommand> = Topic::new(Channel::Operator);
 pub const OPERATOR_REPLY: Topic<OperatorReply> = Topic::new(Channel::OperatorReply);
 /// `exo/recorder/progress`: how far the recorder has written the run,
 /// recorder → plant simulator (which holds simulated time for it in lockstep).
-pub const RECORDER_PROGRESS: Topic<RecorderProgress> = Topic::new(Channel::RecorderProgress);
+pub const RECORDER_PROGRESS: Topic<OffPathProgress> = Topic::new(Channel::RecorderProgress);
+/// `exo/identifier/progress`: how far the identifier has taken the run,
+/// identifier → plant simulator (which holds simulated time for it in
+/// lockstep when its estimates feed the controller).
+pub const IDENTIFIER_PROGRESS: Topic<OffPathProgress> = Topic::new(Channel::IdentifierProgress);
 
 #[cfg(test)]
 mod tests {

@@ -20,7 +20,7 @@
 //! | [`FrfPoint`], [`ImpedanceEstimate`] | [`identifier`] | identifier → operator, recorder |
 //! | [`OperatorCommand`] | [`operator`] | operator console → controller, sensor driver |
 //! | [`OperatorReply`] | [`operator`] | controller → operator console |
-//! | [`RecorderProgress`] | [`recorder`] | recorder → plant simulator (lockstep: how far the file reaches) |
+//! | [`OffPathProgress`] | [`progress`] | recorder, identifier → plant simulator (lockstep: how far each has taken the run) |
 //!
 //! Sign convention (the paper's): `tau_c` is the torque the cuff applies to
 //! the human, so `S_h = τ_c/θ_e`; `tau_s` is the SEA spring torque driving
@@ -45,8 +45,8 @@ pub mod command;
 pub mod error;
 pub mod identifier;
 pub mod operator;
+pub mod progress;
 pub mod protocol;
-pub mod recorder;
 pub mod sensor;
 
 use core::fmt::Debug;
@@ -59,8 +59,8 @@ pub use command::{ActuatorCommand, CommandLimits, ControlMode};
 pub use error::MessageError;
 pub use identifier::{FitModel, FrfPoint, ImpedanceEstimate};
 pub use operator::{OperatorCommand, OperatorCommandKind, OperatorReply, OperatorVerdict};
+pub use progress::OffPathProgress;
 pub use protocol::{ProtocolPhase, ProtocolState};
-pub use recorder::RecorderProgress;
 pub use sensor::{status, SensorLimits, SensorSample};
 
 /// What every exo message is: a fixed-layout, shared-memory-safe sample with
@@ -149,6 +149,6 @@ mod tests {
         check::<ImpedanceEstimate>();
         check::<OperatorCommand>();
         check::<OperatorReply>();
-        check::<RecorderProgress>();
+        check::<OffPathProgress>();
     }
 }
