@@ -113,6 +113,15 @@ mod tests {
         assert_eq!(quantum(&x), None);
         assert_eq!(quantum(&[1.0; 100]), None);
         assert_eq!(quantum(&[f64::NAN; 100]), None);
+        // Eight samples are enough, seven are not; a grid of levels that
+        // repeat (at most half the samples distinct) is one, a sample that
+        // holds a level of its own beyond that half is not.
+        let grid = |k: &[u32]| k.iter().map(|k| *k as f64 * q).collect::<Vec<_>>();
+        assert_eq!(quantum(&grid(&[0, 1, 0, 1, 0, 1, 0, 1])), Some(q));
+        assert_eq!(quantum(&grid(&[0, 1, 0, 1, 0, 1, 0])), None);
+        let half = quantum(&grid(&[0, 1, 2, 3, 0, 1, 2, 3])).expect("four levels in eight");
+        assert!((half / q - 1.0).abs() < 1e-9);
+        assert_eq!(quantum(&grid(&[0, 1, 2, 3, 4, 0, 1, 2])), None);
         assert_eq!(sine_gain_sd(0.0, 1.0), 0.0);
         assert_eq!(sine_gain_sd(1.0, 0.0), 0.0);
     }
