@@ -122,6 +122,16 @@ mod tests {
         let half = quantum(&grid(&[0, 1, 2, 3, 0, 1, 2, 3])).expect("four levels in eight");
         assert!((half / q - 1.0).abs() < 1e-9);
         assert_eq!(quantum(&grid(&[0, 1, 2, 3, 4, 0, 1, 2])), None);
+        // Levels that repeat but are not on one grid: none.
+        let milli = [0.0, 0.001, 0.0025, 0.0, 0.001, 0.0025, 0.0, 0.001];
+        assert_eq!(quantum(&milli), None);
+        // Gaps of rounding far below the values' scale are no step: the
+        // step of a grid at 1000 with each level stored twice, 1e-7 apart.
+        let stored: Vec<f64> = (0..48)
+            .map(|i| 1000.0 + (i % 6) as f64 + if i % 12 < 6 { 0.0 } else { 1e-7 })
+            .collect();
+        let got = quantum(&stored).expect("a grid of 1 at 1000");
+        assert!((got - 1.0).abs() < 1e-6, "{got}");
         assert_eq!(sine_gain_sd(0.0, 1.0), 0.0);
         assert_eq!(sine_gain_sd(1.0, 0.0), 0.0);
     }
