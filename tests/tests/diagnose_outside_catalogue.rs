@@ -578,14 +578,14 @@ fn the_rigs_sensor_delays_and_cuff_compliance_are_named_alone() {
 /// A SEA discretised by the bilinear transform (`--sea-model tustin`, the
 /// filter's output ramped over the next tick) times the torque differently
 /// within a tick from the model's held command: at 500 Hz it fits as a
-/// delay of the motor command of under a millisecond, beyond the noise of
-/// `τ_s/τ_d` (issue 30: named on five of six such nulls once the forward
-/// model's blanket accuracy floor was gone). A delay shorter than one
-/// sample period is the rig's timing: taken into the model, named as no
-/// missing physics, and the verdict says so. On the same rig a delay of
-/// the SEA's sensor of two ticks is still named (the test above, 4 ms).
+/// delay of the motor command of under a millisecond (0.85 ± 0.10 ms on a
+/// null of seed 13012). It is another implementation of the nominal
+/// physics: nothing is named, and whatever delay shorter than a tick the
+/// search takes is reported as the rig's timing, never as missing physics
+/// (`within_tick`; issue 30: named on five of six such nulls when the
+/// transient-free values were judged without the forward model's floor).
 #[test]
-fn a_tustin_seas_timing_within_a_tick_is_taken_not_named() {
+fn a_tustin_sea_names_nothing_and_a_delay_within_a_tick_is_timing() {
     let dir = scratch("tustin-timing");
     let v = diagnose(&rig(
         &dir,
@@ -594,17 +594,11 @@ fn a_tustin_seas_timing_within_a_tick_is_taken_not_named() {
     ));
     let text = verdict(&v).join("\n");
     assert!(found(&v).is_empty(), "named\n{text}");
-    let timing: Vec<&str> = v["within_tick"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .map(|w| w.as_str().unwrap())
-        .collect();
-    assert_eq!(timing.len(), 1, "{text}");
-    assert!(timing[0].contains("motor command"), "{text}");
-    let d = v["final_physics"]["delay_s"][3].as_f64().unwrap();
-    assert!(d > 0.0 && d < 0.002, "delay {d} s\n{text}");
     assert!(text.contains("no missing physics"), "{text}");
+    for w in v["within_tick"].as_array().unwrap() {
+        let w = w.as_str().unwrap();
+        assert!(w.contains("within one sample period (2.0 ms)"), "{w}");
+    }
     assert_exclusive(&v);
 }
 

@@ -245,34 +245,33 @@ pub struct Observation {
     pub tf: Tf,
     /// Frequency (rad/s).
     pub omega_rad_s: f64,
-    /// Measured value, as judged: a single-sine line's transient-free value
-    /// where there is one ([`Observation::transient_free`]), else the line
-    /// itself; a static balance's mean.
+    /// Measured value: a single-sine line, a broadband bin average, a
+    /// static balance's mean.
     pub value: Complex64,
     /// Standard deviation of the real and of the imaginary part (same units
-    /// as `value`), what the fits weight with: the transient-free value's
-    /// own, else the window's residual taken as white noise; a static
-    /// balance's with each cycle counted as one sample (conservative).
+    /// as `value`), from the window's residual taken as white noise (a
+    /// static balance's with each cycle counted as one sample,
+    /// conservative): what the fits weight with.
     pub sigma: [f64; 2],
-    /// The window's transient taken out, where the window allows it: a
-    /// single-sine line by the local polynomial method
+    /// The same with the window's transient taken out, where the window
+    /// allows it: a single-sine line by the local polynomial method
     /// (`exo_impedance::frf::local_polynomial_ratio`; three cycles or more,
     /// neighbours that hold a smooth transient), with the white σ times
     /// √leverage; a static balance with the mean's noise measured at zero
-    /// frequency (`exo_impedance::frf::mean_standard_error`), reported
-    /// ([`crate::fit::noise_only_chi2`], the `residuals` example) and not
-    /// judged by: the balance's model misses a few mNm at the upper
-    /// periods of our own simulator, beyond that noise (docs/diagnose.md,
-    /// "The noise model").
+    /// frequency (`exo_impedance::frf::mean_standard_error`). Reported
+    /// ([`crate::fit::noise_only_chi2`], the `residuals` example), not
+    /// judged by: judged in place of the lines (stop 33) it cleared every
+    /// null but lost two strongly nonlinear cases, whose response its
+    /// polynomials partly carry (docs/diagnose.md, "The judgement by the
+    /// measured noise").
     pub transient_free: Option<TransientFree>,
     /// The systematic uncertainty beyond the noise this value is held to
-    /// (fraction of `|value|`): for a value divided by the angle, the
-    /// encoder quantiser's gain error at the window's amplitude
-    /// (`exo_impedance::quantiser::sine_gain_sd`); for a line whose
-    /// window's transient is still in it, also the forward model's
-    /// accuracy [`crate::fit::MODEL_ACCURACY`], which that transient may
-    /// reach. A physics with terms whose forward model is coarser holds
-    /// every value to more ([`crate::fit::model_accuracy`]).
+    /// (fraction of `|value|`): the forward model's accuracy
+    /// [`crate::fit::MODEL_ACCURACY`], combined, for a value divided by the
+    /// angle, with the encoder quantiser's gain error at the window's
+    /// amplitude (`exo_impedance::quantiser::sine_gain_sd`). A physics with
+    /// terms whose forward model is coarser holds every value to more
+    /// ([`crate::fit::model_accuracy`]).
     pub accuracy: f64,
     /// Index of its window in [`Dataset::conditions`].
     pub window: usize,
@@ -757,18 +756,16 @@ fn single_sine(
                 } else {
                     exo_impedance::quantiser::sine_gain_sd(encoder_step_rad, theta_amp_rad)
                 };
-                // Judged: the transient-free value where there is one, held
-                // to the noise and the quantiser; else the line, held also
-                // to the forward model's accuracy, which its transient may
-                // reach (docs/diagnose.md, "The noise model").
-                let (value, sigma, accuracy) = match transient_free {
-                    Some(f) => (f.value, f.sigma, quantiser),
-                    None => (
-                        p.ratio,
-                        line_sigma,
-                        crate::fit::MODEL_ACCURACY.hypot(quantiser),
-                    ),
-                };
+                // Judged: the line with its white σ, held to the forward
+                // model's accuracy (its window's transient may reach it)
+                // and the quantiser. The transient-free value, judged in
+                // its place, lost two strongly nonlinear cases of our
+                // simulator (docs/diagnose.md, "The noise model").
+                let (value, sigma, accuracy) = (
+                    p.ratio,
+                    line_sigma,
+                    crate::fit::MODEL_ACCURACY.hypot(quantiser),
+                );
                 d.observations.push(Observation {
                     tf,
                     omega_rad_s: w,

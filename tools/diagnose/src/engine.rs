@@ -515,7 +515,7 @@ pub struct Diagnosis {
     pub found: Vec<Found>,
     /// Delays shorter than one sample period that the search took into the
     /// model as the rig's timing within a tick, not as missing physics
-    /// (docs/diagnose.md, "A delay within a tick").
+    /// (docs/diagnose.md, "The judgement by the measured noise").
     pub within_tick: Vec<String>,
     /// The final model's score.
     pub final_score: Score,
@@ -1002,7 +1002,7 @@ fn longest_sample_period_s(d: &Dataset) -> f64 {
 /// next tick by a whole one, a filter discretised by the bilinear transform
 /// by none; measured: a Tustin-discretised SEA on the independent rig at
 /// 500 Hz fits as a 0.85 ± 0.10 ms delay of the motor command).
-/// docs/diagnose.md, "A delay within a tick".
+/// docs/diagnose.md, "The judgement by the measured noise".
 fn within_a_tick(d: &Dataset, term: Term, phys: &Physics) -> Option<String> {
     let tick_s = longest_sample_period_s(d);
     let delays: Vec<f64> = term
@@ -1122,6 +1122,25 @@ fn amplitude_check(
     hold_shared: bool,
     level: f64,
 ) -> AmplitudeCheck {
+    // Each group's fit holds every value to the forward model's accuracy
+    // at least: a form's describing function is no finer than that (a
+    // polynomial spring of K₃ = 400 at the upper periods leaves out the
+    // harmonics it makes), and held to the noise alone the two groups'
+    // values part by that error, not by an amplitude dependence.
+    let held = Dataset {
+        conditions: d.conditions.clone(),
+        observations: d
+            .observations
+            .iter()
+            .map(|o| Observation {
+                accuracy: o.accuracy.max(crate::fit::MODEL_ACCURACY),
+                ..*o
+            })
+            .collect(),
+        supported: d.supported.clone(),
+        ..Dataset::default()
+    };
+    let d = &held;
     let mut fits = Vec::new();
     for grp in 0..2u8 {
         let sel = |_: usize, o: &Observation| g.group[o.window] == Some(grp);

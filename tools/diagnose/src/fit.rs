@@ -48,23 +48,21 @@ impl Fitted {
 
 /// Accuracy of the linearised forward model relative to the simulator
 /// (fraction of `|value|`): the worst disagreement measured over every term
-/// of the plant TOML in `tests/forward.rs` is below it. A line whose
-/// window's transient is still in it is held to it
-/// ([`crate::data::Observation::accuracy`]; a transient-free value is held
-/// to its noise), and it is the size below which a form's signature cannot
-/// be told from the model's own error (the amplitude check, the posture
-/// form).
+/// of the plant TOML in `tests/it/forward.rs` is below it. Every value is
+/// held to it ([`crate::data::Observation::accuracy`]), and it is the size
+/// below which a form's signature cannot be told from the model's own
+/// error (the amplitude check, the posture form).
 pub const MODEL_ACCURACY: f64 = 0.005;
 
 /// Accuracy of the forward model with Coulomb friction in the joint at
 /// every dynamic transfer function (fraction of `|value|`): its describing
 /// function ignores the harmonics friction makes (measured worst 1.7 % in
-/// `tests/forward.rs`).
+/// `tests/it/forward.rs`).
 pub const COULOMB_ACCURACY: f64 = 0.025;
 
 /// Accuracy of the forward model of an ideal actuator (no SEA dynamics:
 /// the torque is the held command) at every dynamic transfer function
-/// (fraction of `|value|`; measured 0.8 % in `tests/forward.rs`).
+/// (fraction of `|value|`; measured 0.8 % in `tests/it/forward.rs`).
 pub const IDEAL_ACTUATOR_ACCURACY: f64 = 0.01;
 
 /// The standard deviation used to weight one component: the noise measured
@@ -89,7 +87,7 @@ fn absolute_floor(tf: crate::data::Tf) -> f64 {
 /// The systematic uncertainty of `o` for the physics `phys` (fraction of
 /// `|value|`): the observation's own ([`crate::data::Observation::accuracy`]),
 /// or more where a term's forward model is coarser, as measured against the
-/// simulator in `tests/forward.rs`: Coulomb friction's describing function
+/// simulator in `tests/it/forward.rs`: Coulomb friction's describing function
 /// ([`COULOMB_ACCURACY`]), an ideal actuator's held torque
 /// ([`IDEAL_ACTUATOR_ACCURACY`]).
 pub fn model_accuracy(phys: &Physics, o: &Observation) -> f64 {
@@ -99,7 +97,7 @@ pub fn model_accuracy(phys: &Physics, o: &Observation) -> f64 {
         COULOMB_ACCURACY
     } else if phys.sea.is_none() && o.tf.is_dynamic() {
         // An ideal actuator's stair-shaped torque, sampled at the end of
-        // each hold (measured 0.8 %, `tests/forward.rs`).
+        // each hold (measured 0.8 %, `tests/it/forward.rs`).
         o.accuracy.max(IDEAL_ACTUATOR_ACCURACY)
     } else {
         o.accuracy
@@ -427,6 +425,65 @@ mod tests {
             gravity_comp: Complex64::new(0.0, 0.0),
             statics: [0.0; 2],
         }
+    }
+
+    /// The lack-of-fit χ² by hand: an `S_h` value 2 % off the model's
+    /// prediction in its real part, 1 % in its imaginary part, with a σ of
+    /// 0.3 and the 0.5 % accuracy on |value|; and a static balance 2 mNm
+    /// off with σ 0.5 mNm (one residual, its 1 mNm floor). Each transfer
+    /// function counted on its own, and together.
+    #[test]
+    fn the_lack_of_fit_chi2_is_the_residuals_over_noise_and_accuracy() {
+        let plant = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("../../configs/plants/default.toml");
+        let phys = Physics::from_plant(
+            &exo_plant_model::PlantModel::from_file(&plant).unwrap(),
+            &[1],
+        );
+        let c = crate::data::Condition {
+            experiment: 1,
+            period: 1,
+            load_kg: 0.0,
+            bias_nm: 0.0,
+            alpha: 1.0,
+            amplitude_nm: 2.0,
+            theta0_rad: 0.5,
+            theta_amp_rad: 0.1,
+            sin_theta_mean: 0.5f64.sin(),
+            tau_s_mean_nm: f64::NAN,
+            tau_c_mean_nm: 0.0,
+            command: None,
+            gravity: None,
+            sample_period_s: 0.001,
+            start_s: 0.0,
+            elapsed_s: 0.0,
+        };
+        let mut sh = observation(Tf::Sh, 0.0, 0.3, MODEL_ACCURACY);
+        let p = phys.predict(&sh, &c);
+        sh.value = Complex64::new(p.re + 0.02 * p.norm(), p.im + 0.01 * p.norm());
+        let mut bal = observation(Tf::Balance, 0.0, 5e-4, 0.0);
+        let pb = phys.predict(&bal, &c);
+        bal.value = Complex64::new(pb.re + 2e-3, 0.0);
+        let d = Dataset {
+            conditions: vec![c],
+            observations: vec![sh, bal],
+            supported: vec![Tf::Sh, Tf::Balance],
+            ..Dataset::default()
+        };
+        let sd = 0.3f64.hypot(MODEL_ACCURACY * sh.value.norm());
+        let want_sh = ((0.02 * p.norm()) / sd).powi(2) + ((0.01 * p.norm()) / sd).powi(2);
+        let (chi, n) = lack_of_fit_chi2_of(&d, &phys, Some(Tf::Sh));
+        assert_eq!(n, 2);
+        assert!(
+            (chi - want_sh).abs() < 1e-9 * want_sh,
+            "{chi} against {want_sh}"
+        );
+        let (chi_b, n_b) = lack_of_fit_chi2_of(&d, &phys, Some(Tf::Balance));
+        assert_eq!(n_b, 1);
+        assert!((chi_b - 4.0).abs() < 1e-6, "{chi_b}");
+        let (all, n_all) = lack_of_fit_chi2(&d, &phys);
+        assert_eq!(n_all, 3);
+        assert!((all - want_sh - 4.0).abs() < 1e-6 * all, "{all}");
     }
 
     /// Each value is held to its own systematic uncertainty; a model with

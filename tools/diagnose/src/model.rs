@@ -33,7 +33,7 @@
 //! by its describing function; sensor offsets do not enter transfer
 //! functions and are not diagnosed.
 //!
-//! Accuracy against the simulator (`tests/forward.rs`, every term alone):
+//! Accuracy against the simulator (`tests/it/forward.rs`, every term alone):
 //! linear terms within the measured noise (the fit's floor,
 //! `fit::MODEL_ACCURACY`, is 0.5 %);
 //! Coulomb friction's describing function within 1.7 % (it ignores the

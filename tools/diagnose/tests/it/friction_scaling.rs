@@ -3,7 +3,7 @@
 //! model, with hysteretic damping left out of the candidates, must not be
 //! named as Coulomb friction, whose describing function falls as 1/A.
 
-mod common;
+use crate::common;
 use common::default_plant;
 
 use exo_diagnose::data::{reduce, Reduction};

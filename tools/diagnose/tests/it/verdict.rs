@@ -5,7 +5,7 @@
 //! back at the truth. And the amplitude groups of a found term's amplitude
 //! check at the 5 % margin.
 
-mod common;
+use crate::common;
 
 use exo_diagnose::data::{reduce, Reduction};
 use exo_diagnose::synth::{synthesize, SynthSettings};
@@ -67,7 +67,7 @@ const OFF_PCT: f64 = 2.5;
 
 #[test]
 fn an_amplitude_at_the_five_percent_margin_counts_with_the_lowest() {
-    // Hysteresis behind a viscous nominal model (as in tests/statistics.rs),
+    // Hysteresis behind a viscous nominal model (as in tests/it/statistics.rs),
     // the protocol's amplitudes 2 Nm (periods 1–7), 2·1.05 Nm (period 8:
     // exactly at the 5 % margin) and 2·10^0.2 Nm (periods 9–10). The
     // amplitude groups put an amplitude within 5 % of the lowest, the margin

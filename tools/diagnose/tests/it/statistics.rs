@@ -22,7 +22,7 @@
 //! the noise level of the harmonics, the bands' χ² pooling to the whole,
 //! and the within-window rates of a non-drifting plant as noise.
 
-mod common;
+use crate::common;
 use common::default_plant;
 
 use exo_diagnose::data::{reduce, Reduction};
@@ -32,7 +32,7 @@ use exo_diagnose::synth::{synthesize, SynthPeriod, SynthSettings};
 use exo_diagnose::{diagnose, Settings, Term, Tf};
 use exo_impedance::ftest::{f_critical, f_survival};
 
-/// Three experiments of ten periods, as in `tests/engine.rs`.
+/// Three experiments of ten periods, as in `tests/it/engine.rs`.
 fn protocol() -> Vec<SynthPeriod> {
     common::protocol(&[
         (1, 15.0, 5.0, 0.0, 0.0),

@@ -4,7 +4,7 @@
 //! describe the band's actual scatter about K (z = error/σ standard normal:
 //! mean z² near 1).
 
-mod common;
+use crate::common;
 
 use common::normals;
 use exo_diagnose::{reduce, Reduction, Tf};

@@ -4,7 +4,7 @@
 //! from the construction (the noise power of a DFT bin of white noise is
 //! `4σ²/n`), not from the function under test.
 
-mod common;
+use crate::common;
 
 use common::normals;
 use exo_diagnose::data::{reduce, Condition, Dataset, Reduction, Tf, WindowSignals};

@@ -1,7 +1,7 @@
 //! The diagnosis's subject file (`Physics::subject_toml`) is read back by
 //! exo-config's own reader, which validates it, with the values written in.
 
-mod common;
+use crate::common;
 
 use exo_config::Subject;
 use exo_diagnose::Physics;

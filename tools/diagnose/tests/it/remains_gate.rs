@@ -3,7 +3,7 @@
 //! that steps with the excitation amplitude, significant in the regression
 //! but well inside the noise overall, is measured and not reported.
 
-mod common;
+use crate::common;
 
 use exo_diagnose::data::{Condition, Dataset, Observation, Tf, WindowSignals};
 use exo_diagnose::remains::characterise;

@@ -9,7 +9,7 @@
 //! The independent generator's cases are in
 //! `tests/tests/diagnose_outside_catalogue.rs`.
 
-mod common;
+use crate::common;
 use common::default_plant;
 
 use exo_diagnose::data::{reduce, Reduction};

@@ -2,7 +2,7 @@
 //! nominal plant, and the viscous human matches the hysteretic one at the
 //! coupled resonance, checked against the numbers worked by hand.
 
-mod common;
+use crate::common;
 
 use exo_config::{Subject, SubjectExperiment};
 use exo_diagnose::bench::cases;

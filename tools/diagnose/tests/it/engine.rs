@@ -1,7 +1,7 @@
 //! The diagnosis on simulated data (the plant simulator in process,
 //! `synth`): a concealed effect is named, a null case names nothing.
 
-mod common;
+use crate::common;
 use common::default_plant;
 
 use exo_diagnose::data::{reduce, Reduction};

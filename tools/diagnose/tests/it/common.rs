@@ -1,6 +1,6 @@
 //! Set-up the diagnosis tests share: the default plant and the protocol's
 //! periods for a list of experiments, and deterministic normal samples.
-//! Each test file uses some of them.
+//! Each test module uses some of them.
 #![allow(dead_code)]
 
 use std::path::PathBuf;
