@@ -47,10 +47,12 @@ pub fn quantum(values: &[f64]) -> Option<f64> {
 /// Root-mean-square over the signal's offset on the grid of the relative
 /// error of a quantised sine's fundamental (dimensionless): `0.11 (q/A)^1.5`
 /// for a sine of amplitude `A` read with step `q` (the same units), fitted
-/// to a Monte Carlo over `A/q` from 5 to 300 (within 10 % there; the test
-/// `the_gain_error_matches_a_brute_force_quantiser` checks it against a
-/// quantiser applied to sampled sines). 0 without a step; capped at 1
-/// (a sine of less than a step).
+/// to a Monte Carlo at `A/q` = 5, 10, 20, 50, 100 and 300 (within 10 % at
+/// each). Between them the error oscillates with `A/q` (at 7.6 the Monte
+/// Carlo gave 2.4 times less: the form is then conservative); the test
+/// `the_gain_error_matches_a_brute_force_quantiser` holds it within 35 % of
+/// a quantiser applied to sampled sines at `A/q` = 6, 12, 25, 60 and 150.
+/// 0 without a step; capped at 1 (a sine of less than a step).
 pub fn sine_gain_sd(q: f64, amplitude: f64) -> f64 {
     let usable = |v: f64| v.is_finite() && v > 0.0;
     if usable(q) && usable(amplitude) {

@@ -758,21 +758,15 @@ fn single_sine(
                 };
                 // Judged: the line with its white σ, held to the forward
                 // model's accuracy (its window's transient may reach it)
-                // and the quantiser. The transient-free value, judged in
-                // its place, lost two strongly nonlinear cases of our
-                // simulator (docs/diagnose.md, "The noise model").
-                let (value, sigma, accuracy) = (
-                    p.ratio,
-                    line_sigma,
-                    crate::fit::MODEL_ACCURACY.hypot(quantiser),
-                );
+                // and the quantiser (docs/diagnose.md, "The judgement by
+                // the measured noise").
                 d.observations.push(Observation {
                     tf,
                     omega_rad_s: w,
-                    value,
-                    sigma,
+                    value: p.ratio,
+                    sigma: line_sigma,
                     transient_free,
-                    accuracy,
+                    accuracy: crate::fit::MODEL_ACCURACY.hypot(quantiser),
                     window,
                     gravity_comp,
                     statics: [0.0; 2],

@@ -1122,25 +1122,6 @@ fn amplitude_check(
     hold_shared: bool,
     level: f64,
 ) -> AmplitudeCheck {
-    // Each group's fit holds every value to the forward model's accuracy
-    // at least: a form's describing function is no finer than that (a
-    // polynomial spring of K₃ = 400 at the upper periods leaves out the
-    // harmonics it makes), and held to the noise alone the two groups'
-    // values part by that error, not by an amplitude dependence.
-    let held = Dataset {
-        conditions: d.conditions.clone(),
-        observations: d
-            .observations
-            .iter()
-            .map(|o| Observation {
-                accuracy: o.accuracy.max(crate::fit::MODEL_ACCURACY),
-                ..*o
-            })
-            .collect(),
-        supported: d.supported.clone(),
-        ..Dataset::default()
-    };
-    let d = &held;
     let mut fits = Vec::new();
     for grp in 0..2u8 {
         let sel = |_: usize, o: &Observation| g.group[o.window] == Some(grp);
