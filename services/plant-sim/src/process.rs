@@ -261,7 +261,7 @@ impl Watch {
             if looked.elapsed() >= ALIVE_EVERY {
                 looked = Instant::now();
                 if let Some(pid) = self.pace.last().map(|p| p.pid) {
-                    if !process_alive(pid) {
+                    if !exo_service_kit::child::process_alive(pid) {
                         self.pace.forget();
                         warn!(
                             "plant-sim: the {} (pid {pid}) has died: simulated time goes on without it (a restarted one is waited for again)",
@@ -292,48 +292,5 @@ impl Watch {
         }
         self.held += started.elapsed();
         Ok(())
-    }
-}
-
-/// Whether process `pid` runs (or is stopped: SIGSTOP), from
-/// `/proc/<pid>/stat`; a zombie or a missing process is dead. Pid 0 (not
-/// told) counts as alive.
-fn process_alive(pid: u32) -> bool {
-    if pid == 0 {
-        return true;
-    }
-    match std::fs::read_to_string(format!("/proc/{pid}/stat")) {
-        // pid (comm) state …: the comm may hold spaces and parentheses.
-        Ok(stat) => stat
-            .rsplit_once(')')
-            .and_then(|(_, rest)| rest.split_whitespace().next())
-            .is_some_and(|state| state != "Z" && state != "X"),
-        Err(_) => false,
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    use super::process_alive;
-
-    #[test]
-    fn a_live_process_is_alive_and_a_reaped_one_is_not() {
-        assert!(process_alive(std::process::id()));
-        let mut child = std::process::Command::new("true").spawn().unwrap();
-        let pid = child.id();
-        child.wait().unwrap();
-        assert!(!process_alive(pid));
-        // Stopped is alive: a recorder under SIGSTOP is waited for.
-        let mut sleeper = std::process::Command::new("sleep")
-            .arg("30")
-            .spawn()
-            .unwrap();
-        let pid = i32::try_from(sleeper.id()).unwrap();
-        // SAFETY: signalling a child of this test.
-        assert_eq!(unsafe { libc::kill(pid, libc::SIGSTOP) }, 0);
-        std::thread::sleep(std::time::Duration::from_millis(50));
-        assert!(process_alive(sleeper.id()));
-        let _ = sleeper.kill();
-        let _ = sleeper.wait();
     }
 }

@@ -13,9 +13,11 @@
 //! starts late does not trip it. In real time the deadline is
 //! `safety.command_deadline_ms` from the frame, and a bus silent for
 //! `safety.bus_deadline_ms` is flagged from the driver's own timer; in
-//! lockstep, simulated time stands still while waiting, so a missing
-//! command is declared after `safety.lockstep_timeout_ms` of wall time and
-//! the safe torque is applied at that same simulated tick.
+//! lockstep, simulated time stands still while waiting: a controller
+//! silent for `safety.lockstep_timeout_ms` of wall time is declared if its
+//! process is gone, and waited for up to [`LOCKSTEP_LIVE_PATIENCE`] if it
+//! lives (a loaded machine can hold a process for over a second); the safe
+//! torque is applied at that same simulated tick.
 //!
 //! Operator commands (`<instance>/operator`, e.g. from `exo op`): the node
 //! acts on `ResetFault`, each `seq` once.
@@ -32,7 +34,7 @@ use exo_service_kit::ipc::{Connect, Inbox, Outbox};
 use exo_service_kit::latency::fmt_us;
 use exo_service_kit::runner::{Context as RunContext, Flow, Process};
 use exo_service_kit::{monotonic_ns, RealtimeProcess, ServiceArgs, StopFlag};
-use tracing::{error, info};
+use tracing::{error, info, warn};
 
 use crate::backends::SimulatorBus;
 use crate::ethercat::EthercatBus;
@@ -40,6 +42,11 @@ use crate::{DriverNode, HardwareBus, RoundTrip};
 
 const RESEND_AFTER: Duration = Duration::from_millis(200);
 const STARTUP_PATIENCE: Duration = Duration::from_secs(60);
+/// In lockstep, how long a controller whose process lives (running or
+/// stopped) is waited for before its silence latches the safe state;
+/// `safety.lockstep_timeout_ms` after the frame, a controller whose process
+/// is gone latches it. Below the plant's 20 s without a motor command.
+const LOCKSTEP_LIVE_PATIENCE: Duration = Duration::from_secs(15);
 
 /// Command line of `exo-sensor-driver`: every service's, plus the round-trip report.
 #[derive(Debug, clap::Parser)]
@@ -311,6 +318,7 @@ impl Cycle<'_> {
         ports.sample_out.send(sample)?;
         let started = Instant::now();
         let mut last_send = started;
+        let mut waited_for_living = false;
         let out = loop {
             if let Some(o) = node.latched_output() {
                 // Latched: no need to wait for the controller.
@@ -353,6 +361,26 @@ impl Cycle<'_> {
                 continue;
             }
             if started.elapsed() >= self.timing.deadline {
+                // In lockstep simulated time stands still while the driver
+                // waits, and a loaded machine can hold a living process for
+                // more than a second (CI, stop 33: 1 s passed once in a
+                // 126 s run): a controller whose process lives is waited
+                // for up to `LOCKSTEP_LIVE_PATIENCE`; one whose process is
+                // gone is declared now.
+                if self.timing.lockstep
+                    && started.elapsed() < LOCKSTEP_LIVE_PATIENCE
+                    && ports.command_in.publisher_alive()
+                {
+                    if !waited_for_living {
+                        waited_for_living = true;
+                        warn!(
+                            "sensor-driver: frame {} unanswered for {:?}, the controller's process lives: waiting (lockstep) up to {LOCKSTEP_LIVE_PATIENCE:?}",
+                            frame.seq,
+                            self.timing.deadline
+                        );
+                    }
+                    continue;
+                }
                 break node.on_deadline();
             }
         };

@@ -574,9 +574,12 @@ pub struct SafetySettings {
     /// What the safe state commands.
     pub safe_state: SafeState,
     /// In lockstep, simulated time stands still while a process waits, so
-    /// deadlines are counted in ticks: a missing answer is declared after
-    /// this much wall time (ms), and the safe state then takes effect at the
-    /// same simulated tick. Range (0, 60 000] (a minute).
+    /// deadlines are counted in ticks: after this much wall time (ms)
+    /// without the controller's command the sensor driver declares it if
+    /// the controller's process is gone, or waits on (up to 15 s) if it
+    /// lives, since a loaded machine can hold a process this long; the safe
+    /// state then takes effect at the same simulated tick. Range (0, 60 000]
+    /// (a minute).
     #[serde(default = "default_lockstep_timeout_ms")]
     pub lockstep_timeout_ms: f64,
     /// The drive's watchdog (as an EtherCAT drive's sync-manager watchdog):

@@ -132,6 +132,23 @@ pub fn stop_gracefully<'a>(
         .collect()
 }
 
+/// Whether process `pid` runs (or is stopped: SIGSTOP), from
+/// `/proc/<pid>/stat`; a zombie or a missing process is dead. Pid 0 (not
+/// told) counts as alive.
+pub fn process_alive(pid: u32) -> bool {
+    if pid == 0 {
+        return true;
+    }
+    match std::fs::read_to_string(format!("/proc/{pid}/stat")) {
+        // pid (comm) state …: the comm may hold spaces and parentheses.
+        Ok(stat) => stat
+            .rsplit_once(')')
+            .and_then(|(_, rest)| rest.split_whitespace().next())
+            .is_some_and(|state| state != "Z" && state != "X"),
+        Err(_) => false,
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -194,5 +211,26 @@ mod tests {
     #[test]
     fn no_children_no_outcomes() {
         assert!(stop_gracefully([], Duration::ZERO).is_empty());
+    }
+
+    #[test]
+    fn a_live_process_is_alive_and_a_reaped_one_is_not() {
+        assert!(process_alive(std::process::id()));
+        let mut child = std::process::Command::new("true").spawn().unwrap();
+        let pid = child.id();
+        child.wait().unwrap();
+        assert!(!process_alive(pid));
+        // Stopped is alive: a recorder under SIGSTOP is waited for.
+        let mut sleeper = std::process::Command::new("sleep")
+            .arg("30")
+            .spawn()
+            .unwrap();
+        let pid = i32::try_from(sleeper.id()).unwrap();
+        // SAFETY: signalling a child of this test.
+        assert_eq!(unsafe { libc::kill(pid, libc::SIGSTOP) }, 0);
+        std::thread::sleep(std::time::Duration::from_millis(50));
+        assert!(process_alive(sleeper.id()));
+        let _ = sleeper.kill();
+        let _ = sleeper.wait();
     }
 }

@@ -310,6 +310,7 @@ impl Ipc {
         Ok(Inbox {
             name,
             subscriber,
+            factory: f,
             listener,
             fd,
             spin: Duration::ZERO,
@@ -418,6 +419,8 @@ pub fn settle_connections(ports: &[&dyn Connect], duration: Duration) -> Result<
 pub struct Inbox<T: Debug + ZeroCopySend + Copy + 'static> {
     name: String,
     subscriber: Subscriber<Svc, T, ()>,
+    /// The channel, to look up who publishes on it.
+    factory: iceoryx2::service::port_factory::publish_subscribe::PortFactory<Svc, T, ()>,
     listener: Option<Listener<Svc>>,
     fd: Option<i32>,
     spin: Duration,
@@ -432,6 +435,28 @@ pub struct Inbox<T: Debug + ZeroCopySend + Copy + 'static> {
 const MAX_UNDRAINED: u32 = 32;
 
 impl<T: Debug + ZeroCopySend + Copy + 'static> Inbox<T> {
+    /// Whether a process publishing on this channel is alive (running or
+    /// stopped, [`crate::child::process_alive`]). A publisher whose process
+    /// died stays registered until iceoryx2 cleans its node up; its pid is
+    /// then dead. No publisher registered: `false`. A publisher whose pid
+    /// cannot be read counts as alive. Reads `/proc`: for a wait that has
+    /// already lasted, never per tick.
+    pub fn publisher_alive(&self) -> bool {
+        let mut alive = false;
+        self.factory.dynamic_config().list_publishers(|d| {
+            alive = match d.node_id.pid::<Svc>() {
+                Ok(pid) => u32::try_from(pid.value()).map_or(true, crate::child::process_alive),
+                Err(_) => true,
+            };
+            if alive {
+                CallbackProgression::Stop
+            } else {
+                CallbackProgression::Continue
+            }
+        });
+        alive
+    }
+
     /// The next sample, if one is waiting.
     pub fn try_recv(&self) -> Result<Option<T>, IpcError> {
         Ok(self
