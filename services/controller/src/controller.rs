@@ -7,7 +7,7 @@ use exo_config::{
 };
 use exo_impedance::loop_shaping::FractionalLayout;
 use exo_messages::operator::{KnownKinds, SeenSeqs};
-use exo_messages::{MessageError, OperatorCommand, OperatorCommandKind};
+use exo_messages::{ControlMode, MessageError, OperatorCommand, OperatorCommandKind};
 use thiserror::Error;
 
 use crate::amplification::Amplifier;
@@ -23,19 +23,6 @@ pub enum ControllerError {
     /// A value the configuration must provide is missing.
     #[error("{0}")]
     Config(String),
-}
-
-/// What the controller is doing.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum Mode {
-    /// Normal operation.
-    Run,
-    /// Latched fault: gravity compensation only.
-    SafeGravityOnly,
-    /// Latched fault: zero torque.
-    SafeZeroTorque,
-    /// Protocol finished: gravity compensation only, no amplification.
-    Done,
 }
 
 /// One sensor sample, in physical units.
@@ -75,8 +62,10 @@ pub struct Tick {
     pub tau_bias_nm: f64,
     /// Excitation part (Nm).
     pub tau_excitation_nm: f64,
-    /// Mode.
-    pub mode: Mode,
+    /// What the controller is doing: `Run`, `SafeGravityOnly`,
+    /// `SafeZeroTorque` or `Done` (it never answers a sample in `Idle` or
+    /// `FaultLatched`); the wire's `ActuatorCommand::mode` as is.
+    pub mode: ControlMode,
     /// The latched fault, if any.
     pub fault: Option<Fault>,
     /// Protocol state.
@@ -89,7 +78,7 @@ impl Tick {
     /// would otherwise keep the run going with nothing left to do; the
     /// driver holds its own safe state once the controller stops).
     pub fn protocol_over(&self) -> bool {
-        self.protocol.done && self.mode != Mode::Run
+        self.protocol.done && self.mode != ControlMode::Run
     }
 }
 
@@ -882,19 +871,19 @@ impl Controller {
         self.driver_was_safe = driver_safe;
         let (mode, tau_g, tau_a, tau_b, tau_x) = if self.latch.is_latched() || driver_safe {
             match self.safe_state {
-                SafeState::GravityOnly => (Mode::SafeGravityOnly, gravity, 0.0, 0.0, 0.0),
-                SafeState::ZeroTorque => (Mode::SafeZeroTorque, 0.0, 0.0, 0.0, 0.0),
+                SafeState::GravityOnly => (ControlMode::SafeGravityOnly, gravity, 0.0, 0.0, 0.0),
+                SafeState::ZeroTorque => (ControlMode::SafeZeroTorque, 0.0, 0.0, 0.0, 0.0),
             }
         } else if p.done {
-            (Mode::Done, gravity, 0.0, 0.0, 0.0)
+            (ControlMode::Done, gravity, 0.0, 0.0, 0.0)
         } else if held {
             // Stopped by the operator: gravity compensation alone, no fault.
-            (Mode::Run, gravity, 0.0, 0.0, 0.0)
+            (ControlMode::Run, gravity, 0.0, 0.0, 0.0)
         } else {
             self.amplifier.set_constant_alpha(p.alpha);
             let tau_a = self.amplifier.step(s.tau_c_nm);
             (
-                Mode::Run,
+                ControlMode::Run,
                 gravity,
                 tau_a,
                 p.tau_bias_nm,
@@ -1019,7 +1008,7 @@ mod tests {
         let t = t.unwrap();
         let expected = c.rig.gravity_torque_nm(0.5, 4.5);
         assert!((t.tau_gravity_nm - expected).abs() < 1e-12);
-        assert_eq!(t.mode, Mode::Run);
+        assert_eq!(t.mode, ControlMode::Run);
     }
 
     #[test]
@@ -1029,15 +1018,15 @@ mod tests {
             k.tick(&sample(seq, 0.3, 1.0));
         }
         let t = k.tick(&sample(10, 0.3, f64::NAN));
-        assert_eq!(t.mode, Mode::SafeGravityOnly);
+        assert_eq!(t.mode, ControlMode::SafeGravityOnly);
         assert_eq!(t.fault, Some(Fault::NonFiniteSample { field: "tau_c" }));
         assert!(t.tau_d_nm.is_finite());
         // Latched: a good sample does not clear it.
         let t = k.tick(&sample(11, 0.3, 1.0));
-        assert_eq!(t.mode, Mode::SafeGravityOnly);
+        assert_eq!(t.mode, ControlMode::SafeGravityOnly);
         assert_eq!(t.tau_amplification_nm, 0.0);
         k.reset_fault();
-        assert_eq!(k.tick(&sample(12, 0.3, 1.0)).mode, Mode::Run);
+        assert_eq!(k.tick(&sample(12, 0.3, 1.0)).mode, ControlMode::Run);
     }
 
     #[test]
@@ -1047,18 +1036,18 @@ mod tests {
         let end = (k.protocol().duration_s() * c.run.rate_hz).ceil() as u64;
         k.tick(&sample(0, 0.3, 0.0));
         let t = k.tick(&sample(1, 0.3, f64::NAN));
-        assert_eq!(t.mode, Mode::SafeGravityOnly);
+        assert_eq!(t.mode, ControlMode::SafeGravityOnly);
         assert!(!t.protocol_over());
         let t = k.tick(&sample(end - 10, 0.3, 0.0));
         assert!(!t.protocol_over(), "before the end");
         let t = k.tick(&sample(end + 10, 0.3, 0.0));
-        assert_eq!(t.mode, Mode::SafeGravityOnly, "still latched");
+        assert_eq!(t.mode, ControlMode::SafeGravityOnly, "still latched");
         assert!(t.protocol_over());
         // Unlatched, the end is `Done`.
         let mut k = Controller::from_config(&c).unwrap();
         assert!(!k.tick(&sample(0, 0.3, 0.0)).protocol_over());
         let t = k.tick(&sample(end + 10, 0.3, 0.0));
-        assert_eq!(t.mode, Mode::Done);
+        assert_eq!(t.mode, ControlMode::Done);
         assert!(t.protocol_over());
     }
 
@@ -1073,7 +1062,7 @@ mod tests {
         {
             let mut s = sample(seq as u64, 0.3, 0.0);
             s.status = bits;
-            assert_eq!(k.tick(&s).mode, Mode::Run, "{bits:#x}");
+            assert_eq!(k.tick(&s).mode, ControlMode::Run, "{bits:#x}");
         }
         for bits in [
             status::ENCODER_FAULT,
@@ -1086,7 +1075,7 @@ mod tests {
             s.status = bits;
             let t = k.tick(&s);
             assert_eq!(t.fault, Some(Fault::SensorStatus { status: bits }));
-            assert_eq!(t.mode, Mode::SafeGravityOnly);
+            assert_eq!(t.mode, ControlMode::SafeGravityOnly);
         }
         // The driver latched: the controller follows it for as long as its
         // samples say so (an operator reset clears both), never in Run.
@@ -1097,12 +1086,12 @@ mod tests {
             s.status = status::SAFE_STATE;
             let t = k.tick(&s);
             assert_eq!(t.fault, Some(Fault::DriverSafeState));
-            assert_eq!(t.mode, Mode::SafeGravityOnly);
+            assert_eq!(t.mode, ControlMode::SafeGravityOnly);
             assert_eq!(t.tau_amplification_nm, 0.0);
         }
         assert_eq!(k.fault(), None, "followed, not latched here");
         let t = k.tick(&sample(50, 0.3, 0.0));
-        assert_eq!((t.mode, t.fault), (Mode::Run, None));
+        assert_eq!((t.mode, t.fault), (ControlMode::Run, None));
     }
 
     #[test]
@@ -1143,7 +1132,10 @@ mod tests {
     #[test]
     fn out_of_range_angle_and_interaction_torque_fault() {
         let mut k = Controller::from_config(&cfg()).unwrap();
-        assert_eq!(k.tick(&sample(0, 3.0, 0.0)).mode, Mode::SafeGravityOnly);
+        assert_eq!(
+            k.tick(&sample(0, 3.0, 0.0)).mode,
+            ControlMode::SafeGravityOnly
+        );
         let mut k = Controller::from_config(&cfg()).unwrap();
         assert!(matches!(
             k.tick(&sample(0, 0.3, 500.0)).fault,
@@ -1201,7 +1193,7 @@ mod tests {
 
     // ---- operator commands -------------------------------------------
 
-    use crate::protocol::Phase;
+    use exo_messages::ProtocolPhase;
     use exo_messages::{OperatorCommand, OperatorCommandKind as K};
 
     fn op(seq: u64, kind: K, value: f64) -> OperatorCommand {
@@ -1232,7 +1224,7 @@ mod tests {
         ticks(&mut k, 0, 10);
         assert_eq!(
             k.tick(&sample(10, 0.5, f64::NAN)).mode,
-            Mode::SafeGravityOnly
+            ControlMode::SafeGravityOnly
         );
         let out = k.on_operator(&op(1, K::ResetFault, 0.0));
         assert_eq!(
@@ -1243,7 +1235,7 @@ mod tests {
         );
         assert!(!out.is_refusal());
         assert!(out.to_string().contains("tau_c is not finite"), "{out}");
-        assert_eq!(k.tick(&sample(11, 0.5, 0.0)).mode, Mode::Run);
+        assert_eq!(k.tick(&sample(11, 0.5, 0.0)).mode, ControlMode::Run);
         assert_eq!(
             k.on_operator(&op(2, K::ResetFault, 0.0)),
             OperatorOutcome::FaultReset { cleared: None }
@@ -1318,7 +1310,7 @@ mod tests {
         let ramp_out = k.protocol().ramp_out_s();
         // 7 s: period 1's settling, bias at its plateau, sine fading in.
         let before = ticks(&mut k, 0, 7 * RATE);
-        assert_eq!(before.protocol.phase, Phase::Settling);
+        assert_eq!(before.protocol.phase, ProtocolPhase::Settling);
         assert_eq!(before.tau_bias_nm, 4.0);
         let out = k.on_operator(&op(1, K::StopProtocol, 0.0));
         assert_eq!(
@@ -1334,10 +1326,10 @@ mod tests {
         let mut prev = before;
         for seq in 7 * RATE..7 * RATE + ramp_ticks {
             let t = k.tick(&sample(seq, 0.5, 0.0));
-            assert_eq!((t.mode, t.fault), (Mode::Run, None));
+            assert_eq!((t.mode, t.fault), (ControlMode::Run, None));
             assert_eq!(
                 (t.protocol.experiment, t.protocol.period, t.protocol.phase),
-                (4, 1, Phase::RampOut)
+                (4, 1, ProtocolPhase::RampOut)
             );
             // Smooth: no step in the bias or the excitation.
             assert!(t.tau_bias_nm <= prev.tau_bias_nm && prev.tau_bias_nm - t.tau_bias_nm < 0.01);
@@ -1351,9 +1343,12 @@ mod tests {
         let first_held = 7 * RATE + ramp_ticks;
         for seq in first_held..end {
             let t = k.tick(&sample(seq, 0.5, 0.0));
-            assert_eq!((t.mode, t.fault), (Mode::Run, None), "at {seq}");
+            assert_eq!((t.mode, t.fault), (ControlMode::Run, None), "at {seq}");
             assert!(!t.protocol_over());
-            assert_eq!((t.protocol.experiment, t.protocol.phase), (0, Phase::Idle));
+            assert_eq!(
+                (t.protocol.experiment, t.protocol.phase),
+                (0, ProtocolPhase::Idle)
+            );
             assert_eq!(
                 (t.tau_bias_nm, t.tau_excitation_nm, t.tau_amplification_nm),
                 (0.0, 0.0, 0.0)
@@ -1390,16 +1385,22 @@ mod tests {
         let t = k.tick(&sample(20 * RATE, 0.5, 0.0));
         assert_eq!(
             (t.protocol.experiment, t.protocol.period, t.protocol.phase),
-            (4, 1, Phase::RampIn)
+            (4, 1, ProtocolPhase::RampIn)
         );
         assert_eq!(t.tau_bias_nm, 0.0, "the ramp-in starts from zero");
         // A whole period later, period 4 follows as it would have.
         let t = ticks(&mut k, 20 * RATE + 1, 20 * RATE + period + 1);
-        assert_eq!((t.protocol.period, t.protocol.phase), (4, Phase::RampIn));
+        assert_eq!(
+            (t.protocol.period, t.protocol.phase),
+            (4, ProtocolPhase::RampIn)
+        );
         // Stopped in the rest after period 4's analysis: a resume goes on with period 7.
         let rest = 20 * RATE + 2 * period - RATE / 2;
         let t = ticks(&mut k, 20 * RATE + period + 1, rest);
-        assert_eq!((t.protocol.period, t.protocol.phase), (4, Phase::Rest));
+        assert_eq!(
+            (t.protocol.period, t.protocol.phase),
+            (4, ProtocolPhase::Rest)
+        );
         assert_eq!(
             k.on_operator(&op(3, K::StopProtocol, 0.0)),
             OperatorOutcome::Stopping {
@@ -1410,7 +1411,7 @@ mod tests {
             "nothing to ramp out in a rest"
         );
         let t = k.tick(&sample(rest, 0.5, 0.0));
-        assert_eq!(t.protocol.phase, Phase::Idle);
+        assert_eq!(t.protocol.phase, ProtocolPhase::Idle);
         assert_eq!(
             k.on_operator(&op(4, K::StartProtocol, 0.0)),
             OperatorOutcome::Starting {
@@ -1420,10 +1421,13 @@ mod tests {
             }
         );
         let t = k.tick(&sample(rest + 1, 0.5, 0.0));
-        assert_eq!((t.protocol.period, t.protocol.phase), (7, Phase::RampIn));
+        assert_eq!(
+            (t.protocol.period, t.protocol.phase),
+            (7, ProtocolPhase::RampIn)
+        );
         // After the last period, the protocol ends as usual.
         let t = ticks(&mut k, rest + 2, rest + 1 + period + 10);
-        assert_eq!(t.mode, Mode::Done);
+        assert_eq!(t.mode, ControlMode::Done);
         assert!(t.protocol_over());
     }
 
@@ -1445,7 +1449,7 @@ mod tests {
             let t = k.tick(&sample(seq, 0.5, 0.0));
             assert_eq!(
                 (t.protocol.experiment, t.protocol.phase),
-                (1, Phase::RampOut),
+                (1, ProtocolPhase::RampOut),
                 "at {seq}"
             );
         }
@@ -1453,7 +1457,7 @@ mod tests {
         let t = k.tick(&sample(start, 0.5, 0.0));
         assert_eq!(
             (t.protocol.experiment, t.protocol.period, t.protocol.phase),
-            (7, 1, Phase::RampIn)
+            (7, 1, ProtocolPhase::RampIn)
         );
         assert!(matches!(
             k.protocol_run(),
@@ -1467,7 +1471,7 @@ mod tests {
             start + 2 * period + 10 * RATE,
             start + 3 * period + 1,
         );
-        assert_eq!(t.mode, Mode::Done);
+        assert_eq!(t.mode, ControlMode::Done);
         // Started in a ramp-in without bias (nothing applied): at once.
         let mut k = controller_of(&[1, 7]);
         ticks(&mut k, 0, 2 * RATE);
@@ -1500,7 +1504,7 @@ mod tests {
             OperatorOutcome::Stopping { experiment: 1, .. }
         ));
         let t = ticks(&mut k, 9 * RATE, 20 * RATE);
-        assert_eq!((t.protocol.experiment, t.mode), (0, Mode::Run));
+        assert_eq!((t.protocol.experiment, t.mode), (0, ControlMode::Run));
     }
 
     /// The console's verdict of each outcome: refusals (an unknown kind,
@@ -1616,7 +1620,7 @@ mod tests {
         // Once over, neither stop nor start.
         let mut k = controller_of(&[1]);
         let t = ticks(&mut k, 0, 3 * period + 10);
-        assert_eq!(t.mode, Mode::Done);
+        assert_eq!(t.mode, ControlMode::Done);
         assert_eq!(
             k.on_operator(&op(1, K::StopProtocol, 0.0)),
             OperatorOutcome::Refused {

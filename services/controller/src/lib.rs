@@ -35,5 +35,5 @@ pub use amplification::Amplifier;
 pub use controller::{
     Controller, ControllerError, OperatorOutcome, OperatorRefusal, ProtocolRun, Tick, TickInput,
 };
-pub use protocol::{Phase, Protocol, ProtocolPoint};
+pub use protocol::{Protocol, ProtocolPoint};
 pub use safety::{Fault, FaultLatch, Limits};

@@ -14,22 +14,13 @@
 
 use exo_config::RunConfig;
 use exo_messages::{
-    ActuatorCommand, ControlMode, ImpedanceEstimate, OperatorCommand, ProtocolState, SensorSample,
+    ActuatorCommand, ControlMode, ImpedanceEstimate, OperatorCommand, ProtocolPhase, ProtocolState,
+    SensorSample,
 };
 use tracing::{error, info, warn};
 
-use crate::controller::{Mode, OperatorOutcome};
+use crate::controller::OperatorOutcome;
 use crate::{Controller, ControllerError, Fault, TickInput};
-
-/// The wire code of a controller mode (`exo_messages::ControlMode`).
-pub fn mode_code(m: Mode) -> ControlMode {
-    match m {
-        Mode::Run => ControlMode::Run,
-        Mode::SafeGravityOnly => ControlMode::SafeGravityOnly,
-        Mode::SafeZeroTorque => ControlMode::SafeZeroTorque,
-        Mode::Done => ControlMode::Done,
-    }
-}
 
 /// What the controller publishes for one sample.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -49,7 +40,8 @@ pub struct ControllerNode {
     adopt_recommended_f: bool,
     rate_hz: f64,
     last: Option<ActuatorCommand>,
-    last_protocol: (u32, u32, u32),
+    /// (experiment, period, phase) of the last protocol state published; `None` before the first.
+    last_protocol: Option<(u32, u32, ProtocolPhase)>,
     last_protocol_tick: u64,
     reported: Option<Fault>,
     latched_at: Option<u64>,
@@ -65,7 +57,7 @@ impl ControllerNode {
             adopt_recommended_f: cfg.controller.adopt_recommended_f,
             rate_hz: cfg.run.rate_hz,
             last: None,
-            last_protocol: (u32::MAX, u32::MAX, u32::MAX),
+            last_protocol: None,
             last_protocol_tick: 0,
             reported: None,
             latched_at: None,
@@ -139,13 +131,14 @@ impl ControllerNode {
             status: s.status,
         });
         let p = tick.protocol;
-        let key = (p.experiment, p.period, p.phase as u32);
+        let key = (p.experiment, p.period, p.phase);
+        let changed = self.last_protocol != Some(key);
         let mut protocol = None;
-        if key != self.last_protocol || s.seq >= self.last_protocol_tick + self.rate_hz as u64 {
+        if changed || s.seq >= self.last_protocol_tick + self.rate_hz as u64 {
             protocol = Some(ProtocolState {
                 experiment: p.experiment,
                 period: p.period,
-                phase: p.phase as u32,
+                phase: p.phase.as_u32(),
                 omega: p.omega_rad_s,
                 amplitude: p.amplitude_nm,
                 alpha: p.alpha,
@@ -155,19 +148,20 @@ impl ControllerNode {
                 stamp_ns: s.stamp_ns,
                 ..Default::default()
             });
-            if key != self.last_protocol && p.experiment == 0 && !p.done {
+            if changed && p.experiment == 0 && !p.done {
                 info!(
                     "controller: protocol stopped; holding gravity compensation (sim {:.1} s)",
                     tick.t_s
                 );
             }
-            if (key.0, key.1) != (self.last_protocol.0, self.last_protocol.1) && p.experiment > 0 {
+            let new_period = self.last_protocol.map(|l| (l.0, l.1)) != Some((key.0, key.1));
+            if new_period && p.experiment > 0 {
                 info!(
                     "controller: experiment {} period {} (ω = {:.2} rad/s, {:.1} Nm, α = {}), sim {:.1} s",
                     p.experiment, p.period, p.omega_rad_s, p.amplitude_nm, p.alpha, tick.t_s
                 );
             }
-            self.last_protocol = key;
+            self.last_protocol = Some(key);
             self.last_protocol_tick = s.seq;
         }
         let command = ActuatorCommand {
@@ -179,7 +173,7 @@ impl ControllerNode {
             tau_amplification: tick.tau_amplification_nm,
             tau_bias: tick.tau_bias_nm,
             tau_excitation: tick.tau_excitation_nm,
-            mode: mode_code(tick.mode).as_u32(),
+            mode: tick.mode.as_u32(),
             ..Default::default()
         };
         self.last = Some(command);
@@ -195,7 +189,7 @@ impl ControllerNode {
             if self.done_ticks >= (self.rate_hz / 10.0) as u64 && !self.finished {
                 self.finished = true;
                 match (tick.mode, self.latched_at) {
-                    (Mode::Done, _) | (_, None) => {
+                    (ControlMode::Done, _) | (_, None) => {
                         info!("controller: protocol done at sim {:.1} s", tick.t_s)
                     }
                     (_, Some(at)) => warn!(
@@ -216,7 +210,6 @@ impl ControllerNode {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use exo_messages::ProtocolPhase;
 
     fn cfg() -> RunConfig {
         let mut c = RunConfig::from_file(&exo_config::configs_dir().join("default.toml")).unwrap();
@@ -255,7 +248,9 @@ mod tests {
                 // Finished 0.1 s (100 ticks) after the protocol is over.
                 let done_at = published
                     .iter()
-                    .find(|(_, p)| p.experiment == 0 && p.phase == ProtocolPhase::Idle.as_u32())
+                    .find(|(_, p)| {
+                        p.experiment == 0 && p.protocol_phase() == Some(ProtocolPhase::Idle)
+                    })
                     .map(|(s, _)| *s);
                 assert!(done_at.is_some_and(|d| seq >= d + 99), "{seq} {done_at:?}");
                 break;
@@ -273,21 +268,18 @@ mod tests {
                 assert!(s1 - s0 <= 1000);
             }
         }
-        let phases: Vec<u32> = published.iter().map(|(_, p)| p.phase).collect();
+        let phases: Vec<_> = published.iter().map(|(_, p)| p.protocol_phase()).collect();
         for phase in [
             ProtocolPhase::RampIn,
             ProtocolPhase::Settling,
             ProtocolPhase::Analysis,
             ProtocolPhase::RampOut,
         ] {
-            assert!(
-                phases.contains(&phase.as_u32()),
-                "{phase:?} never published"
-            );
+            assert!(phases.contains(&Some(phase)), "{phase:?} never published");
         }
         let analysis = published
             .iter()
-            .find(|(_, p)| p.phase == ProtocolPhase::Analysis.as_u32())
+            .find(|(_, p)| p.protocol_phase() == Some(ProtocolPhase::Analysis))
             .unwrap()
             .1;
         assert_eq!(
@@ -302,7 +294,7 @@ mod tests {
         n.on_sample(&sample(0));
         n.raise(Fault::SampleTimeout);
         let a = n.on_sample(&sample(1));
-        assert_eq!(a.command.mode, ControlMode::SafeGravityOnly.as_u32());
+        assert_eq!(a.command.control_mode(), Some(ControlMode::SafeGravityOnly));
         let outcome = n.on_operator(&OperatorCommand {
             seq: 1,
             kind: exo_messages::OperatorCommandKind::ResetFault.as_u32(),
@@ -315,8 +307,8 @@ mod tests {
             }
         );
         assert_eq!(
-            n.on_sample(&sample(2)).command.mode,
-            ControlMode::Run.as_u32()
+            n.on_sample(&sample(2)).command.control_mode(),
+            Some(ControlMode::Run)
         );
     }
 
@@ -351,12 +343,10 @@ mod tests {
 
     #[test]
     fn the_wire_code_of_each_mode() {
-        assert_eq!(mode_code(Mode::Run), ControlMode::Run);
-        assert_eq!(
-            mode_code(Mode::SafeGravityOnly),
-            ControlMode::SafeGravityOnly
-        );
-        assert_eq!(mode_code(Mode::SafeZeroTorque), ControlMode::SafeZeroTorque);
-        assert_eq!(mode_code(Mode::Done), ControlMode::Done);
+        // The wire layout: the modes the controller answers with, as raw codes.
+        assert_eq!(ControlMode::Run.as_u32(), 1);
+        assert_eq!(ControlMode::SafeGravityOnly.as_u32(), 2);
+        assert_eq!(ControlMode::SafeZeroTorque.as_u32(), 3);
+        assert_eq!(ControlMode::Done.as_u32(), 5);
     }
 }

@@ -9,24 +9,7 @@
 //! from the recorded protocol state alone.
 
 use exo_config::{ExperimentSpec, ExperimentTable, ProtocolTiming};
-
-/// Phase of a period; the numbers are those of the `ProtocolState.phase` field.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-#[repr(u32)]
-pub enum Phase {
-    /// Before the first or after the last period.
-    Idle = 0,
-    /// Bias ramping in.
-    RampIn = 1,
-    /// Sine on, response settling.
-    Settling = 2,
-    /// Sine on, analysis window.
-    Analysis = 3,
-    /// Bias ramping out.
-    RampOut = 4,
-    /// Rest.
-    Rest = 5,
-}
+use exo_messages::ProtocolPhase;
 
 /// The protocol's state at one instant.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -35,8 +18,8 @@ pub struct ProtocolPoint {
     pub experiment: u32,
     /// Period number, 1-based (0 when idle).
     pub period: u32,
-    /// Phase.
-    pub phase: Phase,
+    /// Phase (the wire's `ProtocolState::phase`, encoded by `ProtocolPhase::as_u32`).
+    pub phase: ProtocolPhase,
     /// Sine frequency of this period (rad/s).
     pub omega_rad_s: f64,
     /// Sine amplitude of this period (Nm).
@@ -188,7 +171,7 @@ impl Protocol {
     /// `index`: the bias and the excitation envelope keep the values they
     /// had at the stop (the sine keeps its phase and frequency) and fade to
     /// zero with the ramp-out's raised cosine over [`Protocol::ramp_out_s`];
-    /// reported as [`Phase::RampOut`] of that experiment and period (so the
+    /// reported as [`ProtocolPhase::RampOut`] of that experiment and period (so the
     /// identifier ends an analysis window there). Continuous with
     /// [`Protocol::at_from`] at the stop. Allocation-free.
     pub fn stopping(&self, index: usize, tau_stop_s: f64, elapsed_s: f64) -> ProtocolPoint {
@@ -208,7 +191,7 @@ impl Protocol {
         ProtocolPoint {
             experiment: e.number,
             period: *period,
-            phase: Phase::RampOut,
+            phase: ProtocolPhase::RampOut,
             omega_rad_s: omega,
             amplitude_nm: amplitude,
             alpha: e.alpha,
@@ -222,7 +205,7 @@ impl Protocol {
     }
 
     /// The state while stopped by the operator after step `index`: no
-    /// experiment ([`Phase::Idle`], experiment and period 0), no bias or
+    /// experiment ([`ProtocolPhase::Idle`], experiment and period 0), no bias or
     /// excitation, α = 1, that step's load (still on the arm), not done.
     pub fn held(&self, index: usize) -> ProtocolPoint {
         let load = self
@@ -241,7 +224,7 @@ impl Protocol {
         ProtocolPoint {
             experiment: 0,
             period: 0,
-            phase: Phase::Idle,
+            phase: ProtocolPhase::Idle,
             omega_rad_s: 0.0,
             amplitude_nm: 0.0,
             alpha: 1.0,
@@ -255,25 +238,25 @@ impl Protocol {
     }
 
     /// Phase, bias fraction and excitation envelope `tau_s` into a period.
-    fn shape(&self, tau_s: f64) -> (Phase, f64, f64) {
+    fn shape(&self, tau_s: f64) -> (ProtocolPhase, f64, f64) {
         let t = &self.timing;
         let sine_start = t.ramp_in_s;
         let analysis_start = sine_start + t.settling_s;
         let ramp_out_start = analysis_start + t.analysis_s;
         let rest_start = ramp_out_start + t.ramp_out_s;
         let (phase, bias_fraction) = if tau_s < sine_start {
-            (Phase::RampIn, smooth_step(tau_s / t.ramp_in_s))
+            (ProtocolPhase::RampIn, smooth_step(tau_s / t.ramp_in_s))
         } else if tau_s < analysis_start {
-            (Phase::Settling, 1.0)
+            (ProtocolPhase::Settling, 1.0)
         } else if tau_s < ramp_out_start {
-            (Phase::Analysis, 1.0)
+            (ProtocolPhase::Analysis, 1.0)
         } else if tau_s < rest_start {
             (
-                Phase::RampOut,
+                ProtocolPhase::RampOut,
                 1.0 - smooth_step((tau_s - ramp_out_start) / t.ramp_out_s),
             )
         } else {
-            (Phase::Rest, 0.0)
+            (ProtocolPhase::Rest, 0.0)
         };
         // The sine fades in over the first half of the settling window and
         // out over the ramp-out (raised cosine): an abrupt start or stop
@@ -281,9 +264,9 @@ impl Protocol {
         // carries for many seconds into the analysis window and the next
         // period. The analysis window always sees the full amplitude.
         let envelope = match phase {
-            Phase::Settling => smooth_step((tau_s - sine_start) / (0.5 * t.settling_s)),
-            Phase::Analysis => 1.0,
-            Phase::RampOut => 1.0 - smooth_step((tau_s - ramp_out_start) / t.ramp_out_s),
+            ProtocolPhase::Settling => smooth_step((tau_s - sine_start) / (0.5 * t.settling_s)),
+            ProtocolPhase::Analysis => 1.0,
+            ProtocolPhase::RampOut => 1.0 - smooth_step((tau_s - ramp_out_start) / t.ramp_out_s),
             _ => 0.0,
         };
         (phase, bias_fraction, envelope)
@@ -341,11 +324,11 @@ mod tests {
         // Period 1 of experiment 4: ramp-in to 5 s, sine 5–15 s, ramp-out 15–20 s, rest to 60 s.
         let base = 30.0 * 60.0;
         let phases = [
-            (2.0, Phase::RampIn),
-            (7.0, Phase::Settling),
-            (12.0, Phase::Analysis),
-            (17.0, Phase::RampOut),
-            (40.0, Phase::Rest),
+            (2.0, ProtocolPhase::RampIn),
+            (7.0, ProtocolPhase::Settling),
+            (12.0, ProtocolPhase::Analysis),
+            (17.0, ProtocolPhase::RampOut),
+            (40.0, ProtocolPhase::Rest),
         ];
         for (dt, phase) in phases {
             let s = p.at(base + dt);
@@ -463,7 +446,10 @@ mod tests {
         let s0 = p.stopping(2, tau, 0.0);
         assert_eq!(s0.tau_bias_nm, at_stop.tau_bias_nm);
         assert!((s0.tau_excitation_nm - at_stop.tau_excitation_nm).abs() < 1e-12);
-        assert_eq!((s0.experiment, s0.period, s0.phase), (4, 1, Phase::RampOut));
+        assert_eq!(
+            (s0.experiment, s0.period, s0.phase),
+            (4, 1, ProtocolPhase::RampOut)
+        );
         let mut prev = s0;
         for i in 1..=500 {
             let s = p.stopping(2, tau, i as f64 * 0.01);
@@ -478,7 +464,7 @@ mod tests {
         let held = p.held(2);
         assert_eq!(
             (held.experiment, held.phase, held.done),
-            (0, Phase::Idle, false)
+            (0, ProtocolPhase::Idle, false)
         );
         assert_eq!(held.load_kg, 4.5);
     }

@@ -407,7 +407,8 @@ pub struct Identifier {
     sensor: Ring<3>,
     command: Ring<2>,
     window: Option<Window>,
-    last_phase: u32,
+    /// The last protocol state's phase (`None`: an unknown code).
+    last_phase: Option<ProtocolPhase>,
     frf_seq: u64,
     estimate_seq: u64,
     /// Points per experiment.
@@ -436,7 +437,7 @@ impl Identifier {
             sensor: Ring::new(cap),
             command: Ring::new(cap),
             window: None,
-            last_phase: ProtocolPhase::Idle.as_u32(),
+            last_phase: Some(ProtocolPhase::Idle),
             frf_seq: 0,
             estimate_seq: 0,
             points: BTreeMap::new(),
@@ -498,8 +499,9 @@ impl Identifier {
     /// A protocol state (every tick or only on change). Allocation-free,
     /// except at the end of an analysis window or for a warning.
     pub fn on_protocol(&mut self, p: &ProtocolState, out: &mut Vec<Event>) {
-        let analysis = ProtocolPhase::Analysis.as_u32();
-        if p.phase == analysis && self.last_phase != analysis {
+        let analysis = Some(ProtocolPhase::Analysis);
+        let phase = p.protocol_phase();
+        if phase == analysis && self.last_phase != analysis {
             if self.window.is_some_and(|w| w.end_ns.is_some()) {
                 // A previous window still waits for its last samples: analyse what is there.
                 self.finish(out);
@@ -517,12 +519,12 @@ impl Identifier {
                     p.experiment, p.period
                 ))),
             }
-        } else if p.phase != analysis && self.last_phase == analysis {
+        } else if phase != analysis && self.last_phase == analysis {
             if let Some(w) = self.window.as_mut() {
                 w.end_ns = Some(p.stamp_ns);
             }
         }
-        self.last_phase = p.phase;
+        self.last_phase = phase;
         self.try_finish(out);
     }
 

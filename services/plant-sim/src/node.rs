@@ -40,6 +40,9 @@ pub struct PlantNode {
     release: Option<ReleaseSettings>,
     released: bool,
     protocol: ProtocolState,
+    /// `protocol`'s phase, decoded once on arrival; an unknown code counts
+    /// as [`ProtocolPhase::Idle`].
+    phase: ProtocolPhase,
     period_s: f64,
     period_ns: u64,
     tick: u64,
@@ -131,6 +134,7 @@ impl PlantNode {
             release,
             released: false,
             protocol: ProtocolState::default(),
+            phase: ProtocolPhase::Idle,
             period_s,
             period_ns: (period_s * 1e9).round() as u64,
             tick: 0,
@@ -184,6 +188,7 @@ impl PlantNode {
             self.drive.set_goal_offset(offset);
         }
         self.protocol = *p;
+        self.phase = p.protocol_phase().unwrap_or(ProtocolPhase::Idle);
     }
 
     /// The reference offset a subject that holds its goal sets for period
@@ -220,10 +225,7 @@ impl PlantNode {
     /// spring-release run the springs come off when the analysis phase
     /// starts.
     pub fn frame(&mut self, stamp_ns: u64) -> BusSensorFrame {
-        if self.release.is_some()
-            && !self.released
-            && self.protocol.phase == ProtocolPhase::Analysis.as_u32()
-        {
+        if self.release.is_some() && !self.released && self.phase == ProtocolPhase::Analysis {
             self.plant.set_external_torque_nm(0.0);
             self.released = true;
             info!(
@@ -303,9 +305,8 @@ impl PlantNode {
                 );
             }
         }
-        let phase = ProtocolPhase::from_u32(self.protocol.phase).unwrap_or(ProtocolPhase::Idle);
         self.plant
-            .set_drive(self.drive.update(self.period_s, phase));
+            .set_drive(self.drive.update(self.period_s, self.phase));
         self.plant.advance(self.period_s, self.tau_motor_nm);
         self.tick += 1;
     }

@@ -29,21 +29,21 @@ impl AnalysisWindow {
 
 /// Every analysis window of `protocol` (time-ordered states), in order.
 pub fn analysis_windows(protocol: &[ProtocolState]) -> Vec<AnalysisWindow> {
-    let analysis = ProtocolPhase::Analysis.as_u32();
+    let analysis = Some(ProtocolPhase::Analysis);
     let mut out = Vec::new();
     let mut open: Option<AnalysisWindow> = None;
     for p in protocol {
         let same = open
             .as_ref()
             .is_some_and(|w| (w.state.experiment, w.state.period) == (p.experiment, p.period));
-        if p.phase == analysis && same {
+        if p.protocol_phase() == analysis && same {
             continue;
         }
         if let Some(mut w) = open.take() {
             w.end_ns = Some(p.stamp_ns);
             out.push(w);
         }
-        if p.phase == analysis {
+        if p.protocol_phase() == analysis {
             open = Some(AnalysisWindow {
                 state: *p,
                 start_ns: p.stamp_ns,

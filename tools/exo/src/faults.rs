@@ -64,7 +64,7 @@ impl FaultWatch {
                 instance,
                 COMMAND,
                 move |c: &ActuatorCommand| {
-                    if c.mode == ControlMode::Done.as_u32() {
+                    if c.control_mode() == Some(ControlMode::Done) {
                         done.fetch_min(c.stamp_ns, Ordering::Relaxed);
                     }
                     is_fault_command(c)

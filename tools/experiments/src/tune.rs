@@ -212,21 +212,19 @@ impl Bench {
             .with_context(|| format!("trial f = {f:.3} at experiment {experiment}"))?;
         let release_ns = states
             .iter()
-            .find(|p| p.phase == ProtocolPhase::Analysis.as_u32())
+            .find(|p| p.protocol_phase() == Some(ProtocolPhase::Analysis))
             .map(|p| p.stamp_ns)
             .context("the trial never reached the release (no analysis phase)")?;
         let end_ns = states
             .iter()
-            .find(|p| p.phase == ProtocolPhase::RampOut.as_u32())
+            .find(|p| p.protocol_phase() == Some(ProtocolPhase::RampOut))
             .map_or(u64::MAX, |p| p.stamp_ns);
-        let safe = commands.iter().any(|c| {
-            matches!(
-                ControlMode::from_u32(c.mode),
-                Some(m) if m.is_safe_state()
-            )
-        }) || samples
+        let safe = commands
             .iter()
-            .any(|s| s.status & exo_messages::sensor::status::SAFE_STATE != 0);
+            .any(|c| c.control_mode().is_some_and(ControlMode::is_safe_state))
+            || samples
+                .iter()
+                .any(|s| s.status & exo_messages::sensor::status::SAFE_STATE != 0);
         let (t, th): (Vec<f64>, Vec<f64>) = samples
             .iter()
             .filter(|s| s.stamp_ns < end_ns)

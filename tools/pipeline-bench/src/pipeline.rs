@@ -18,6 +18,7 @@ use std::time::{Duration, Instant};
 
 use anyhow::{bail, Context, Result};
 use exo_config::{ProtocolMode, RunConfig, ServiceSet, TimingMode};
+use exo_messages::ControlMode;
 use exo_service_kit::channels::{BUS_MOTOR, COMMAND, PROTOCOL};
 use exo_service_kit::ipc::Ipc;
 use exo_service_kit::monotonic_ns;
@@ -35,8 +36,6 @@ const START_PATIENCE: Duration = Duration::from_secs(60);
 const LIVENESS_EVERY: Duration = Duration::from_millis(100);
 /// Poll interval of the lockstep progress observer.
 const LOCKSTEP_POLL: Duration = Duration::from_millis(2);
-/// `ActuatorCommand.mode` of normal operation (the controller's `Mode::Run`).
-const MODE_RUN: u32 = 1;
 
 /// The service binaries next to the bench's own executable.
 pub fn service_binaries() -> Result<Vec<PathBuf>> {
@@ -237,9 +236,13 @@ pub fn realtime(
     let next = || -> Result<Option<(u64, u64, bool)>> {
         Ok(match (&motor_in, &command_in) {
             (Some(m), _) => m.try_recv()?.map(|m| (m.frame_seq, m.stamp_ns, true)),
-            (_, Some(c)) => c
-                .try_recv()?
-                .map(|c| (c.sensor_seq, c.stamp_ns, c.mode == MODE_RUN)),
+            (_, Some(c)) => c.try_recv()?.map(|c| {
+                (
+                    c.sensor_seq,
+                    c.stamp_ns,
+                    c.control_mode() == Some(ControlMode::Run),
+                )
+            }),
             _ => None,
         })
     };
