@@ -655,13 +655,10 @@ impl Plant {
         tau
     }
 
-    /// `g (m_a l_a + m_L l_L)` (Nm), 0 when gravity is off.
+    /// `g (m_a l_a + m_L l_L)` (Nm) with the current load, 0 when gravity
+    /// is off ([`PlantModel::gravity_moment_nm`]).
     fn gravity_moment_nm(&self) -> f64 {
-        let g = &self.model.gravity;
-        if !g.enabled {
-            return 0.0;
-        }
-        g.g_m_s2 * (g.arm_mass_kg * g.arm_com_m + self.load_kg * self.model.exo.load_lever_arm_m)
+        self.model.gravity_moment_nm(self.load_kg)
     }
 
     /// The gravity torque at `theta` (Nm): `g (m_a l_a + m_L l_L) sin θ`,

@@ -497,10 +497,10 @@ pub use ethercat::{
 };
 pub use experiments::{ExperimentSpec, ExperimentTable, ProtocolTiming, EXPERIMENT_RANGES};
 pub use run::{
-    BusBackend, BusSettings, ControllerSettings, LayoutError, LimitSettings, LiveSettings,
-    PlayerSettings, ProtocolMode, ProtocolSettings, RealtimeSettings, ReleaseSettings, RigSettings,
-    RunConfig, RunSettings, SafeState, SafetySettings, ServiceSet, TimingMode, TunnelSettings,
-    VoluntarySettings, GRAVITY_M_S2, RUN_RANGES,
+    gravity_moment_nm, BusBackend, BusSettings, ControllerSettings, LayoutError, LimitSettings,
+    LiveSettings, PlayerSettings, ProtocolMode, ProtocolSettings, RealtimeSettings,
+    ReleaseSettings, RigSettings, RunConfig, RunSettings, SafeState, SafetySettings, ServiceSet,
+    TimingMode, TunnelSettings, VoluntarySettings, GRAVITY_M_S2, RUN_RANGES,
 };
 pub use subject::{ReportedPowerLaw, Subject, SubjectExperiment, SUBJECT_RANGES};
 

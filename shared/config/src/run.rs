@@ -657,16 +657,53 @@ fn range_of_run(key: &str) -> Range {
 /// Standard gravity (m/s²).
 pub const GRAVITY_M_S2: f64 = 9.80665;
 
+/// The gravity moment of the exoskeleton arm and its load about the joint
+/// (Nm): `g (m_a l_a + m_L l_L)`, the amplitude of the gravity torque
+/// `τ_gravity = g (m_a l_a + m_L l_L) sin θ` at joint angle θ (0 = hanging
+/// straight down), which the controller compensates (the paper's
+/// τ_gravity, removed from τ_s on the actuator side `(τ_s − τ_gravity)/θ_e`).
+///
+/// `g_m_s2`: gravity in the arm's plane of motion (m/s²); `arm_mass_kg`:
+/// the arm's mass `m_a` (kg); `arm_com_m`: its centre of mass from the
+/// joint `l_a` (m); `load_kg`: the load `m_L` (kg); `load_lever_arm_m`:
+/// where the load hangs, `l_L` (m).
+///
+/// The one place the moment is written: what the software believes
+/// ([`RigSettings::gravity_moment_nm`], `rig.*`) and the simulated truth
+/// (`exo_plant_model::PlantModel::gravity_moment_nm`, `[gravity]` and
+/// `exo.load_lever_arm_m`) both call it.
+pub fn gravity_moment_nm(
+    g_m_s2: f64,
+    arm_mass_kg: f64,
+    arm_com_m: f64,
+    load_kg: f64,
+    load_lever_arm_m: f64,
+) -> f64 {
+    g_m_s2 * (arm_mass_kg * arm_com_m + load_kg * load_lever_arm_m)
+}
+
 impl RigSettings {
+    /// The rig's gravity moment with `load_kg` (kg) on the arm (Nm):
+    /// [`gravity_moment_nm`] of `rig.gravity_m_s2`, `rig.arm_mass_kg`,
+    /// `rig.arm_com_m` and `rig.load_lever_arm_m`.
+    pub fn gravity_moment_nm(&self, load_kg: f64) -> f64 {
+        gravity_moment_nm(
+            self.gravity_m_s2,
+            self.arm_mass_kg,
+            self.arm_com_m,
+            load_kg,
+            self.load_lever_arm_m,
+        )
+    }
+
     /// Gravity torque (Nm) on the exoskeleton arm and its load at joint angle
-    /// `theta_rad` (0 = hanging straight down): `g (m_a l_a + m_L l_L) sin θ`,
-    /// `g` = `rig.gravity_m_s2`.
+    /// `theta_rad` (0 = hanging straight down): `g (m_a l_a + m_L l_L) sin θ`
+    /// ([`RigSettings::gravity_moment_nm`] times `sin θ`), `g` =
+    /// `rig.gravity_m_s2`.
     /// The controller adds it to cancel gravity; the driver uses it for the
     /// gravity-only safe state.
     pub fn gravity_torque_nm(&self, theta_rad: f64, load_kg: f64) -> f64 {
-        self.gravity_m_s2
-            * (self.arm_mass_kg * self.arm_com_m + load_kg * self.load_lever_arm_m)
-            * theta_rad.sin()
+        self.gravity_moment_nm(load_kg) * theta_rad.sin()
     }
 }
 

@@ -934,6 +934,24 @@ impl PlantModel {
             self.exo.load_lever_arm_m,
         )
     }
+
+    /// The plant's gravity moment with `load_kg` (kg) on the arm (Nm),
+    /// `g (m_a l_a + m_L l_L)` ([`exo_config::gravity_moment_nm`]) of
+    /// `[gravity]` and `exo.load_lever_arm_m`; 0 when `gravity.enabled` is
+    /// off. The gravity torque at θ is this times `sin θ`.
+    pub fn gravity_moment_nm(&self, load_kg: f64) -> f64 {
+        let g = &self.gravity;
+        if !g.enabled {
+            return 0.0;
+        }
+        exo_config::gravity_moment_nm(
+            g.g_m_s2,
+            g.arm_mass_kg,
+            g.arm_com_m,
+            load_kg,
+            self.exo.load_lever_arm_m,
+        )
+    }
 }
 
 #[cfg(test)]
@@ -952,6 +970,24 @@ mod tests {
 
     fn leaf_mut<'a>(doc: &'a mut Table, path: &str) -> &'a mut Value {
         exo_config::toml_paths::leaf_mut(doc, path).unwrap_or_else(|| panic!("no key {path}"))
+    }
+
+    #[test]
+    fn the_gravity_moment_is_the_configs_of_the_plants_values_and_none_when_off() {
+        let mut m = PlantModel::from_file(&plants_dir().join("default.toml")).unwrap();
+        let g = m.gravity;
+        m.gravity.enabled = true;
+        let expected = exo_config::gravity_moment_nm(
+            g.g_m_s2,
+            g.arm_mass_kg,
+            g.arm_com_m,
+            2.5,
+            m.exo.load_lever_arm_m,
+        );
+        assert!(expected > 0.0);
+        assert_eq!(m.gravity_moment_nm(2.5).to_bits(), expected.to_bits());
+        m.gravity.enabled = false;
+        assert_eq!(m.gravity_moment_nm(2.5), 0.0);
     }
 
     #[test]

@@ -75,6 +75,16 @@ fn the_gravity_torque_is_the_arm_and_load_moments_times_g_sin_theta() {
     let expected = 9.80665 * (0.6 + 0.675) * 0.644_217_687_237_691;
     assert!((rig.gravity_torque_nm(0.7, 1.5) - expected).abs() < 1e-12);
     assert_eq!(rig.gravity_torque_nm(0.0, 1.5), 0.0);
+    // The moment, written once: 9.80665 · (2 · 0.3 + 1.5 · 0.45) Nm, and the
+    // torque is it times sin θ, bit for bit.
+    let moment = exo_config::gravity_moment_nm(9.80665, 2.0, 0.3, 1.5, 0.45);
+    assert!((moment - 9.80665 * 1.275).abs() < 1e-12);
+    assert_eq!(rig.gravity_moment_nm(1.5).to_bits(), moment.to_bits());
+    assert_eq!(
+        rig.gravity_torque_nm(0.7, 1.5).to_bits(),
+        (moment * 0.7f64.sin()).to_bits()
+    );
+    assert_eq!(exo_config::gravity_moment_nm(0.0, 2.0, 0.3, 1.5, 0.45), 0.0);
 }
 
 /// `rig.gravity_m_s2`: standard gravity when the key is absent, none on a
