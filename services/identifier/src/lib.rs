@@ -9,10 +9,13 @@
 //!   ([`IdentifierSettings::max_window_s`]); [`Identifier::on_sample`],
 //!   [`Identifier::on_command`] and [`Identifier::on_protocol`] do not
 //!   allocate, except at the end of an analysis window.
-//! - The protocol's analysis phase ([`ProtocolPhase::Analysis`]) marks a
+//! - The protocol's analysis phase ([`exo_messages::ProtocolPhase::Analysis`]) marks a
 //!   window by time stamps: from the first state in the phase to the first
-//!   state after it (the controller stamps states with the sample's stamp,
-//!   and may send them every tick or only on change). Once a sample at or
+//!   state after it in another phase (the one cutter,
+//!   `exo_analysis::windows::WindowCutter`, with `Closing::Phase`; an
+//!   analysis state of another period right after one continues the
+//!   window. The controller stamps states with the sample's stamp,
+//!   and may send them every tick or only on change.) Once a sample at or
 //!   past the window's end has arrived, the window is analysed; states
 //!   arriving a little after their samples do not matter.
 //!   - A sine period (`omega > 0`): single-frequency correlation over whole
@@ -52,14 +55,15 @@ use exo_impedance::{
     DampingSign, ImpedanceModel, ModelComparison, ModelFit, PowerLawFit, StiffnessRange,
 };
 use exo_messages::{
-    status, ActuatorCommand, ControlMode, FitModel, FrfPoint, ImpedanceEstimate, ProtocolPhase,
-    ProtocolState, SensorSample,
+    status, ActuatorCommand, ControlMode, FitModel, FrfPoint, ImpedanceEstimate, ProtocolState,
+    SensorSample,
 };
 
 pub mod process;
 pub mod taken;
 
 pub use exo_analysis::refit::{effective_alpha, fit_models, FitSource, ModelFitError};
+use exo_analysis::windows::{AnalysisWindow, Closing, WindowCutter};
 
 /// False-rejection probability of the F-tests (the paper's 5 %; the level
 /// [`ImpedanceEstimate::f_critical`] is documented at).
@@ -389,14 +393,6 @@ impl<'a> CommandCursor<'a> {
     }
 }
 
-/// An analysis window being delimited.
-#[derive(Debug, Clone, Copy, PartialEq)]
-struct Window {
-    state: ProtocolState,
-    start_ns: u64,
-    end_ns: Option<u64>,
-}
-
 /// Channels of the sample correlator.
 const CHANNELS: [&str; 4] = ["theta_e", "tau_c", "tau_s - tau_gravity", "tau_s"];
 
@@ -406,9 +402,11 @@ pub struct Identifier {
     s: IdentifierSettings,
     sensor: Ring<3>,
     command: Ring<2>,
-    window: Option<Window>,
-    /// The last protocol state's phase (`None`: an unknown code).
-    last_phase: Option<ProtocolPhase>,
+    /// The analysis window being delimited or waiting for its last samples.
+    window: Option<AnalysisWindow>,
+    /// Where windows open and close: the one cutter, with the phase as the
+    /// closing rule ([`Closing::Phase`]).
+    cutter: WindowCutter,
     frf_seq: u64,
     estimate_seq: u64,
     /// Points per experiment.
@@ -437,7 +435,7 @@ impl Identifier {
             sensor: Ring::new(cap),
             command: Ring::new(cap),
             window: None,
-            last_phase: Some(ProtocolPhase::Idle),
+            cutter: WindowCutter::new(Closing::Phase),
             frf_seq: 0,
             estimate_seq: 0,
             points: BTreeMap::new(),
@@ -499,32 +497,25 @@ impl Identifier {
     /// A protocol state (every tick or only on change). Allocation-free,
     /// except at the end of an analysis window or for a warning.
     pub fn on_protocol(&mut self, p: &ProtocolState, out: &mut Vec<Event>) {
-        let analysis = Some(ProtocolPhase::Analysis);
-        let phase = p.protocol_phase();
-        if phase == analysis && self.last_phase != analysis {
+        let cut = self.cutter.next(p);
+        if let Some(end) = cut.closes_at {
+            if let Some(w) = self.window.as_mut() {
+                w.end_ns = Some(end);
+            }
+        }
+        if cut.opens {
             if self.window.is_some_and(|w| w.end_ns.is_some()) {
                 // A previous window still waits for its last samples: analyse what is there.
                 self.finish(out);
             }
             match p.validate() {
-                Ok(()) => {
-                    self.window = Some(Window {
-                        state: *p,
-                        start_ns: p.stamp_ns,
-                        end_ns: None,
-                    })
-                }
+                Ok(()) => self.window = Some(AnalysisWindow::opened_by(p)),
                 Err(e) => out.push(Event::Warning(format!(
                     "experiment {} period {}: analysis window not analysed: {e}",
                     p.experiment, p.period
                 ))),
             }
-        } else if phase != analysis && self.last_phase == analysis {
-            if let Some(w) = self.window.as_mut() {
-                w.end_ns = Some(p.stamp_ns);
-            }
         }
-        self.last_phase = phase;
         self.try_finish(out);
     }
 
@@ -532,7 +523,7 @@ impl Identifier {
     fn try_finish(&mut self, out: &mut Vec<Event>) {
         let ready = matches!(
             (self.window, self.sensor.latest()),
-            (Some(Window { end_ns: Some(end), .. }), Some(latest)) if latest >= end
+            (Some(AnalysisWindow { end_ns: Some(end), .. }), Some(latest)) if latest >= end
         );
         if ready {
             self.finish(out);
