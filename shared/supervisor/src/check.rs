@@ -4,9 +4,10 @@
 
 use std::path::{Path, PathBuf};
 
-use anyhow::Result;
 use exo_analysis::preflight::controller_margins;
 use exo_config::RunConfig;
+
+use crate::error::{Error, Result};
 
 /// A run file that passed [`check_run`].
 pub struct Checked {
@@ -19,16 +20,11 @@ pub struct Checked {
     pub warnings: Vec<String>,
 }
 
-/// [`check_run`], with every error in one `anyhow` error (one per line).
+/// [`check_run`], with every error in one [`Error::Refused`] (one per line).
 pub fn check_or_fail(config: &Path) -> Result<Checked> {
-    check_run(config).map_err(|errors| {
-        anyhow::anyhow!(
-            "{} is refused ({} error{}); nothing was started:\n  {}",
-            config.display(),
-            errors.len(),
-            if errors.len() == 1 { "" } else { "s" },
-            errors.join("\n  ")
-        )
+    check_run(config).map_err(|errors| Error::Refused {
+        config: config.to_path_buf(),
+        errors,
     })
 }
 

@@ -13,10 +13,12 @@
 //!   the first failure, and saying which one failed.
 
 pub mod check;
+pub mod error;
 pub mod services;
 pub mod supervise;
 
 pub use check::{check_or_fail, check_run, Checked};
+pub use error::{Error, Result};
 pub use services::services_of;
 pub use supervise::{
     config_args, sibling_program, supervise, supervise_checked, Ended, Logs, Ready, ReadyProbe,

@@ -1,11 +1,11 @@
 //! The processes of a run configuration, in start order.
 
-use anyhow::Result;
 use std::time::Duration;
 
 use exo_config::{RunConfig, TimingMode};
 use exo_messages::channels::ProcessName;
 
+use crate::error::Result;
 use crate::supervise::{config_args, sibling_program, Ready, ReadyProbe, Role, ServiceSpec};
 
 /// The processes a configuration asks for, in start order; the recorder

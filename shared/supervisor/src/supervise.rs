@@ -10,7 +10,9 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex, PoisonError};
 use std::time::{Duration, Instant};
 
-use anyhow::{bail, Context, Result};
+use exo_service_kit::ipc::IpcError;
+
+use crate::error::{Error, Result};
 
 /// What a service's exit means for the run.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -78,7 +80,7 @@ pub enum ReadyProbe {
 const READY_PATIENCE: Duration = Duration::from_secs(10);
 
 impl Ready {
-    fn count(&self, ipc: &exo_service_kit::ipc::Ipc) -> Result<usize> {
+    fn count(&self, ipc: &exo_service_kit::ipc::Ipc) -> Result<usize, IpcError> {
         use exo_service_kit::channels::{BUS_MOTOR, IDENTIFIER_ESTIMATE};
         Ok(match self.probe {
             ReadyProbe::SubscribesBusMotor => ipc.port_counts(BUS_MOTOR)?.subscribers,
@@ -128,15 +130,16 @@ impl Running {
 /// Path of a sibling executable of the running `exo` (same target directory
 /// or install prefix).
 pub fn sibling_program(name: &str) -> Result<PathBuf> {
-    let exe = std::env::current_exe().context("locating the exo executable")?;
-    let dir = exe.parent().context("exo executable has no directory")?;
+    let exe = std::env::current_exe().map_err(Error::LocateExe)?;
+    let dir = exe
+        .parent()
+        .ok_or_else(|| Error::NoExeDirectory { exe: exe.clone() })?;
     let p = dir.join(format!("{name}{}", std::env::consts::EXE_SUFFIX));
     if !p.exists() {
-        bail!(
-            "{} not found next to exo ({}): build the workspace (cargo build --release --workspace)",
-            name,
-            dir.display()
-        );
+        return Err(Error::ProgramNotFound {
+            name: name.to_string(),
+            dir: dir.to_path_buf(),
+        });
     }
     Ok(p)
 }
@@ -165,9 +168,11 @@ fn spawn(spec: &ServiceSpec, logs: Logs, tail: &Tail) -> Result<Child> {
     // through their own safe paths). Every service is spawned from the
     // supervisor's own thread, which lives as long as the run.
     exo_service_kit::child::die_with_parent(&mut cmd);
-    let mut child = cmd
-        .spawn()
-        .with_context(|| format!("starting {} ({})", spec.name, spec.program.display()))?;
+    let mut child = cmd.spawn().map_err(|source| Error::Start {
+        service: spec.name,
+        program: spec.program.clone(),
+        source,
+    })?;
     for (stream, is_err) in [
         (
             child
@@ -243,7 +248,7 @@ pub fn supervise(
 ) -> Result<Vec<String>> {
     supervise_checked(services, logs, || {
         on_tick();
-        Ok(())
+        Ok::<(), std::convert::Infallible>(())
     })
     .map(|s| s.restarts)
 }
@@ -267,17 +272,20 @@ pub enum Ended {
 }
 
 /// [`supervise`], with a check every tick (about 20 ms): an error from
-/// `on_tick` stops every service and is the run's error. Returns which
-/// service ended the run, or that a signal did, and the restarts.
-pub fn supervise_checked(
+/// `on_tick` stops every service and is the run's error
+/// ([`Error::Check`]). Returns which service ended the run, or that a
+/// signal did, and the restarts.
+pub fn supervise_checked<E>(
     services: Vec<ServiceSpec>,
     logs: Logs,
-    mut on_tick: impl FnMut() -> Result<()>,
-) -> Result<Supervised> {
+    mut on_tick: impl FnMut() -> Result<(), E>,
+) -> Result<Supervised>
+where
+    E: Into<Box<dyn std::error::Error + Send + Sync>>,
+{
     let stop = Arc::new(AtomicBool::new(false));
     for sig in [signal_hook::consts::SIGINT, signal_hook::consts::SIGTERM] {
-        signal_hook::flag::register(sig, Arc::clone(&stop))
-            .context("installing signal handlers")?;
+        signal_hook::flag::register(sig, Arc::clone(&stop)).map_err(Error::Signals)?;
     }
     let mut running: Vec<Running> = Vec::new();
     let mut pending: Pending = Vec::new();
@@ -290,11 +298,14 @@ pub fn supervise_checked(
         if let Some(r) = &spec.ready {
             let node = format!("exo_sup_{}_{}", std::process::id(), pending.len());
             let probe = exo_service_kit::ipc::Ipc::open(&node, &r.instance, None)
-                .map_err(anyhow::Error::from)
                 .and_then(|ipc| Ok((r.count(&ipc)?, ipc)));
             match probe {
                 Ok((before, ipc)) => pending.push((spec.name, r.clone(), ipc, before)),
-                Err(e) => eprintln!("exo: warning: cannot watch {} start: {e:#}", spec.name),
+                Err(e) => eprintln!(
+                    "exo: warning: cannot watch {} start: {}",
+                    spec.name,
+                    chain(&e)
+                ),
             }
         }
         let tail = Tail::default();
@@ -329,8 +340,11 @@ pub fn supervise_checked(
             let status = match r.child.try_wait() {
                 Ok(Some(s)) => s,
                 Ok(None) => continue,
-                Err(e) => {
-                    break 'supervise Err(anyhow::anyhow!("waiting for {}: {e}", r.spec.name))
+                Err(error) => {
+                    break 'supervise Err(Error::Wait {
+                        service: r.spec.name,
+                        error,
+                    })
                 }
             };
             let name = r.spec.name;
@@ -383,16 +397,16 @@ pub fn supervise_checked(
                     }
                 }
                 _ => {
-                    break 'supervise Err(anyhow::anyhow!(
-                        "process `{name}` ({}) stopped with {}{}",
-                        r.spec.program.display(),
-                        describe(status),
-                        if logs == Logs::Quiet {
+                    break 'supervise Err(Error::Stopped {
+                        service: name,
+                        program: r.spec.program.clone(),
+                        status: describe(status),
+                        last_lines: if logs == Logs::Quiet {
                             r.last_lines()
                         } else {
                             String::new()
-                        }
-                    ))
+                        },
+                    })
                 }
             }
         }
@@ -400,20 +414,21 @@ pub fn supervise_checked(
             running.remove(i);
         }
         if let Err(e) = on_tick() {
+            let message = chain(&*e.into());
             // Quiet runs kept the services' logs back: give the error the
             // real-time path's last lines, which say why.
-            let e = match logs {
+            let message = match logs {
                 Logs::Quiet => {
                     let tails: String = running
                         .iter()
                         .filter(|r| !matches!(r.spec.role, Role::Restartable | Role::Optional))
                         .map(|r| format!("\n{}{}", r.spec.name, r.last_lines()))
                         .collect();
-                    anyhow::anyhow!("{e:#}\nthe real-time path's logs:{tails}")
+                    format!("{message}\nthe real-time path's logs:{tails}")
                 }
-                Logs::Forward => e,
+                Logs::Forward => message,
             };
-            break 'supervise Err(e);
+            break 'supervise Err(Error::Check { message });
         }
         std::thread::sleep(Duration::from_millis(20));
     };
@@ -470,6 +485,18 @@ fn restart(
             patience.as_secs_f64() * 1e3
         )
     }))
+}
+
+/// An error with its causes, each after `: ` (as `anyhow` writes `{:#}`).
+fn chain(e: &(dyn std::error::Error + 'static)) -> String {
+    let mut out = e.to_string();
+    let mut cause = e.source();
+    while let Some(c) = cause {
+        out.push_str(": ");
+        out.push_str(&c.to_string());
+        cause = c.source();
+    }
+    out
 }
 
 /// The standard argument list of a service: `--config FILE`.
