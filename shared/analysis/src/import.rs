@@ -41,10 +41,10 @@ use std::io::{Cursor, Seek, SeekFrom, Write};
 use std::path::Path;
 use std::rc::Rc;
 
-use anyhow::{bail, Context, Result};
 use exo_messages::{ActuatorCommand, ProtocolState, SensorSample};
 use exo_recording::{Recording, RecordingWriter, DEFAULT_CHUNK_BYTES};
 
+use crate::error::{Error, Result};
 use crate::trials::{TimeUnit, TrialSpec};
 
 /// A time step above this multiple of the median step is a gap.
@@ -61,12 +61,12 @@ fn column(header: &[&str], name: &str, file: &Path) -> Result<usize> {
     header
         .iter()
         .position(|h| h.trim() == name)
-        .with_context(|| {
-            format!(
-                "{}: no column `{name}`; the header has {:?}",
-                file.display(),
+        .ok_or_else(|| Error::Csv {
+            file: file.to_path_buf(),
+            detail: format!(
+                "no column `{name}`; the header has {:?}",
                 header.iter().map(|h| h.trim()).collect::<Vec<_>>()
-            )
+            ),
         })
 }
 
@@ -83,17 +83,21 @@ pub struct Columns {
 }
 
 fn parse_csv(csv: &Path, spec: &TrialSpec) -> Result<Columns> {
-    let name = csv.display();
-    let text = std::fs::read_to_string(csv).with_context(|| format!("reading {name}"))?;
+    let file = || csv.to_path_buf();
+    let text = std::fs::read_to_string(csv).map_err(|source| Error::ReadCsv {
+        file: file(),
+        source,
+    })?;
     // A spreadsheet's byte-order mark is not part of the first column's name.
     let text = text.strip_prefix('\u{feff}').unwrap_or(&text);
     let mut lines = text
         .lines()
         .enumerate()
         .filter(|(_, l)| !l.trim().is_empty());
-    let (_, head) = lines
-        .next()
-        .with_context(|| format!("{name}: empty file"))?;
+    let (_, head) = lines.next().ok_or_else(|| Error::Csv {
+        file: file(),
+        detail: "empty file".into(),
+    })?;
     let header: Vec<&str> = head.split(',').collect();
     let (ct, ca, cq) = (
         column(&header, &spec.time_col, csv)?,
@@ -116,14 +120,25 @@ fn parse_csv(csv: &Path, spec: &TrialSpec) -> Result<Columns> {
     for (i, line) in lines {
         let cells: Vec<&str> = line.split(',').collect();
         let get = |col: usize, key: &str| -> Result<f64> {
-            let raw = cells
-                .get(col)
-                .with_context(|| format!("{name} line {}: no value for column `{key}`", i + 1))?;
-            let v: f64 = raw.trim().parse().with_context(|| {
-                format!("{name} line {}: `{key}` = {raw:?} is not a number", i + 1)
+            let line = i + 1;
+            let raw = cells.get(col).ok_or_else(|| Error::CsvLine {
+                file: file(),
+                line,
+                detail: format!("no value for column `{key}`"),
+            })?;
+            let v: f64 = raw.trim().parse().map_err(|source| Error::CsvNumber {
+                file: file(),
+                line,
+                column: key.to_string(),
+                raw: raw.to_string(),
+                source,
             })?;
             if !v.is_finite() {
-                bail!("{name} line {}: `{key}` = {v} is not finite", i + 1);
+                return Err(Error::CsvLine {
+                    file: file(),
+                    line,
+                    detail: format!("`{key}` = {v} is not finite"),
+                });
             }
             Ok(v)
         };
@@ -141,9 +156,12 @@ fn parse_csv(csv: &Path, spec: &TrialSpec) -> Result<Columns> {
         line_no.push(i + 1);
     }
     if c.t.len() < 16 {
-        bail!("{name}: only {} samples", c.t.len());
+        return Err(Error::Csv {
+            file: file(),
+            detail: format!("only {} samples", c.t.len()),
+        });
     }
-    check_time(&name.to_string(), &c.t, &line_no, spec.time_unit)?;
+    check_time(csv, &c.t, &line_no, spec.time_unit)?;
     let scale = spec.time_unit.seconds();
     for t in &mut c.t {
         *t *= scale;
@@ -162,14 +180,17 @@ fn sig4(v: f64) -> f64 {
 
 /// Checks the time column `t` (in `unit`; `line_no[k]` is sample k's line):
 /// increasing, a plausible rate in `unit`, and no gap.
-fn check_time(name: &str, t: &[f64], line_no: &[usize], unit: TimeUnit) -> Result<()> {
+fn check_time(csv: &Path, t: &[f64], line_no: &[usize], unit: TimeUnit) -> Result<()> {
+    let at_line = |line: usize, detail: String| Error::CsvLine {
+        file: csv.to_path_buf(),
+        line,
+        detail,
+    };
     if let Some(k) = t.windows(2).position(|w| w[1] <= w[0]) {
-        bail!(
-            "{name} line {}: time {} does not increase (previous {})",
+        return Err(at_line(
             line_no[k + 1],
-            t[k + 1],
-            t[k]
-        );
+            format!("time {} does not increase (previous {})", t[k + 1], t[k]),
+        ));
     }
     let steps: Vec<f64> = t.windows(2).map(|w| w[1] - w[0]).collect();
     let mut sorted = steps.clone();
@@ -195,27 +216,32 @@ fn check_time(name: &str, t: &[f64], line_no: &[usize], unit: TimeUnit) -> Resul
             ),
             None => "no time unit (s, ms, us) gives a plausible rate; check the time column".into(),
         };
-        bail!(
-            "{name}: a sample rate of {} Hz in {unit} (median time step {} {unit}) is \
-             implausible (outside {lo} Hz–{} kHz): {hint}",
-            sig4(rate),
-            sig4(median),
-            hi / 1e3
-        );
+        return Err(Error::Csv {
+            file: csv.to_path_buf(),
+            detail: format!(
+                "a sample rate of {} Hz in {unit} (median time step {} {unit}) is \
+                 implausible (outside {lo} Hz–{} kHz): {hint}",
+                sig4(rate),
+                sig4(median),
+                hi / 1e3
+            ),
+        });
     }
     if let Some(k) = steps.iter().position(|&d| d > GAP_FACTOR * median) {
-        bail!(
-            "{name} line {}: the time jumps from {} to {} {unit}, a gap of {} {unit} \
-             ({}× the median step of {} {unit}): the record is not uniformly sampled; \
-             split the file before line {} and import each part as its own trial",
+        return Err(at_line(
             line_no[k + 1],
-            t[k],
-            t[k + 1],
-            sig4(steps[k]),
-            sig4(steps[k] / median),
-            sig4(median),
-            line_no[k + 1]
-        );
+            format!(
+                "the time jumps from {} to {} {unit}, a gap of {} {unit} \
+                 ({}× the median step of {} {unit}): the record is not uniformly sampled; \
+                 split the file before line {} and import each part as its own trial",
+                t[k],
+                t[k + 1],
+                sig4(steps[k]),
+                sig4(steps[k] / median),
+                sig4(median),
+                line_no[k + 1]
+            ),
+        ));
     }
     Ok(())
 }
@@ -483,8 +509,10 @@ impl Seek for SharedBuffer {
 /// number, time not increasing, fewer than 16 samples) or the spec's key
 /// out of range (`` `alpha` = NaN: … ``, see [`TrialSpec::validate`]).
 pub fn recording_from_csv(path: &Path, spec: &TrialSpec) -> Result<Recording> {
-    spec.validate()
-        .map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?;
+    spec.validate().map_err(|error| Error::Spec {
+        csv: path.to_path_buf(),
+        error,
+    })?;
     let (bytes, ..) = build(path, spec)?;
     Ok(exo_recording::read_recording_bytes(
         &path.display().to_string(),

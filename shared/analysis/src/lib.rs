@@ -23,6 +23,7 @@
 //! `M_e` is `exo_impedance::exo_inertia_kg_m2`, the one formula the rig
 //! configuration, the plant model and the identifier all call.
 
+pub mod error;
 pub mod import;
 pub mod merge;
 pub mod preflight;
@@ -33,6 +34,7 @@ pub mod study;
 pub mod trials;
 pub mod windows;
 
+pub use error::{Error, Result};
 pub use merge::{Merge, Played};
 pub use refit::{effective_alpha, fit_models, FitSource, ModelFitError};
 pub use windows::{analysis_windows, AnalysisWindow};

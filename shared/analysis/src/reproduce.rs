@@ -20,7 +20,7 @@
 use std::collections::BTreeMap;
 use std::path::PathBuf;
 
-use anyhow::{Context, Result};
+use crate::error::{Error, Result};
 use exo_config::{ReportedPowerLaw, Subject};
 use exo_impedance::{fit_power_law, Complex64};
 use serde::Serialize;
@@ -231,8 +231,13 @@ pub fn compare(
             }
             experiments.push(row);
         }
-        let law_input = law(fit_power_law(&k_in, &h_in)
-            .with_context(|| format!("subject {name}: power law of the inputs"))?);
+        let law_input =
+            law(
+                fit_power_law(&k_in, &h_in).map_err(|source| Error::InputPowerLaw {
+                    subject: name.clone(),
+                    source,
+                })?,
+            );
         let law_fit = match (fitted.beta0, fitted.beta1, fitted.r2) {
             (Some(beta0), Some(beta1), Some(r2)) => Some(Law { beta0, beta1, r2 }),
             _ => None,

@@ -19,7 +19,7 @@
 
 use std::fmt;
 
-use anyhow::{bail, Result};
+use crate::error::{Error, Result};
 
 /// Settings of the detector.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -109,15 +109,16 @@ impl Detector {
         release_t_s: f64,
         safe_state: bool,
     ) -> Result<StabilityReport> {
+        let refuse = |detail: String| Error::Stability { detail };
         if t_s.len() != theta_e_rad.len() {
-            bail!(
-                "stability: {} time stamps but {} angles",
+            return Err(refuse(format!(
+                "{} time stamps but {} angles",
                 t_s.len(),
                 theta_e_rad.len()
-            );
+            )));
         }
         if self.segments < 2 {
-            bail!("stability: at least 2 segments are needed");
+            return Err(refuse("at least 2 segments are needed".to_string()));
         }
         let window: Vec<(f64, f64)> = t_s
             .iter()
@@ -129,15 +130,15 @@ impl Detector {
             .iter()
             .find(|(t, th)| !t.is_finite() || !th.is_finite())
         {
-            bail!("stability: non-finite sample (t = {t}, θ = {th})");
+            return Err(refuse(format!("non-finite sample (t = {t}, θ = {th})")));
         }
         let per = window.len() / self.segments;
         if per < 10 {
-            bail!(
-                "stability: only {} samples after the release (+{} s); observe longer",
+            return Err(refuse(format!(
+                "only {} samples after the release (+{} s); observe longer",
                 window.len(),
                 self.skip_s
-            );
+            )));
         }
         let tail = &window[window.len() * 3 / 5..];
         let equilibrium = tail.iter().map(|(_, th)| th).sum::<f64>() / tail.len() as f64;
@@ -156,10 +157,10 @@ impl Detector {
             .collect();
         let (rms_first, rms_last) = (rms[0].1, rms[rms.len() - 1].1);
         if rms_first < self.min_rms_rad && !safe_state {
-            bail!(
-                "stability: the release moved the arm by only {rms_first:.2e} rad RMS (below {:.1e}); use a stronger spring",
+            return Err(refuse(format!(
+                "the release moved the arm by only {rms_first:.2e} rad RMS (below {:.1e}); use a stronger spring",
                 self.min_rms_rad
-            );
+            )));
         }
         // Least-squares slope of ln(RMS) over time, over the parts that stand
         // out of the noise floor (at least a twentieth of the first part's

@@ -13,8 +13,8 @@
 
 use std::collections::BTreeMap;
 
+use crate::error::{Error, Result};
 use crate::refit::{fit_models, FitSource, ModelFitError};
-use anyhow::{bail, Result};
 use exo_impedance::{
     check_fit, fit_power_law, fractional_order, paper_f_tests, recreate_coupled, Complex64,
     DampingSign, FTest, ImpedanceModel, Implausibility, Joint, ModelComparison, ModelFit,
@@ -364,7 +364,7 @@ fn experiments_label(present: &std::collections::BTreeSet<u32>) -> String {
 /// Runs the whole analysis.
 pub fn analyse(data: &[SubjectData], s: &AnalysisSettings) -> Result<FitReport> {
     if data.is_empty() {
-        bail!("nothing to analyse: no subject with FRF points");
+        return Err(Error::NothingToAnalyse);
     }
     let mut warnings = Vec::new();
     let mut subjects = Vec::new();

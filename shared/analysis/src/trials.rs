@@ -27,7 +27,7 @@ use std::collections::BTreeMap;
 use std::fmt;
 use std::path::{Path, PathBuf};
 
-use anyhow::{bail, Context, Result};
+use crate::error::{Error, Result};
 use serde::Deserialize;
 
 /// The unit of a CSV's time column.
@@ -305,14 +305,24 @@ struct TrialToml {
 /// whose recordings would get the same file name), and a study without
 /// trials.
 pub fn load_study(path: &Path) -> Result<Vec<(PathBuf, TrialSpec)>> {
-    let name = path.display();
-    let text =
-        std::fs::read_to_string(path).with_context(|| format!("reading study file {name}"))?;
-    let doc: toml::Table = toml::from_str(&text).with_context(|| format!("{name}"))?;
+    let refuse = |detail: String| Error::Study {
+        file: path.to_path_buf(),
+        detail,
+    };
+    let text = std::fs::read_to_string(path).map_err(|source| Error::ReadStudy {
+        file: path.to_path_buf(),
+        source,
+    })?;
+    let doc: toml::Table = toml::from_str(&text).map_err(|source| Error::StudySyntax {
+        file: path.to_path_buf(),
+        source,
+    })?;
     let top = StudyToml::deserialize(toml::Value::Table(doc))
-        .map_err(|e| anyhow::anyhow!("{name}: {}", one_line(&e.to_string())))?;
+        .map_err(|e| refuse(one_line(&e.to_string())))?;
     if top.trial.is_empty() {
-        bail!("{name}: no [[trial]]: list each CSV as a [[trial]] with `file` and `experiment`");
+        return Err(refuse(
+            "no [[trial]]: list each CSV as a [[trial]] with `file` and `experiment`".into(),
+        ));
     }
     let dir = path.parent().unwrap_or(Path::new(""));
     let mut out: Vec<(PathBuf, TrialSpec)> = Vec::with_capacity(top.trial.len());
@@ -322,18 +332,21 @@ pub fn load_study(path: &Path) -> Result<Vec<(PathBuf, TrialSpec)>> {
     for (i, value) in top.trial.into_iter().enumerate() {
         let n = i + 1;
         let t = TrialToml::deserialize(value)
-            .map_err(|e| anyhow::anyhow!("{name}: trial {n}: {}", one_line(&e.to_string())))?;
-        let at = format!("{name}: trial {n} ({})", t.file);
+            .map_err(|e| refuse(format!("trial {n}: {}", one_line(&e.to_string()))))?;
+        // The trial, after the study file's name.
+        let at = format!("trial {n} ({})", t.file);
         if t.file.trim().is_empty() {
-            bail!("{name}: trial {n}: `file` = \"\": must name a CSV file");
+            return Err(refuse(format!(
+                "trial {n}: `file` = \"\": must name a CSV file"
+            )));
         }
         let csv = dir.join(&t.file);
         if !csv.is_file() {
-            bail!(
+            return Err(refuse(format!(
                 "{at}: `file` = {:?}: no such file ({})",
                 t.file,
                 csv.display()
-            );
+            )));
         }
         let mut spec = TrialSpec::new(&csv, t.experiment);
         if let Some(c) = t.condition {
@@ -358,25 +371,25 @@ pub fn load_study(path: &Path) -> Result<Vec<(PathBuf, TrialSpec)>> {
         }
         spec.actuator_col = t.actuator_col.or_else(|| top.actuator_col.clone());
         spec.time_unit = t.time_unit.or(top.time_unit).unwrap_or_default();
-        spec.validate().map_err(|e| anyhow::anyhow!("{at}: {e}"))?;
+        spec.validate().map_err(|e| refuse(format!("{at}: {e}")))?;
         if let Some(first) = seen.insert((spec.subject.clone(), spec.experiment), n) {
-            bail!(
+            return Err(refuse(format!(
                 "{at}: `experiment` = {}: subject {:?} already has experiment {} in trial {first} ({}); \
                  each condition of a subject needs its own experiment number",
                 spec.experiment,
                 spec.subject,
                 spec.experiment,
                 out[first - 1].0.display()
-            );
+            )));
         }
         if let Some(first) = names.insert(spec.recording_name(), n) {
-            bail!(
+            return Err(refuse(format!(
                 "{at}: `subject` = {:?}: its recording {} would overwrite trial {first}'s \
                  (subject {:?}); name the subjects apart",
                 spec.subject,
                 spec.recording_name(),
                 out[first - 1].1.subject
-            );
+            )));
         }
         out.push((csv, spec));
     }

@@ -153,7 +153,7 @@ pub fn run(a: &BenchArgs) -> Result<()> {
         };
         simulate_each(&base, &jobs, &dir, default_workers(), &announce)
             .into_iter()
-            .collect::<Result<Vec<_>>>()?
+            .collect::<Result<Vec<_>, _>>()?
     };
     for ((c, nominal), recording) in chosen.iter().zip(&nominals).zip(&recordings) {
         let rec = read_recording(recording)

@@ -102,7 +102,7 @@ pub fn run(a: &ReproduceArgs) -> Result<()> {
         };
         simulate_each(&base, &jobs, &dir, default_workers(), &announce)
             .into_iter()
-            .collect::<Result<Vec<_>>>()?
+            .collect::<Result<Vec<_>, _>>()?
     };
     let (_, report) = fit(&FitOptions::for_recordings(recordings.clone()), &mut note)?;
     let mut r = compare(

@@ -14,9 +14,12 @@
 //!   whose node it steps).
 //!
 //! A crate of its own rather than modules of `exo-sim`: these write run
-//! files and recordings and report with `anyhow` errors naming them,
+//! files and recordings and report errors naming them ([`Error`]),
 //! while `exo-sim` is the bare lockstep composition of the nodes.
 
+pub mod error;
 pub mod offline;
 pub mod simulate;
 pub mod tune;
+
+pub use error::{Error, Result};

@@ -12,7 +12,6 @@
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
-use anyhow::{bail, Context, Result};
 use exo_analysis::study::{analyse, AnalysisSettings, ExperimentData, FitReport, SubjectData};
 use exo_analysis::trials::{self, TrialSpec};
 use exo_analysis::{effective_alpha, FitSource, Played};
@@ -21,6 +20,8 @@ use exo_messages::{ActuatorCommand, FrfPoint, ProtocolState, SensorSample};
 use exo_recording::{read_recording_topics, Recordable, Recording};
 
 use exo_identifier::{Event, Identifier, IdentifierSettings};
+
+use crate::error::{Error, Result};
 
 /// What to fit and how: `exo fit`'s options (the command line's names in
 /// brackets).
@@ -101,11 +102,18 @@ fn meta_f64(r: &Recording, key: &str, default: f64) -> Result<f64> {
     match r.meta(key) {
         None => Ok(default),
         Some(v) => {
-            let x: f64 = v.trim().parse().with_context(|| {
-                format!("{}: metadata exo.{key} = {v:?} is not a number", r.source)
+            let x: f64 = v.trim().parse().map_err(|source| Error::MetadataNumber {
+                recording: r.source.clone(),
+                key: key.to_string(),
+                value: v.to_string(),
+                source,
             })?;
             if !x.is_finite() {
-                bail!("{}: metadata exo.{key} = {v} is not finite", r.source);
+                return Err(Error::Metadata {
+                    recording: r.source.clone(),
+                    key: key.to_string(),
+                    detail: format!("{v} is not finite"),
+                });
             }
             Ok(x)
         }
@@ -220,6 +228,7 @@ pub fn load_inputs(a: &FitOptions, note: &mut dyn FnMut(String)) -> Result<Vec<L
                 };
                 let r = match trial {
                     Some(t) => exo_analysis::import::recording_from_csv(p, t)
+                        .map_err(Error::from)
                         .and_then(|rec| identify_recording(rec, p, a)),
                     None => load(p, a),
                 };
@@ -237,7 +246,7 @@ pub fn load_inputs(a: &FitOptions, note: &mut dyn FnMut(String)) -> Result<Vec<L
         let r = r
             .into_inner()
             .unwrap_or_else(std::sync::PoisonError::into_inner)
-            .unwrap_or_else(|| Err(anyhow::anyhow!("{} was not read", p.display())));
+            .unwrap_or_else(|| Err(Error::NotRead { path: p.clone() }));
         loaded.push(r?);
     }
     Ok(loaded)
@@ -300,11 +309,10 @@ pub fn identify_recording(recording: Recording, path: &Path, a: &FitOptions) -> 
     }
     let joint = match r.meta("joint") {
         None => None,
-        Some(j) => Some(Joint::parse(j).with_context(|| {
-            format!(
-                "{}: metadata exo.joint = {j:?}: expected elbow, ankle, knee, wrist or unspecified",
-                r.source
-            )
+        Some(j) => Some(Joint::parse(j).ok_or_else(|| Error::Metadata {
+            recording: r.source.clone(),
+            key: "joint".into(),
+            detail: format!("{j:?}: expected elbow, ankle, knee, wrist or unspecified"),
         })?),
     };
     let (points, mut warnings) = if a.recorded_frf || r.sensor.is_empty() {
@@ -412,17 +420,23 @@ pub fn subject_data(loaded: &[Loaded]) -> Vec<SubjectData> {
 /// Progress goes to `note` (see [`load_inputs`]).
 pub fn fit(a: &FitOptions, note: &mut dyn FnMut(String)) -> Result<(Vec<Loaded>, FitReport)> {
     if !(a.level > 0.0 && a.level < 1.0) {
-        bail!("--level = {}: must lie in (0, 1)", a.level);
+        return Err(Error::Option {
+            option: "--level",
+            detail: format!("{}: must lie in (0, 1)", a.level),
+        });
     }
     if !(a.phase_margin_deg > 0.0 && a.phase_margin_deg < 90.0) {
-        bail!(
-            "--phase-margin-deg = {}: must lie in (0, 90)",
-            a.phase_margin_deg
-        );
+        return Err(Error::Option {
+            option: "--phase-margin-deg",
+            detail: format!("{}: must lie in (0, 90)", a.phase_margin_deg),
+        });
     }
     if let Some(k) = &a.k_range {
         if !(k[0] > 0.0 && k[1] > k[0] && k[1].is_finite()) {
-            bail!("--k-range = {},{}: needs 0 < MIN < MAX", k[0], k[1]);
+            return Err(Error::Option {
+                option: "--k-range",
+                detail: format!("{},{}: needs 0 < MIN < MAX", k[0], k[1]),
+            });
         }
     }
     let loaded = load_inputs(a, note)?;
@@ -432,15 +446,10 @@ pub fn fit(a: &FitOptions, note: &mut dyn FnMut(String)) -> Result<(Vec<Loaded>,
         .flat_map(|l| l.recording.warnings.iter().cloned())
         .collect();
     if data.iter().all(|s| s.experiments.is_empty()) {
-        bail!(
-            "no FRF point in {}:\n  {}",
-            a.recordings
-                .iter()
-                .map(|p| p.display().to_string())
-                .collect::<Vec<_>>()
-                .join(", "),
-            warnings.join("\n  ")
-        );
+        return Err(Error::NoFrfPoint {
+            recordings: a.recordings.clone(),
+            warnings,
+        });
     }
     // The joint: the command line's, else the recordings' (all alike), else unspecified.
     let joints: std::collections::BTreeSet<&'static str> = loaded
@@ -451,9 +460,7 @@ pub fn fit(a: &FitOptions, note: &mut dyn FnMut(String)) -> Result<(Vec<Loaded>,
         (Some(j), _) => j,
         (None, 1) => loaded.iter().find_map(|l| l.joint).unwrap_or_default(),
         (None, 0) => Joint::Unspecified,
-        (None, _) => bail!(
-            "the recordings are of different joints ({joints:?}); fit them apart or give --joint"
-        ),
+        (None, _) => return Err(Error::MixedJoints { joints }),
     };
     let settings = AnalysisSettings {
         level: a.level,

@@ -5,12 +5,26 @@
 
 use std::path::{Path, PathBuf};
 
-use anyhow::{bail, Context, Result};
 use exo_config::RunConfig;
 use exo_messages::{status, ControlMode};
+use exo_recording::RecordingError;
+
+use crate::error::{Error, Result};
 
 fn absolute(p: &Path) -> Result<PathBuf> {
-    std::path::absolute(p).with_context(|| format!("resolving {}", p.display()))
+    std::path::absolute(p).map_err(|source| Error::File {
+        action: "resolving",
+        path: p.to_path_buf(),
+        source,
+    })
+}
+
+/// Why a simulation's sink stopped it.
+enum Stop {
+    /// The recording could not be written.
+    Write(RecordingError),
+    /// A safe state latched.
+    Latched(Latched),
 }
 
 /// Simulates one subject through the base configuration (with another
@@ -33,39 +47,52 @@ pub fn simulate(base: &RunConfig, job: &Job, dir: &Path) -> Result<PathBuf> {
     let bound_s = protocol_duration_s(base) + BOUND_MARGIN_S;
     cfg.run.max_sim_time_s = Some(bound_s);
     let run_file = dir.join(format!("{name}.toml"));
-    let text = toml::to_string(&cfg).context("writing the subject's run file")?;
-    std::fs::write(&run_file, text).with_context(|| format!("writing {}", run_file.display()))?;
+    let text = toml::to_string(&cfg).map_err(|source| Error::RunFile {
+        what: "the subject's run file",
+        source,
+    })?;
+    std::fs::write(&run_file, text).map_err(|source| Error::File {
+        action: "writing",
+        path: run_file.clone(),
+        source,
+    })?;
     // Validate as `exo run` would.
     let cfg = RunConfig::from_file(&run_file)?;
     let model = exo_plant_model::PlantModel::from_file(&cfg.plant_model)?;
     let recording = dir.join(format!("{name}.mcap"));
-    let mut sim = exo_sim::Sim::new(&cfg, &model)
-        .with_context(|| format!("simulating subject {name} ({})", run_file.display()))?;
+    let simulation = |source: exo_sim::SimError| Error::Simulation {
+        subject: name.to_string(),
+        run_file: run_file.clone(),
+        source: Box::new(source),
+    };
+    let mut sim = exo_sim::Sim::new(&cfg, &model).map_err(simulation)?;
     let mut file = exo_sim::FileSink::create(&recording, &cfg, &run_file)?;
-    let mut latched = None;
-    let ended = sim.run(|r| -> Result<()> {
-        file.write(r)?;
-        latched = latched.or_else(|| Latched::of(&r));
-        match latched {
-            Some(_) => bail!("safe state"),
+    // The sink stops the run at the first safe state.
+    let ended = sim.run(|r| {
+        file.write(r).map_err(Stop::Write)?;
+        match Latched::of(&r) {
+            Some(what) => Err(Stop::Latched(what)),
             None => Ok(()),
         }
     });
-    file.finish()
-        .with_context(|| format!("finishing {}", recording.display()))?;
-    if let Some(what) = latched {
-        bail!(
-            "subject {name}: {what}, {}; the run is stopped (the recording so far is {})",
-            locate(&cfg, what.sim_s),
-            recording.display()
-        );
-    }
-    match ended.with_context(|| format!("simulating subject {name} ({})", run_file.display()))? {
-        exo_sim::Ended::ControllerFinished => Ok(recording),
-        exo_sim::Ended::Bound => bail!(
-            "subject {name}: the run reached its bound of {bound_s:.1} s simulated before the controller finished the protocol ({})",
-            run_file.display()
-        ),
+    file.finish().map_err(|source| Error::Finish {
+        recording: recording.clone(),
+        source: Box::new(source),
+    })?;
+    match ended {
+        Err(Stop::Latched(what)) => Err(Error::SafeState {
+            subject: name.to_string(),
+            latched: what.to_string(),
+            at: locate(&cfg, what.sim_s),
+            recording,
+        }),
+        Err(Stop::Write(e)) => Err(simulation(exo_sim::SimError::Recording(e))),
+        Ok(exo_sim::Ended::ControllerFinished) => Ok(recording),
+        Ok(exo_sim::Ended::Bound) => Err(Error::Bound {
+            subject: name.to_string(),
+            bound_s,
+            run_file,
+        }),
     }
 }
 
@@ -115,7 +142,7 @@ pub fn simulate_each(
         .map(|m| {
             m.into_inner()
                 .unwrap_or_else(std::sync::PoisonError::into_inner)
-                .unwrap_or_else(|| Err(anyhow::anyhow!("the simulation did not run")))
+                .unwrap_or(Err(Error::NotRun))
         })
         .collect()
 }

@@ -20,7 +20,6 @@
 
 use std::path::PathBuf;
 
-use anyhow::{bail, Context, Result};
 use exo_config::{ProtocolMode, ReleaseSettings, RunConfig, TimingMode};
 use exo_impedance::loop_shaping::marginal_fractional_order;
 use exo_impedance::{AmplificationPlant, SeaModel};
@@ -31,6 +30,17 @@ use exo_sim::Record;
 use serde::Serialize;
 
 use exo_analysis::stability::{Detector, StabilityReport, Verdict};
+
+use crate::error::{Error, Result};
+
+/// [`Error::File`]'s "writing `path`".
+fn writing(path: &std::path::Path) -> impl FnOnce(std::io::Error) -> Error + '_ {
+    move |source| Error::File {
+        action: "writing",
+        path: path.to_path_buf(),
+        source,
+    }
+}
 
 /// The paper's margin below the marginal order (section "Tuning Results").
 pub const PAPER_MARGIN_F: f64 = 0.12;
@@ -192,8 +202,11 @@ impl Bench {
         cfg.controller.f = Some(f);
         cfg.controller.adopt_recommended_f = false;
         let path = self.dir.join(format!("trial{:03}.toml", self.count));
-        let text = toml::to_string(&cfg).context("writing a trial run file")?;
-        std::fs::write(&path, text).with_context(|| format!("writing {}", path.display()))?;
+        let text = toml::to_string(&cfg).map_err(|source| Error::RunFile {
+            what: "a trial run file",
+            source,
+        })?;
+        std::fs::write(&path, text).map_err(writing(&path))?;
         // Validate as `exo run` would.
         let cfg = RunConfig::from_file(&path)?;
         let (mut samples, mut commands, mut states) = (Vec::new(), Vec::new(), Vec::new());
@@ -209,12 +222,16 @@ impl Bench {
                     Ok(())
                 })
             })
-            .with_context(|| format!("trial f = {f:.3} at experiment {experiment}"))?;
+            .map_err(|source| Error::Trial {
+                f,
+                experiment,
+                source: Box::new(source),
+            })?;
         let release_ns = states
             .iter()
             .find(|p| p.protocol_phase() == Some(ProtocolPhase::Analysis))
             .map(|p| p.stamp_ns)
-            .context("the trial never reached the release (no analysis phase)")?;
+            .ok_or(Error::NoRelease { f, experiment })?;
         let end_ns = states
             .iter()
             .find(|p| p.protocol_phase() == Some(ProtocolPhase::RampOut))
@@ -230,8 +247,9 @@ impl Bench {
             .filter(|s| s.stamp_ns < end_ns)
             .map(|s| (s.stamp_ns as f64 * 1e-9, s.theta_e))
             .unzip();
-        self.detector
-            .classify(&t, &th, release_ns as f64 * 1e-9, safe)
+        Ok(self
+            .detector
+            .classify(&t, &th, release_ns as f64 * 1e-9, safe)?)
     }
 
     /// One trial, as reported.
@@ -263,7 +281,12 @@ impl Bench {
             Ok(osc)
         };
         if run(self, 0.0)? {
-            bail!("experiment {experiment}: the release oscillates already at f = 0 (constant amplification); lower kp");
+            return Err(Error::NoBoundary {
+                experiment,
+                detail:
+                    "the release oscillates already at f = 0 (constant amplification); lower kp"
+                        .into(),
+            });
         }
         let mut stable = 0.0;
         let mut unstable = None;
@@ -277,7 +300,10 @@ impl Bench {
             f += step;
         }
         let Some(mut unstable) = unstable else {
-            bail!("experiment {experiment}: no oscillation up to f = {stable:.2}");
+            return Err(Error::NoBoundary {
+                experiment,
+                detail: format!("no oscillation up to f = {stable:.2}"),
+            });
         };
         while unstable - stable > resolution {
             let mid = 0.5 * (stable + unstable);
@@ -307,10 +333,13 @@ pub fn tune(args: &TuneOptions, note: &mut dyn FnMut(String)) -> Result<Outcome>
             true,
         ),
     };
-    std::fs::create_dir_all(&dir).with_context(|| format!("creating {}", dir.display()))?;
+    std::fs::create_dir_all(&dir).map_err(|source| Error::File {
+        action: "creating",
+        path: dir.clone(),
+        source,
+    })?;
     let plant_file = dir.join("plant.toml");
-    std::fs::write(&plant_file, plant.to_toml_string())
-        .with_context(|| format!("writing {}", plant_file.display()))?;
+    std::fs::write(&plant_file, plant.to_toml_string()).map_err(writing(&plant_file))?;
     // Validate the subject and both experiments before any process starts.
     let probe = {
         let mut c = base.clone();
@@ -318,10 +347,16 @@ pub fn tune(args: &TuneOptions, note: &mut dyn FnMut(String)) -> Result<Outcome>
         let p = dir.join("check.toml");
         std::fs::write(
             &p,
-            toml::to_string(&c).context("writing the check run file")?,
+            toml::to_string(&c).map_err(|source| Error::RunFile {
+                what: "the check run file",
+                source,
+            })?,
         )
-        .with_context(|| format!("writing {}", p.display()))?;
-        RunConfig::from_file(&p).with_context(|| format!("subject {}", args.subject))?
+        .map_err(writing(&p))?;
+        RunConfig::from_file(&p).map_err(|source| Error::Subject {
+            subject: args.subject.clone(),
+            source: Box::new(source),
+        })?
     };
     let subject = probe.subject().clone();
     let sea_model = SeaModel::new(
@@ -345,10 +380,11 @@ pub fn tune(args: &TuneOptions, note: &mut dyn FnMut(String)) -> Result<Outcome>
         let spec = *probe
             .experiment_table()
             .get(experiment)
-            .with_context(|| format!("experiment {experiment} is not in the table"))?;
-        let e = *subject
-            .get(experiment)
-            .with_context(|| format!("subject {} has no experiment {experiment}", subject.name))?;
+            .ok_or(Error::NotInTable { experiment })?;
+        let e = *subject.get(experiment).ok_or_else(|| Error::NotInSubject {
+            subject: subject.name.clone(),
+            experiment,
+        })?;
         let m_e = probe.exo_inertia_kg_m2(spec.load_kg);
         let layout = probe.controller.layout(m_e, subject.inertia_kg_m2)?;
         let kp = layout.kp;
