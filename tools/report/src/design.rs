@@ -6,7 +6,7 @@ use std::path::Path;
 
 use std::fmt::Write as _;
 
-use anyhow::{anyhow, Result};
+use crate::error::{Error, Result};
 use exo_impedance::design::FractionalOrderSource;
 use serde::Serialize;
 
@@ -17,11 +17,7 @@ use plotters::prelude::*;
 
 /// Draws the Bode plot to an SVG file.
 pub fn bode_svg(inputs: &DesignInputs, d: &Design, path: &Path) -> Result<()> {
-    let cases = d.margins.as_ref().ok_or_else(|| {
-        anyhow!(
-            "the Bode plot needs the human's loss factor: give --beta0/--beta1 or --loss-factor"
-        )
-    })?;
+    let cases = d.margins.as_ref().ok_or(Error::NoLossFactor)?;
     let loops: Vec<(f64, AmplificationLoop)> = cases
         .iter()
         .map(|c| {
@@ -73,7 +69,7 @@ pub fn bode_svg(inputs: &DesignInputs, d: &Design, path: &Path) -> Result<()> {
     let ph_hi = ph_hi.max(10.0);
 
     if let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty()) {
-        std::fs::create_dir_all(dir)?;
+        std::fs::create_dir_all(dir).map_err(Error::file("creating", dir))?;
     }
     let root = SVGBackend::new(path, (900, 760)).into_drawing_area();
     root.fill(&WHITE).map_err(plot_err)?;

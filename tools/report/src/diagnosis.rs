@@ -7,7 +7,7 @@ use std::fmt::Write as _;
 
 use std::path::Path;
 
-use anyhow::{Context, Result};
+use crate::error::{Error, Result};
 use exo_diagnose::bench::Outcome;
 use exo_diagnose::data::{Dataset, Tf};
 use exo_diagnose::engine::Score;
@@ -212,8 +212,7 @@ fn time_svg(d: &Dataset, r: &Diagnosis, window: usize, tf: Tf) -> Result<String>
         &s.tau_s_net_nm
     };
     let w = s.omega_rad_s;
-    let th = exo_impedance::frf::sine_amplitude(&s.t_s, &s.theta_rad, w, true)
-        .map_err(|e| anyhow::anyhow!("{e}"))?;
+    let th = exo_impedance::frf::sine_amplitude(&s.t_s, &s.theta_rad, w, true)?;
     let gravity = d
         .observations
         .iter()
@@ -633,8 +632,8 @@ pub fn text(r: &Diagnosis) -> String {
     if r.steps.is_empty() {
         let _ = writeln!(
             w,
-            "  not searched: after the refit the model is within the measured noise (χ²/dof {:.2}, lack-of-fit p = {:.2})",
-            r.refit.chi2_per_dof, r.refit.lack_of_fit_p
+            "  not searched: after the refit {}",
+            r.refit.within_words(r.level, "the model")
         );
     }
     for st in &r.steps {
@@ -702,8 +701,7 @@ pub fn text(r: &Diagnosis) -> String {
 /// into `dir` (created if missing): `report.html`, `updated-plant.toml`,
 /// `updated-subject.toml`, `diagnosis.json`.
 pub fn write_outputs(dir: &Path, nominal: &PlantModel, d: &Dataset, r: &Diagnosis) -> Result<()> {
-    exo_recording::files::create_output_dir(dir)
-        .with_context(|| format!("creating {}", dir.display()))?;
+    exo_recording::files::create_output_dir(dir).map_err(Error::file("creating", dir))?;
     let updated = r.updated_plant(nominal);
     let mut plant = format!(
         "# Updated by exo diagnose from {}.\n# Terms added: {}.\n\n",
@@ -720,16 +718,14 @@ pub fn write_outputs(dir: &Path, nominal: &PlantModel, d: &Dataset, r: &Diagnosi
     );
     plant.push_str(&updated.to_toml_string());
     let p = dir.join("updated-plant.toml");
-    exo_recording::files::write_output_file(&p, plant)
-        .with_context(|| format!("writing {}", p.display()))?;
+    exo_recording::files::write_output_file(&p, plant).map_err(Error::file("writing", &p))?;
     let p = dir.join("updated-subject.toml");
     exo_recording::files::write_output_file(&p, r.final_physics.subject_toml("diagnosed"))
-        .with_context(|| format!("writing {}", p.display()))?;
+        .map_err(Error::file("writing", &p))?;
     let p = dir.join("diagnosis.json");
     exo_recording::files::write_output_file(&p, serde_json::to_string_pretty(r)?)
-        .with_context(|| format!("writing {}", p.display()))?;
+        .map_err(Error::file("writing", &p))?;
     let p = dir.join("report.html");
-    exo_recording::files::write_output_file(&p, html(d, r)?)
-        .with_context(|| format!("writing {}", p.display()))?;
+    exo_recording::files::write_output_file(&p, html(d, r)?).map_err(Error::file("writing", &p))?;
     Ok(())
 }

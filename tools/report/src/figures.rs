@@ -7,7 +7,7 @@
 
 use std::fmt::Write as _;
 
-use anyhow::{anyhow, Result};
+use crate::error::{Error, Result};
 use exo_impedance::{Complex64, DynamicStiffness};
 use plotters::prelude::*;
 
@@ -95,8 +95,10 @@ pub(crate) const PALETTE: [RGBColor; 10] = [
     RGBColor(23, 190, 207),
 ];
 
-pub(crate) fn plot_err<E: std::fmt::Debug>(e: E) -> anyhow::Error {
-    anyhow!("plotting failed: {e:?}")
+pub(crate) fn plot_err<E: std::fmt::Debug>(e: E) -> Error {
+    Error::Plot {
+        message: format!("{e:?}"),
+    }
 }
 
 pub(crate) fn bounds(values: impl Iterator<Item = f64>) -> (f64, f64) {

@@ -5,7 +5,7 @@
 use std::fmt::Write as _;
 use std::path::Path;
 
-use anyhow::{Context, Result};
+use crate::error::{Error, Result};
 use exo_analysis::study::FitReport;
 
 /// `value ± half-width` to `digits` decimals, `—` for a term the model lacks.
@@ -179,8 +179,7 @@ fn csv_text(s: Option<&str>) -> String {
 /// Writes the tables as CSV files into `dir` (created if missing):
 /// `frf.csv`, `models.csv`, `ftests.csv`, `phase.csv`, `power_law.csv`.
 pub fn write_csv(dir: &Path, r: &FitReport) -> Result<()> {
-    exo_recording::files::create_output_dir(dir)
-        .with_context(|| format!("creating {}", dir.display()))?;
+    exo_recording::files::create_output_dir(dir).map_err(Error::file("creating", dir))?;
     let mut frf = String::from("subject,experiment,condition,period,omega_rad_s,s_h_re,s_h_im,s_h_e_alpha_re,s_h_e_alpha_im,s_h_e_actuator_re,s_h_e_actuator_im,s_h_phase_deg,coherence,noise_rel\n");
     let mut models = String::from("subject,experiment,condition,model,K,H,B,M,K_ci95,H_ci95,B_ci95,M_ci95,r2,rss,chi2_per_dof\n");
     for s in &r.subjects {
@@ -273,8 +272,7 @@ pub fn write_csv(dir: &Path, r: &FitReport) -> Result<()> {
         ("power_law.csv", pl),
     ] {
         let p = dir.join(name);
-        exo_recording::files::write_output_file(&p, text)
-            .with_context(|| format!("writing {}", p.display()))?;
+        exo_recording::files::write_output_file(&p, text).map_err(Error::file("writing", &p))?;
     }
     Ok(())
 }

@@ -20,6 +20,9 @@
 
 pub mod design;
 pub mod diagnosis;
+pub mod error;
 pub mod figures;
 pub mod fit;
 pub mod reproduction;
+
+pub use error::{Error, Result};
