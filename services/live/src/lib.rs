@@ -57,6 +57,20 @@ pub enum LiveError {
         /// The system's error.
         source: std::io::Error,
     },
+    /// A channel of the table that the recording contract has no row for.
+    #[error("channel {topic} has no row in the recording contract (exo_recording::schema)")]
+    NoContractRow {
+        /// The channel's topic.
+        topic: &'static str,
+    },
+    /// The SDK refused to advertise a channel.
+    #[error("advertising {topic}: {message}")]
+    Advertise {
+        /// The channel's topic.
+        topic: &'static str,
+        /// The SDK's error.
+        message: String,
+    },
     /// Anything else the SDK refused.
     #[error("the Foxglove server did not start on {addr} port {port}: {message}")]
     Server {
@@ -111,7 +125,7 @@ impl LiveChannels {
     /// contract's) under its recording topic with its contract schema
     /// (ros2msg) and encoding (CDR). The recorded channels come first in
     /// the table, so a channel's index is its place here.
-    pub fn new() -> anyhow::Result<Self> {
+    pub fn new() -> Result<Self, LiveError> {
         let context = Context::new();
         let mut channels = Vec::with_capacity(CHANNELS.len());
         for c in CHANNELS.iter().filter(|c| c.recorded) {
@@ -136,20 +150,19 @@ impl LiveChannels {
     }
 }
 
-fn build_channel(context: &Arc<Context>, c: &ChannelInfo) -> anyhow::Result<Arc<RawChannel>> {
-    let row = exo_recording::schema::find(c.topic).ok_or_else(|| {
-        anyhow::anyhow!(
-            "channel {} has no row in the recording contract (exo_recording::schema)",
-            c.topic
-        )
-    })?;
+fn build_channel(context: &Arc<Context>, c: &ChannelInfo) -> Result<Arc<RawChannel>, LiveError> {
+    let row =
+        exo_recording::schema::find(c.topic).ok_or(LiveError::NoContractRow { topic: c.topic })?;
     let schema = Schema::new(row.schema_name, SCHEMA_ENCODING, row.text().into_bytes());
     ChannelBuilder::new(c.topic)
         .message_encoding(MESSAGE_ENCODING)
         .schema(schema)
         .context(context)
         .build_raw()
-        .map_err(|e| anyhow::anyhow!("advertising {}: {e}", c.topic))
+        .map_err(|e| LiveError::Advertise {
+            topic: c.topic,
+            message: e.to_string(),
+        })
 }
 
 /// Starts the Foxglove WebSocket server for `channels` on `listen`: the

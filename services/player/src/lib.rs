@@ -16,13 +16,31 @@
 
 pub mod process;
 
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
-use anyhow::{bail, Context, Result};
 use exo_analysis::{Merge, Played};
 use exo_messages::status;
 use exo_recording::Record;
-use exo_recording::{read_recording, Recording};
+use exo_recording::{read_recording, Recording, RecordingError};
+
+/// Why a recording cannot be played, naming the player's file.
+#[derive(Debug, thiserror::Error)]
+pub enum PlayerError {
+    /// The file could not be read as a recording.
+    #[error("player file {}", file.display())]
+    Read {
+        /// The player's file (`[player] file`).
+        file: PathBuf,
+        /// Why (boxed: the error stays small).
+        source: Box<RecordingError>,
+    },
+    /// The recording has no sample to play.
+    #[error("{}: exo/sensor has no samples to play", file.display())]
+    NoSamples {
+        /// The player's file (`[player] file`).
+        file: PathBuf,
+    },
+}
 
 /// A recording's control-path messages in time order.
 #[derive(Debug, Clone)]
@@ -33,13 +51,18 @@ pub struct PlayerNode {
 
 impl PlayerNode {
     /// Reads `file` (with its later segments) for playing.
-    pub fn open(file: &Path) -> Result<Self> {
-        let r = read_recording(file).with_context(|| format!("player file {}", file.display()))?;
+    pub fn open(file: &Path) -> Result<Self, PlayerError> {
+        let r = read_recording(file).map_err(|source| PlayerError::Read {
+            file: file.to_path_buf(),
+            source: Box::new(source),
+        })?;
         for w in &r.warnings {
             tracing::warn!("player: {w}");
         }
         if r.sensor.is_empty() {
-            bail!("{}: exo/sensor has no samples to play", file.display());
+            return Err(PlayerError::NoSamples {
+                file: file.to_path_buf(),
+            });
         }
         Ok(Self::of(&r))
     }

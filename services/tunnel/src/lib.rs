@@ -37,10 +37,35 @@
 
 pub mod process;
 
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
-use anyhow::{Context, Result};
 use exo_messages::channels::{Channel, CHANNELS};
+
+/// Why a Zenoh configuration cannot be built, naming the file or the key.
+#[derive(Debug, thiserror::Error)]
+pub enum TunnelError {
+    /// The Zenoh configuration file (`[tunnel] zenoh_config`) refused.
+    #[error("{}: {message}", file.display())]
+    ConfigFile {
+        /// The file.
+        file: PathBuf,
+        /// Zenoh's message.
+        message: String,
+    },
+    /// A key of the Zenoh configuration refused its value.
+    #[error("Zenoh configuration {key} = {value}: {message}")]
+    ConfigKey {
+        /// The key (`listen/endpoints`, …).
+        key: String,
+        /// The value, as JSON5.
+        value: String,
+        /// Zenoh's message.
+        message: String,
+    },
+    /// The endpoints could not be written as JSON.
+    #[error("endpoints")]
+    Endpoints(#[source] serde_json::Error),
+}
 
 /// The Zenoh key of `channel` of `instance`, e.g. `exo/sensor`.
 pub fn key(instance: &str, channel: Channel) -> String {
@@ -62,27 +87,31 @@ pub fn zenoh_config(
     listen: &[String],
     connect: &[String],
     file: Option<&Path>,
-) -> Result<zenoh::Config> {
+) -> Result<zenoh::Config, TunnelError> {
     let mut c = match file {
-        Some(f) => {
-            zenoh::Config::from_file(f).map_err(|e| anyhow::anyhow!("{}: {e}", f.display()))?
-        }
+        Some(f) => zenoh::Config::from_file(f).map_err(|e| TunnelError::ConfigFile {
+            file: f.to_path_buf(),
+            message: e.to_string(),
+        })?,
         None => zenoh::Config::default(),
     };
     let set = |c: &mut zenoh::Config, k: &str, v: &str| {
-        c.insert_json5(k, v)
-            .map_err(|e| anyhow::anyhow!("Zenoh configuration {k} = {v}: {e}"))
+        c.insert_json5(k, v).map_err(|e| TunnelError::ConfigKey {
+            key: k.to_string(),
+            value: v.to_string(),
+            message: e.to_string(),
+        })
     };
     set(&mut c, "mode", "\"peer\"")?;
     set(
         &mut c,
         "listen/endpoints",
-        &serde_json::to_string(listen).context("endpoints")?,
+        &serde_json::to_string(listen).map_err(TunnelError::Endpoints)?,
     )?;
     set(
         &mut c,
         "connect/endpoints",
-        &serde_json::to_string(connect).context("endpoints")?,
+        &serde_json::to_string(connect).map_err(TunnelError::Endpoints)?,
     )?;
     set(&mut c, "scouting/multicast/enabled", "false")?;
     Ok(c)
