@@ -14,6 +14,7 @@
 use std::f64::consts::TAU;
 
 use exo_impedance::design::{design, DesignInputs};
+use exo_messages::ProtocolPhase;
 use exo_service_kit::channels::{PROTOCOL, SENSOR};
 use exo_tests::*;
 use num_complex::Complex64;
@@ -68,7 +69,7 @@ fn measure(subject: &str, f: f64, omega: f64, cycles: f64) -> Complex64 {
     let protocol = protocol.finish();
     let start = protocol
         .iter()
-        .find(|p| p.phase == 3)
+        .find(|p| p.protocol_phase() == Some(ProtocolPhase::Analysis))
         .expect("analysis phase")
         .stamp_ns;
     let end = start + (cycles * TAU / omega * 1e9) as u64;

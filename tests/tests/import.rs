@@ -7,6 +7,7 @@ use std::f64::consts::PI;
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
+use exo_messages::ProtocolPhase;
 use exo_recording::{read_recording, Recording};
 use exo_tests::*;
 
@@ -102,7 +103,7 @@ fn window(r: &Recording) -> (u32, f64, f64) {
     let p = r
         .protocol
         .iter()
-        .find(|p| p.phase == 3)
+        .find(|p| p.protocol_phase() == Some(ProtocolPhase::Analysis))
         .unwrap_or_else(|| panic!("{}: no analysis window", r.source));
     (p.experiment, p.alpha, p.load_kg)
 }
@@ -179,10 +180,8 @@ condition = "MVC 40%"
             "{}",
             p.display()
         );
-        assert!(r
-            .protocol
-            .iter()
-            .all(|s| s.experiment == n || (s.phase == 0 && s.experiment == 0)));
+        assert!(r.protocol.iter().all(|s| s.experiment == n
+            || (s.protocol_phase() == Some(ProtocolPhase::Idle) && s.experiment == 0)));
         assert!(r.protocol.iter().all(|s| s.omega == 0.0), "broadband");
         assert_eq!(r.sensor.len(), rows);
         assert!((r.meta("rate_hz").unwrap().parse::<f64>().unwrap() - 200.0).abs() < 1e-6);

@@ -21,8 +21,8 @@ use std::process::Child;
 use std::time::{Duration, Instant};
 
 use exo_messages::{
-    status, ActuatorCommand, ControlMode, OperatorCommand, OperatorCommandKind, ProtocolState,
-    SensorSample,
+    status, ActuatorCommand, ControlMode, OperatorCommand, OperatorCommandKind, ProtocolPhase,
+    ProtocolState, SensorSample,
 };
 use exo_service_kit::channels::{COMMAND, OPERATOR, PROTOCOL, SENSOR};
 use exo_service_kit::ipc::Ipc;
@@ -30,14 +30,13 @@ use exo_tests::*;
 
 /// Bound on every wait (the machine may be busy with other tests).
 const WAIT: Duration = Duration::from_secs(240);
-const RUN: u32 = 1;
-const SAFE_GRAVITY: u32 = 2;
-/// Phases (`ProtocolPhase` codes).
-const IDLE: u32 = 0;
-const RAMP_IN: u32 = 1;
-const SETTLING: u32 = 2;
-const ANALYSIS: u32 = 3;
-const RAMP_OUT: u32 = 4;
+const RUN: ControlMode = ControlMode::Run;
+const SAFE_GRAVITY: ControlMode = ControlMode::SafeGravityOnly;
+const IDLE: ProtocolPhase = ProtocolPhase::Idle;
+const RAMP_IN: ProtocolPhase = ProtocolPhase::RampIn;
+const SETTLING: ProtocolPhase = ProtocolPhase::Settling;
+const ANALYSIS: ProtocolPhase = ProtocolPhase::Analysis;
+const RAMP_OUT: ProtocolPhase = ProtocolPhase::RampOut;
 /// The protocol's ramp-out (configs/experiments.toml), in ns of simulated time.
 const RAMP_OUT_NS: u64 = 5_000_000_000;
 
@@ -141,8 +140,18 @@ fn answers(mut c: Vec<ActuatorCommand>) -> Vec<ActuatorCommand> {
     c
 }
 
-fn key(p: &ProtocolState) -> (u32, u32, u32) {
-    (p.experiment, p.period, p.phase)
+/// A state's phase, decoded (every state the controller publishes has a known code).
+fn phase(p: &ProtocolState) -> ProtocolPhase {
+    p.protocol_phase().expect("a known phase code")
+}
+
+/// A command's mode, decoded (every command has a known code).
+fn mode(c: &ActuatorCommand) -> ControlMode {
+    c.control_mode().expect("a known mode code")
+}
+
+fn key(p: &ProtocolState) -> (u32, u32, ProtocolPhase) {
+    (p.experiment, p.period, phase(p))
 }
 
 #[test]
@@ -159,10 +168,10 @@ fn stop_ramps_out_and_holds_gravity_without_a_fault_and_start_continues() {
     let sent = op(&sc, &["stop"]);
     assert!(sent.contains("StopProtocol (4)"), "{sent}");
     protocol.wait_for(WAIT, "the stopped protocol (idle)", |p| {
-        p.iter().any(|p| p.phase == IDLE)
+        p.iter().any(|p| phase(p) == IDLE)
     });
     let states = protocol.snapshot();
-    let idle_at = states.iter().find(|p| p.phase == IDLE).unwrap().stamp_ns;
+    let idle_at = states.iter().find(|p| phase(p) == IDLE).unwrap().stamp_ns;
     // Three simulated seconds of holding.
     commands.wait_for(WAIT, "3 s of commands after the ramp-out", |c| {
         c.iter().any(|c| c.stamp_ns >= idle_at + 3_000_000_000)
@@ -172,28 +181,28 @@ fn stop_ramps_out_and_holds_gravity_without_a_fault_and_start_continues() {
     // before its analysis window, and lasted the protocol's ramp-out.
     let before_idle: Vec<_> = states.iter().filter(|p| p.stamp_ns < idle_at).collect();
     assert!(
-        before_idle.iter().all(|p| p.phase != ANALYSIS),
+        before_idle.iter().all(|p| phase(p) != ANALYSIS),
         "the analysis window began before the stop took effect"
     );
     let stop_at = before_idle
         .iter()
-        .find(|p| p.phase == RAMP_OUT)
+        .find(|p| phase(p) == RAMP_OUT)
         .expect("a ramp-out before the hold")
         .stamp_ns;
     assert_eq!(
-        key(before_idle.iter().find(|p| p.phase == RAMP_OUT).unwrap()),
+        key(before_idle.iter().find(|p| phase(p) == RAMP_OUT).unwrap()),
         (4, 1, RAMP_OUT)
     );
     assert_eq!(idle_at - stop_at, RAMP_OUT_NS, "ramp-out of 5 s");
-    let idle = states.iter().find(|p| p.phase == IDLE).unwrap();
+    let idle = states.iter().find(|p| phase(p) == IDLE).unwrap();
     assert_eq!((idle.experiment, idle.period, idle.load_kg), (0, 0, 4.5));
     // Every command in mode Run: no fault.
     assert!(
-        held.iter().all(|c| c.mode == RUN),
+        held.iter().all(|c| mode(c) == RUN),
         "modes: {:?}",
         held.iter()
-            .map(|c| c.mode)
-            .collect::<std::collections::BTreeSet<_>>()
+            .map(|c| c.control_mode())
+            .collect::<std::collections::HashSet<_>>()
     );
     // The ramp-out: the bias falls smoothly from its 4 Nm plateau to 0.
     let ramp: Vec<_> = held
@@ -249,11 +258,11 @@ fn stop_ramps_out_and_holds_gravity_without_a_fault_and_start_continues() {
     let states = protocol.snapshot();
     let resumed = states
         .iter()
-        .find(|p| p.stamp_ns > idle_at && p.phase != IDLE);
+        .find(|p| p.stamp_ns > idle_at && phase(p) != IDLE);
     assert_eq!(resumed.map(key), Some((4, 1, RAMP_IN)));
     stop_all(procs);
     let c = answers(commands.finish());
-    assert!(c.iter().all(|c| c.mode == RUN));
+    assert!(c.iter().all(|c| mode(c) == RUN));
     assert!(
         c.iter().any(|c| c.stamp_ns > idle_at && c.tau_bias == 4.0),
         "the bias is back after the start"
@@ -288,10 +297,10 @@ fn start_5_ramps_out_and_runs_experiment_5() {
     assert!(states[..first5]
         .iter()
         .all(|p| p.experiment == 1 && p.period == 1));
-    assert!(states[..first5].iter().all(|p| p.phase != ANALYSIS));
+    assert!(states[..first5].iter().all(|p| phase(p) != ANALYSIS));
     let ramp_out_at = states[..first5]
         .iter()
-        .find(|p| p.phase == RAMP_OUT)
+        .find(|p| phase(p) == RAMP_OUT)
         .unwrap()
         .stamp_ns;
     assert_eq!(states[first5].stamp_ns - ramp_out_at, RAMP_OUT_NS);
@@ -299,7 +308,7 @@ fn start_5_ramps_out_and_runs_experiment_5() {
     let p = &states[first5];
     assert_eq!((p.alpha, p.bias_nm, p.omega), (2.0, 4.0, 3.0));
     let c = answers(commands.finish());
-    assert!(c.iter().all(|c| c.mode == RUN));
+    assert!(c.iter().all(|c| mode(c) == RUN));
     let log = sc.log("exo-controller");
     assert!(
         log.contains(
@@ -363,7 +372,7 @@ fn reset_clears_the_controllers_latched_fault() {
     let commands = sc.collect(COMMAND);
     let procs = start(&sc);
     commands.wait_for(WAIT, "the latched safe state", |c| {
-        c.iter().any(|c| c.mode == SAFE_GRAVITY)
+        c.iter().any(|c| mode(c) == SAFE_GRAVITY)
     });
     wait_for_log(&sc, "exo-controller", "safe state latched");
     // A start is refused while latched (exo op exits 1 with the
@@ -373,14 +382,14 @@ fn reset_clears_the_controllers_latched_fault() {
     wait_for_log(&sc, "exo-controller", "reset it first (ResetFault)");
     op(&sc, &["stop"]);
     protocol.wait_for(WAIT, "the stopped protocol", |p| {
-        p.iter().any(|p| p.phase == IDLE)
+        p.iter().any(|p| phase(p) == IDLE)
     });
     // Stopped, the simulated subject lowers the arm to rest (up to 9 Nm of
     // τ_c for a second or two): reset once it has settled, 5 s later.
     let idle_at = protocol
         .snapshot()
         .iter()
-        .find(|p| p.phase == IDLE)
+        .find(|p| phase(p) == IDLE)
         .unwrap()
         .stamp_ns;
     commands.wait_for(WAIT, "5 s of holding", |c| {
@@ -391,22 +400,22 @@ fn reset_clears_the_controllers_latched_fault() {
     assert!(log.contains("interaction torque"), "{log}");
     // Back in Run after the latch, holding gravity (stopped).
     commands.wait_for(WAIT, "3 s of commands in Run after the reset", |c| {
-        let Some(first) = c.iter().rposition(|c| c.mode == SAFE_GRAVITY) else {
+        let Some(first) = c.iter().rposition(|c| mode(c) == SAFE_GRAVITY) else {
             return false;
         };
         c[first..]
             .iter()
-            .any(|x| x.mode == RUN && x.stamp_ns >= c[first].stamp_ns + 3_000_000_000)
+            .any(|x| mode(x) == RUN && x.stamp_ns >= c[first].stamp_ns + 3_000_000_000)
     });
     stop_all(procs);
     let c = answers(commands.finish());
-    let latched = c.iter().position(|c| c.mode == SAFE_GRAVITY).unwrap();
-    let reset = latched + c[latched..].iter().position(|c| c.mode == RUN).unwrap();
-    assert!(c[..latched].iter().all(|c| c.mode == RUN));
-    assert!(c[latched..reset].iter().all(|c| c.mode == SAFE_GRAVITY));
+    let latched = c.iter().position(|c| mode(c) == SAFE_GRAVITY).unwrap();
+    let reset = latched + c[latched..].iter().position(|c| mode(c) == RUN).unwrap();
+    assert!(c[..latched].iter().all(|c| mode(c) == RUN));
+    assert!(c[latched..reset].iter().all(|c| mode(c) == SAFE_GRAVITY));
     // Stays unlatched: one latch in the whole run.
     for x in &c[reset..] {
-        assert_eq!(x.mode, RUN, "at sample {}", x.sensor_seq);
+        assert_eq!(mode(x), RUN, "at sample {}", x.sensor_seq);
         assert_eq!((x.tau_bias, x.tau_excitation), (0.0, 0.0));
         assert!(x.tau_gravity > 1.0);
     }
@@ -659,7 +668,7 @@ fn unknown_kinds_bad_values_and_repeated_seqs_are_refused_and_change_nothing() {
     let (a, b) = (commands(&c), commands(&c0));
     let mut compared = 0;
     for (seq, x) in &a {
-        assert_eq!(x.mode, ControlMode::Run.as_u32(), "command for {seq}");
+        assert_eq!(mode(x), RUN, "command for {seq}");
         let Some(y) = b.get(seq) else { continue };
         compared += usize::from(*seq > end - 5000);
         assert_eq!(

@@ -6,7 +6,7 @@
 
 use std::time::Duration;
 
-use exo_messages::{status, ControlMode};
+use exo_messages::{status, ControlMode, ProtocolPhase};
 use exo_service_kit::channels::{COMMAND, PROTOCOL, SENSOR};
 use exo_tests::*;
 
@@ -32,15 +32,18 @@ fn one_experiment_runs_end_to_end_through_the_launcher() {
     let protocol = protocol.finish();
     let commands = commands.finish();
     // Every phase of period 1 of experiment 1 was reported, with Table I's sine.
-    for phase in 1..=5u32 {
+    for phase in &ProtocolPhase::ALL[1..] {
         assert!(
             protocol
                 .iter()
-                .any(|p| p.experiment == 1 && p.period == 1 && p.phase == phase),
-            "phase {phase} never reported"
+                .any(|p| p.experiment == 1 && p.period == 1 && p.protocol_phase() == Some(*phase)),
+            "phase {phase:?} never reported"
         );
     }
-    let sine = protocol.iter().find(|p| p.phase == 3).unwrap();
+    let sine = protocol
+        .iter()
+        .find(|p| p.protocol_phase() == Some(ProtocolPhase::Analysis))
+        .unwrap();
     assert_eq!((sine.omega, sine.amplitude, sine.alpha), (2.0, 2.0, 1.0));
     // One command per sample, in order, none missing, all in Run mode with
     // finite torque. (A sample re-sent at start-up, before the controller was
@@ -56,11 +59,11 @@ fn one_experiment_runs_end_to_end_through_the_launcher() {
         );
         assert!(c.tau_d.is_finite() && c.tau_d.abs() <= 40.0);
     }
-    let (run, done) = (ControlMode::Run.as_u32(), ControlMode::Done.as_u32());
+    let (run, done) = (Some(ControlMode::Run), Some(ControlMode::Done));
     assert!(commands
         .iter()
-        .filter(|c| c.mode != done)
-        .all(|c| c.mode == run));
+        .filter(|c| c.control_mode() != done)
+        .all(|c| c.control_mode() == run));
     assert!(
         commands.iter().any(|c| c.tau_excitation.abs() > 1.9),
         "no excitation seen"
@@ -113,11 +116,17 @@ fn nan_reading_latches_the_safe_state() {
         .all(|s| s.status & status::FT_FAULT != 0));
     for c in &commands {
         assert!(c.tau_d.is_finite());
-        let expected = if c.sensor_seq < 3000 { 1 } else { 2 };
+        let expected = if c.sensor_seq < 3000 {
+            ControlMode::Run
+        } else {
+            ControlMode::SafeGravityOnly
+        };
         assert_eq!(
-            c.mode, expected,
+            c.control_mode(),
+            Some(expected),
             "command for sample {}: mode {}",
-            c.sensor_seq, c.mode
+            c.sensor_seq,
+            c.mode
         );
         if c.sensor_seq >= 3000 {
             assert_eq!(

@@ -53,7 +53,7 @@ struct Sink {
     events: Vec<Event>,
     delivery: Delivery,
     queue: VecDeque<(u64, ProtocolState)>,
-    last_key: Option<(u32, u32, u32)>,
+    last_key: Option<(u32, u32, Option<ProtocolPhase>)>,
     commands: bool,
 }
 
@@ -149,7 +149,7 @@ impl Stream {
     fn tick(&mut self, p: ProtocolState, c: ActuatorCommand, s: SensorSample) {
         let tick = self.tick;
         for sink in &mut self.sinks {
-            let key = (p.experiment, p.period, p.phase);
+            let key = (p.experiment, p.period, p.protocol_phase());
             match sink.delivery {
                 Delivery::EveryTick => sink.id.on_protocol(&p, &mut sink.events),
                 Delivery::OnChange { delay } => {
