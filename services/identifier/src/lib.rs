@@ -52,7 +52,7 @@ use std::collections::BTreeMap;
 use exo_impedance::frf::{average_bins, band_groups, sine_ratio, welch_h1, SineCorrelator};
 use exo_impedance::{
     exo_inertia_kg_m2, fit_power_law, fractional_order, paper_f_tests, recreate_coupled, Complex64,
-    DampingSign, ImpedanceModel, ModelComparison, ModelFit, PowerLawFit, StiffnessRange,
+    ImpedanceModel, ModelComparison, ModelFit, PowerLawFit, StiffnessRange,
 };
 use exo_messages::{
     status, ActuatorCommand, ControlMode, FitModel, FrfPoint, ImpedanceEstimate, ProtocolState,
@@ -60,7 +60,12 @@ use exo_messages::{
 };
 
 pub mod process;
+mod ring;
+mod settings;
 pub mod taken;
+
+use ring::{CommandCursor, Ring};
+pub use settings::{IdentifierSettings, KRangeSource, SettingsError};
 
 pub use exo_analysis::refit::{effective_alpha, fit_models, FitSource, ModelFitError};
 use exo_analysis::windows::{AnalysisWindow, Closing, WindowCutter};
@@ -80,185 +85,6 @@ pub const REJECT_BITS: u32 = status::FAULT_MASK | status::SAFE_STATE;
 /// excitation, no amplification), whatever the samples' status says. `Idle`
 /// is not one: writers that leave `mode` unset write 0.
 const COMMAND_IN_SAFE_STATE: u32 = 1;
-
-/// Where eq. f's stiffness range comes from.
-#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
-pub enum KRangeSource {
-    /// [`IdentifierSettings::k_range_nm_per_rad`] (the controller's range).
-    #[default]
-    Settings,
-    /// The smallest and largest M2 stiffness of the experiments so far.
-    Experiments,
-}
-
-/// Settings of the identifier.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct IdentifierSettings {
-    /// Control rate (Hz): one sample per tick. Sizes the rings; broadband
-    /// windows use the rate of their own time stamps.
-    pub rate_hz: f64,
-    /// Longest analysis window kept (s); longer windows keep their last part.
-    pub max_window_s: f64,
-    /// Exoskeleton inertia without load (kg·m²).
-    pub arm_inertia_kg_m2: f64,
-    /// Lever arm of the load (m): `M_e = arm + load · lever²`.
-    pub load_lever_arm_m: f64,
-    /// Guaranteed phase margin for eq. f (degrees).
-    pub phase_margin_deg: f64,
-    /// Stiffness range (Nm/rad) for eq. f when [`KRangeSource::Settings`].
-    pub k_range_nm_per_rad: [f64; 2],
-    /// Where eq. f's stiffness range comes from.
-    pub k_range_source: KRangeSource,
-    /// Bounds the recommended f is clamped to (within `[0, 1)`).
-    pub f_bounds: [f64; 2],
-    /// Which measured FRF the parameters are estimated from.
-    pub fit_source: FitSource,
-    /// Sign constraint on the damping terms of the fits.
-    pub damping: DampingSign,
-    /// Welch segment length (samples, a power of two ≥ 16) for broadband windows.
-    pub welch_segment: usize,
-    /// Points a broadband window is summarised into.
-    pub broadband_points: usize,
-    /// Smallest coherence of a broadband bin kept (0–1).
-    pub min_coherence: f64,
-    /// Smallest input power of a broadband bin kept, relative to the strongest bin.
-    pub min_rel_power: f64,
-    /// Band (rad/s) a broadband estimate is limited to.
-    pub broadband_band_rad_s: [f64; 2],
-    /// Fit a linear trend with the sinusoid in sine windows (slow drift).
-    pub detrend: bool,
-}
-
-impl Default for IdentifierSettings {
-    fn default() -> Self {
-        IdentifierSettings {
-            rate_hz: 1000.0,
-            max_window_s: 60.0,
-            arm_inertia_kg_m2: 0.1,
-            load_lever_arm_m: 0.45,
-            phase_margin_deg: 10.8,
-            k_range_nm_per_rad: [10.03, 108.33],
-            k_range_source: KRangeSource::Settings,
-            f_bounds: [0.0, 0.9],
-            fit_source: FitSource::CuffTorque,
-            damping: DampingSign::Free,
-            welch_segment: 4096,
-            broadband_points: 20,
-            min_coherence: 0.6,
-            min_rel_power: 1e-3,
-            broadband_band_rad_s: [1.0, 100.0],
-            detrend: true,
-        }
-    }
-}
-
-impl IdentifierSettings {
-    /// The identifier's settings for run `cfg`: its rate, the arm of its
-    /// rig (M_e), the controller's design range and f bounds; the rest
-    /// default.
-    pub fn of_run(cfg: &exo_config::RunConfig) -> Self {
-        IdentifierSettings {
-            rate_hz: cfg.run.rate_hz,
-            arm_inertia_kg_m2: cfg.rig.arm_inertia_kg_m2,
-            load_lever_arm_m: cfg.rig.load_lever_arm_m,
-            k_range_nm_per_rad: cfg.controller.k_range_nm_per_rad,
-            f_bounds: cfg.controller.f_bounds,
-            ..IdentifierSettings::default()
-        }
-    }
-}
-
-/// A setting the identifier cannot work with.
-#[derive(Debug, Clone, PartialEq, thiserror::Error)]
-#[error("identifier settings: {field} = {value}: {why}")]
-pub struct SettingsError {
-    /// The setting, e.g. `"rate_hz"`.
-    pub field: &'static str,
-    /// Its value.
-    pub value: f64,
-    /// What it must be.
-    pub why: &'static str,
-}
-
-impl IdentifierSettings {
-    /// Checks every setting (finite, positive where needed, ordered ranges).
-    pub fn validate(&self) -> Result<(), SettingsError> {
-        let err = |field, value, why| Err(SettingsError { field, value, why });
-        let positive = [
-            ("rate_hz", self.rate_hz),
-            ("max_window_s", self.max_window_s),
-            ("arm_inertia_kg_m2", self.arm_inertia_kg_m2),
-            ("phase_margin_deg", self.phase_margin_deg),
-            ("k_range_nm_per_rad[0]", self.k_range_nm_per_rad[0]),
-            ("broadband_band_rad_s[1]", self.broadband_band_rad_s[1]),
-        ];
-        for (field, v) in positive {
-            if !(v.is_finite() && v > 0.0) {
-                return err(field, v, "must be a finite number above zero");
-            }
-        }
-        let non_negative = [
-            ("load_lever_arm_m", self.load_lever_arm_m),
-            ("min_rel_power", self.min_rel_power),
-            ("broadband_band_rad_s[0]", self.broadband_band_rad_s[0]),
-        ];
-        for (field, v) in non_negative {
-            if !(v.is_finite() && v >= 0.0) {
-                return err(field, v, "must be a finite number, not negative");
-            }
-        }
-        if self.rate_hz * self.max_window_s > 1e8 {
-            return err(
-                "max_window_s",
-                self.max_window_s,
-                "rate_hz · max_window_s must stay below 1e8 samples",
-            );
-        }
-        if self.phase_margin_deg >= 90.0 {
-            return err(
-                "phase_margin_deg",
-                self.phase_margin_deg,
-                "must be below 90",
-            );
-        }
-        let [k_lo, k_hi] = self.k_range_nm_per_rad;
-        if !(k_hi.is_finite() && k_hi > k_lo) {
-            return err(
-                "k_range_nm_per_rad[1]",
-                k_hi,
-                "must be finite and above k_range_nm_per_rad[0]",
-            );
-        }
-        let [f_lo, f_hi] = self.f_bounds;
-        if !(f_lo.is_finite() && f_lo >= 0.0) {
-            return err("f_bounds[0]", f_lo, "must lie in [0, 1)");
-        }
-        if !(f_hi.is_finite() && f_hi >= f_lo && f_hi < 1.0) {
-            return err("f_bounds[1]", f_hi, "must lie in [f_bounds[0], 1)");
-        }
-        if !(self.min_coherence.is_finite() && (0.0..=1.0).contains(&self.min_coherence)) {
-            return err("min_coherence", self.min_coherence, "must lie in [0, 1]");
-        }
-        if self.broadband_band_rad_s[1] <= self.broadband_band_rad_s[0] {
-            return err(
-                "broadband_band_rad_s[1]",
-                self.broadband_band_rad_s[1],
-                "must be above broadband_band_rad_s[0]",
-            );
-        }
-        if !(self.welch_segment.is_power_of_two() && self.welch_segment >= 16) {
-            return err(
-                "welch_segment",
-                self.welch_segment as f64,
-                "must be a power of two, at least 16",
-            );
-        }
-        if self.broadband_points == 0 {
-            return err("broadband_points", 0.0, "must be at least 1");
-        }
-        Ok(())
-    }
-}
 
 /// What the identifier produced.
 #[derive(Debug, Clone, PartialEq)]
@@ -304,92 +130,6 @@ impl Event {
             Event::Warning(w) => tracing::warn!("identifier: {w}"),
             Event::RefitNote(w) => tracing::info!("identifier: {w}"),
         }
-    }
-}
-
-/// A fixed-capacity ring of time-stamped values, oldest overwritten.
-#[derive(Debug, Clone)]
-struct Ring<const N: usize> {
-    stamp: Vec<u64>,
-    values: Vec<[f64; N]>,
-    flags: Vec<u32>,
-    head: usize,
-    len: usize,
-}
-
-impl<const N: usize> Ring<N> {
-    fn new(capacity: usize) -> Self {
-        Ring {
-            stamp: vec![0; capacity],
-            values: vec![[0.0; N]; capacity],
-            flags: vec![0; capacity],
-            head: 0,
-            len: 0,
-        }
-    }
-
-    /// Allocation-free.
-    fn push(&mut self, stamp: u64, v: [f64; N], flags: u32) {
-        let cap = self.stamp.len();
-        let i = (self.head + self.len) % cap;
-        self.stamp[i] = stamp;
-        self.values[i] = v;
-        self.flags[i] = flags;
-        if self.len < cap {
-            self.len += 1;
-        } else {
-            self.head = (self.head + 1) % cap;
-        }
-    }
-
-    /// The `k`-th entry, oldest first.
-    fn get(&self, k: usize) -> (u64, [f64; N], u32) {
-        let i = (self.head + k) % self.stamp.len();
-        (self.stamp[i], self.values[i], self.flags[i])
-    }
-
-    /// Entries with `start <= stamp < end`, oldest first (no allocation).
-    fn window(&self, start: u64, end: u64) -> impl Iterator<Item = (u64, [f64; N], u32)> + '_ {
-        (0..self.len)
-            .map(|k| self.get(k))
-            .filter(move |(s, _, _)| *s >= start && *s < end)
-    }
-
-    fn latest(&self) -> Option<u64> {
-        (self.len > 0).then(|| self.get(self.len - 1).0)
-    }
-}
-
-/// Walks the command ring alongside increasing sample stamps: the command
-/// in force at a sample is the latest one stamped at or before it (the
-/// controller stamps each command with the stamp of the sample it answers).
-struct CommandCursor<'a> {
-    ring: &'a Ring<2>,
-    next: usize,
-    current: Option<(u64, [f64; 2])>,
-}
-
-impl<'a> CommandCursor<'a> {
-    fn new(ring: &'a Ring<2>) -> Self {
-        CommandCursor {
-            ring,
-            next: 0,
-            current: None,
-        }
-    }
-
-    /// `([τ_d, τ_gravity], exact)` in force at `stamp`; `exact` when the
-    /// command answers this very sample.
-    fn at(&mut self, stamp: u64) -> Option<([f64; 2], bool)> {
-        while self.next < self.ring.len {
-            let (s, v, _) = self.ring.get(self.next);
-            if s > stamp {
-                break;
-            }
-            self.current = Some((s, v));
-            self.next += 1;
-        }
-        self.current.map(|(s, v)| (v, s == stamp))
     }
 }
 
@@ -1016,29 +756,6 @@ impl Identifier {
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    #[test]
-    fn the_command_cursor_gives_the_latest_command_at_or_before_a_stamp() {
-        // A ring with room to spare, and a full one that has wrapped.
-        for (cap, pushes) in [(8, 2), (3, 5)] {
-            let mut ring = Ring::<2>::new(cap);
-            for i in 1..=pushes {
-                ring.push(10 * i, [i as f64, -(i as f64)], 0);
-            }
-            let oldest = 10 * (pushes - ring.len as u64 + 1);
-            let newest = 10 * pushes;
-            let mut c = CommandCursor::new(&ring);
-            assert_eq!(c.at(oldest - 5), None, "before every command");
-            let v = |s: u64| [(s / 10) as f64, -((s / 10) as f64)];
-            assert_eq!(c.at(oldest), Some((v(oldest), true)));
-            assert_eq!(c.at(oldest + 5), Some((v(oldest), false)));
-            assert_eq!(c.at(newest), Some((v(newest), true)));
-            // Past the last command: still the last one, not an unwritten
-            // or overwritten slot of the ring.
-            assert_eq!(c.at(newest + 5), Some((v(newest), false)));
-            assert_eq!(c.at(newest + 50), Some((v(newest), false)));
-        }
-    }
 
     #[test]
     fn fewer_than_nine_in_ten_commands_are_warned_about() {
