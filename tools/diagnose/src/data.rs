@@ -253,6 +253,12 @@ pub struct Observation {
     /// static balance's with each cycle counted as one sample,
     /// conservative): what the fits weight with.
     pub sigma: [f64; 2],
+    /// The line's own σ, without its window's transient (a single-sine
+    /// line whose transient the local polynomials estimated holds it in
+    /// [`Self::sigma`]); equal to `sigma` elsewhere. A describing function
+    /// is judged on these with the forward model's accuracy
+    /// ([`Dataset::held_to`]).
+    pub line_sigma: [f64; 2],
     /// The same with the window's transient taken out, where the window
     /// allows it: a single-sine line by the local polynomial method
     /// (`exo_impedance::frf::local_polynomial_ratio`; three cycles or more,
@@ -352,6 +358,19 @@ impl Dataset {
                 .filter(|o| matches!(o.tf, Tf::Sh | Tf::She))
                 .map(|o| self.conditions[o.window].experiment),
         )
+    }
+
+    /// The same data with every dynamic value held to at least `accuracy`
+    /// (fraction of `|value|`) and to its line's own σ: what a model whose forward model is a
+    /// describing function ([`crate::terms::Term::describing_function`]) is
+    /// fitted and tested on.
+    pub fn held_to(&self, accuracy: f64) -> Dataset {
+        let mut d = self.clone();
+        for o in d.observations.iter_mut().filter(|o| o.tf.is_dynamic()) {
+            o.sigma = o.line_sigma;
+            o.accuracy = o.accuracy.max(accuracy);
+        }
+        d
     }
 
     /// Observations of one transfer function.
@@ -659,6 +678,19 @@ pub fn smooth_transient(l: &LocalPolynomialPoint, line_sigma: [f64; 2]) -> bool 
     white > 0.0 && l.residual_sigma.powi(2) / white <= chi.inverse_cdf(0.99) / dof
 }
 
+/// The line's σ per component with its window's transient added as a
+/// variance: `leak` is the line less its transient-free value (the
+/// transient the local polynomials estimated at the line, with their own
+/// noise, `σ² (leverage − 1)`, taken off its square). The line stays the
+/// value (a nonlinear form's describing function); what the transient may
+/// add to it is its uncertainty, window by window, in place of a blanket
+/// floor (issue 30 item 3, trial of stop 34).
+fn with_transient(line_sigma: [f64; 2], leak: Complex64, leverage: f64) -> [f64; 2] {
+    let excess = (leverage - 1.0).max(0.0);
+    let add = |s: f64, d: f64| (s * s + (d * d - s * s * excess).max(0.0)).sqrt();
+    [add(line_sigma[0], leak.re), add(line_sigma[1], leak.im)]
+}
+
 fn sigma_of(cov: &[[f64; 2]; 2]) -> [f64; 2] {
     [cov[0][0].max(0.0).sqrt(), cov[1][1].max(0.0).sqrt()]
 }
@@ -742,7 +774,8 @@ fn single_sine(
                 // judgement's (docs/diagnose.md, "The noise model").
                 let lpm = whole
                     .and_then(|n| local_polynomial_ratio(&sig.t_s[..n], &xs[..n], &ys[..n], w));
-                let transient_free = lpm.filter(|l| smooth_transient(l, line_sigma)).map(|l| {
+                let smooth = lpm.filter(|l| smooth_transient(l, line_sigma));
+                let transient_free = smooth.map(|l| {
                     let inflate = l.leverage.max(1.0).sqrt();
                     TransientFree {
                         value: l.ratio,
@@ -760,13 +793,21 @@ fn single_sine(
                 // model's accuracy (its window's transient may reach it)
                 // and the quantiser (docs/diagnose.md, "The judgement by
                 // the measured noise").
+                let (sigma, floor) = match smooth {
+                    Some(l) => (
+                        with_transient(line_sigma, p.ratio - l.ratio, l.leverage),
+                        0.0,
+                    ),
+                    None => (line_sigma, crate::fit::MODEL_ACCURACY),
+                };
                 d.observations.push(Observation {
                     tf,
                     omega_rad_s: w,
                     value: p.ratio,
-                    sigma: line_sigma,
+                    sigma,
+                    line_sigma,
                     transient_free,
-                    accuracy: crate::fit::MODEL_ACCURACY.hypot(quantiser),
+                    accuracy: floor.hypot(quantiser),
                     window,
                     gravity_comp,
                     statics: [0.0; 2],
@@ -842,6 +883,7 @@ fn balance(
         omega_rad_s: 0.0,
         value: Complex64::new(mean, 0.0),
         sigma: [se, se],
+        line_sigma: [se, se],
         transient_free,
         accuracy: crate::fit::MODEL_ACCURACY,
         window,
@@ -920,6 +962,7 @@ fn broadband(
             omega_rad_s: b.omega_rad_s,
             value: b.h,
             sigma: sd(&b),
+            line_sigma: sd(&b),
             transient_free: None,
             accuracy: crate::fit::MODEL_ACCURACY,
             window,
@@ -936,6 +979,7 @@ fn broadband(
                             omega_rad_s: bb.omega_rad_s,
                             value: bb.h,
                             sigma: sd(&bb),
+                            line_sigma: sd(&bb),
                             transient_free: None,
                             accuracy: crate::fit::MODEL_ACCURACY,
                             window,
@@ -946,5 +990,33 @@ fn broadband(
                 }
             }
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// By hand: a line of σ 1 per component whose transient-free value is
+    /// 3 below it in the real part and equal in the imaginary, at leverage
+    /// 2 (the estimate's own noise σ²·(2 − 1) = 1): the real part's σ is
+    /// √(1 + 9 − 1) = 3, the imaginary part's stays 1 (a leak smaller than
+    /// the estimate's noise adds nothing). At leverage 1 the whole leak
+    /// counts.
+    #[test]
+    fn a_lines_transient_is_added_to_its_noise_less_the_estimates_own() {
+        let s = with_transient([1.0, 1.0], Complex64::new(3.0, 0.0), 2.0);
+        assert!(
+            (s[0] - 3.0).abs() < 1e-12 && (s[1] - 1.0).abs() < 1e-12,
+            "{s:?}"
+        );
+        let s = with_transient([2.0, 1.0], Complex64::new(0.0, -2.0), 1.0);
+        assert!((s[0] - 2.0).abs() < 1e-12, "{s:?}");
+        assert!((s[1] - 5f64.sqrt()).abs() < 1e-12, "{s:?}");
+        // A leverage below 1 is taken as 1.
+        assert_eq!(
+            with_transient([1.0, 1.0], Complex64::new(1.0, 1.0), 0.5),
+            with_transient([1.0, 1.0], Complex64::new(1.0, 1.0), 1.0)
+        );
     }
 }

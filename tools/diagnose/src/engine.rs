@@ -108,10 +108,41 @@ pub struct Score {
     pub heldout_rss: f64,
     /// χ² per degree of freedom against the measured noise and the model's accuracy.
     pub chi2_per_dof: f64,
-    /// P-value of the lack-of-fit χ² test (per transfer function, Bonferroni over them).
+    /// P-value of the lack-of-fit χ² test (per transfer function, Bonferroni
+    /// over them) of the transfer functions whose misfit beyond the noise is
+    /// larger than the forward model's accuracy ([`crate::fit::lack_of_fit`]):
+    /// what the materiality rule judges.
     pub lack_of_fit_p: f64,
+    /// The same test by the noise alone, every transfer function counted.
+    pub noise_p: f64,
+    /// The largest misfit beyond the noise, relative to the values
+    /// (`fit::excess_relative`; the static balance left out).
+    pub excess: f64,
     /// Free parameters.
     pub parameters: usize,
+}
+
+impl Score {
+    /// Why a model's misfit is no missing physics: within the measured noise,
+    /// or beyond it by less than the forward model's accuracy (the materiality
+    /// rule, [`crate::fit::lack_of_fit`]).
+    pub fn within_words(&self, level: f64, what: &str) -> String {
+        let sc = self;
+        if sc.noise_p < level {
+            format!(
+                "{what} is beyond the measured noise (χ²/dof {:.2}, p = {:.1e}) by {:.2} % of the values, within the forward model's accuracy ({:.1} %)",
+                sc.chi2_per_dof,
+                sc.noise_p,
+                100.0 * sc.excess,
+                100.0 * crate::fit::MODEL_ACCURACY
+            )
+        } else {
+            format!(
+                "{what} is within the measured noise (χ²/dof {:.2}, lack-of-fit p = {:.2})",
+                sc.chi2_per_dof, sc.noise_p
+            )
+        }
+    }
 }
 
 /// One cell of the located mismatch.
@@ -253,6 +284,11 @@ pub struct Candidate {
     pub untested: bool,
     /// Chosen at this step.
     pub chosen: bool,
+    /// Fitted and tested with every value held to the forward model's
+    /// accuracy, against the current model refitted so: a describing
+    /// function ([`Term::describing_function`]), or any term once the model
+    /// holds one.
+    pub held_to_model_accuracy: bool,
 }
 
 /// What a candidate does to one supported transfer function: its weighted
@@ -517,6 +553,9 @@ pub struct Diagnosis {
     /// model as the rig's timing within a tick, not as missing physics
     /// (docs/diagnose.md, "The judgement by the measured noise").
     pub within_tick: Vec<String>,
+    /// The family-wise false-alarm probability the tests were run at
+    /// ([`Settings::level`]).
+    pub level: f64,
     /// The final model's score.
     pub final_score: Score,
     /// The verdict in plain words.
@@ -596,11 +635,14 @@ fn score(d: &Dataset, start: &Physics, fitted: &Physics, free: &[Param]) -> Scor
     let (total, _) = rss(d, fitted, &|_, _| true);
     let (chi, n) = lack_of_fit_chi2(d, fitted);
     let dof = n as f64 - free.len() as f64;
+    let lof = lack_of_fit(d, fitted, free.len(), 0.0);
     Score {
         rss: total,
         heldout_rss: per_tf.iter().map(|t| t.heldout_rss).sum(),
         chi2_per_dof: chi / dof.max(1.0),
-        lack_of_fit_p: lack_of_fit_p(d, fitted, free.len()),
+        lack_of_fit_p: lof.p_value,
+        noise_p: lof.noise_p,
+        excess: lof.excess,
         parameters: free.len(),
         per_tf,
     }
@@ -1382,6 +1424,12 @@ type Row = (Candidate, Fitted, Physics, Vec<Param>);
 /// What every candidate of one step is fitted and judged against.
 struct StepContext<'a> {
     d: &'a Dataset,
+    /// `d` held to the forward model's accuracy: where a describing
+    /// function is fitted and tested ([`Term::describing_function`]).
+    d_floor: &'a Dataset,
+    /// Whether the model holds a describing function already: then every
+    /// candidate is fitted and tested on [`Self::d_floor`].
+    describing_in_model: bool,
     current: &'a Fitted,
     current_start: &'a Physics,
     current_ho: f64,
@@ -1403,7 +1451,25 @@ impl StepContext<'_> {
             self.z_tf,
         );
         let mut rows: Vec<Row> = Vec::new();
+        // The current model refitted on the data held to the forward
+        // model's accuracy, and its held-out RSS there: what a describing
+        // function is compared with (the same weights on both sides).
+        let floored = tried
+            .iter()
+            .any(|t| self.describing_in_model || t.describing_function())
+            .then(|| {
+                let f = fit(self.d_floor, &current.physics, &current.free, &|_, _| true);
+                let ho = heldout(self.d_floor, current_start, &current.free)
+                    .values()
+                    .sum::<f64>();
+                (f, ho)
+            });
         for &t in tried {
+            let held = self.describing_in_model || t.describing_function();
+            let (d, current, current_ho) = match (&floored, held) {
+                (Some((f, ho)), true) => (self.d_floor, f, *ho),
+                _ => (d, current, current_ho),
+            };
             let mut free = current.free.clone();
             let added = t.params(experiments);
             free.extend(added.iter().copied());
@@ -1476,6 +1542,7 @@ impl StepContext<'_> {
                     rejected_because: Vec::new(),
                     untested: false,
                     chosen: false,
+                    held_to_model_accuracy: held,
                 },
                 f1,
                 cstart,
@@ -1525,7 +1592,11 @@ impl StepContext<'_> {
                 if let Some(groups) = self.amp_groups {
                     let added = r.0.term.params(experiments);
                     let check = amplitude_check(
-                        d,
+                        if r.0.held_to_model_accuracy {
+                            self.d_floor
+                        } else {
+                            d
+                        },
                         &r.1,
                         groups,
                         &r.3,
@@ -1701,6 +1772,7 @@ pub fn diagnose(
     }
 
     let amp_groups = amplitude_groups(d);
+    let d_floor = d.held_to(crate::fit::MODEL_ACCURACY);
     // Stepwise search.
     let mut current: Fitted = base.clone();
     let mut current_start = p0.clone();
@@ -1744,6 +1816,8 @@ pub fn diagnose(
         }
         let ctx = StepContext {
             d,
+            d_floor: &d_floor,
+            describing_in_model: in_model.iter().any(|t| t.describing_function()),
             current: &current,
             current_start: &current_start,
             current_ho,
@@ -2049,14 +2123,13 @@ pub fn diagnose(
             verdict.extend(remains_words.iter().cloned());
         } else {
             verdict.push(format!(
-                "no missing physics{}: after the refit the model is within the measured noise (χ²/dof {:.2}, lack-of-fit p = {:.2})",
+                "no missing physics{}: after the refit {}",
                 if harmonic_words.is_empty() {
                     ""
                 } else {
                     " in the transfer functions"
                 },
-                final_score.chi2_per_dof,
-                final_score.lack_of_fit_p
+                final_score.within_words(s.level, "the model")
             ));
         }
     } else {
@@ -2082,7 +2155,7 @@ pub fn diagnose(
                     final_score.lack_of_fit_p
                 )
             } else {
-                "the rest is within the measured noise".to_string()
+                final_score.within_words(s.level, "the rest")
             }
         ));
         if beyond_noise(final_score.lack_of_fit_p) {
@@ -2109,6 +2182,7 @@ pub fn diagnose(
         steps,
         found,
         within_tick,
+        level: s.level,
         final_score,
         verdict,
         nominal_physics: p0,

@@ -95,6 +95,10 @@ pub fn model_accuracy(phys: &Physics, o: &Observation) -> f64 {
         // Its describing function leaves out the harmonics friction makes,
         // which reach every transfer function through the loop.
         COULOMB_ACCURACY
+    } else if describing_function(phys) && o.tf.is_dynamic() {
+        // A nonlinearity's describing function: accurate to the forward
+        // model's measured accuracy, not to the noise.
+        o.accuracy.max(MODEL_ACCURACY)
     } else if phys.sea.is_none() && o.tf.is_dynamic() {
         // An ideal actuator's stair-shaped torque, sampled at the end of
         // each hold (measured 0.8 %, `tests/it/forward.rs`).
@@ -102,6 +106,21 @@ pub fn model_accuracy(phys: &Physics, o: &Observation) -> f64 {
     } else {
         o.accuracy
     }
+}
+
+/// Whether `phys` holds a term whose forward model is a describing function
+/// ([`crate::terms::Term::describing_function`]; Coulomb friction has its
+/// own accuracy, and a drive's torque limit its exact clipped-sine gain).
+fn describing_function(phys: &Physics) -> bool {
+    use crate::terms::Term;
+    [
+        Term::CubicStiffness,
+        Term::CubicDamping,
+        Term::Backlash,
+        Term::PostureStiffness,
+    ]
+    .into_iter()
+    .any(|t| t.in_nominal(phys))
 }
 
 /// The lack-of-fit χ² of `phys`: residuals against the measured noise and
@@ -188,6 +207,12 @@ pub struct LackOfFit {
     pub beyond_noise: f64,
     /// The lack-of-fit χ² summed over the transfer functions.
     pub chi2: f64,
+    /// The same test as [`Self::p_value`] by the noise alone: every transfer
+    /// function counted, however small its misfit beyond the noise.
+    pub noise_p: f64,
+    /// The largest [`excess_relative`] over the transfer functions with
+    /// values that are not near zero (the static balance left out).
+    pub excess: f64,
 }
 
 impl LackOfFit {
@@ -206,17 +231,30 @@ impl LackOfFit {
 /// [`LackOfFit`] of `phys` with `p` free parameters at `level`.
 pub fn lack_of_fit(d: &Dataset, phys: &Physics, p: usize, level: f64) -> LackOfFit {
     let (_, n_all) = lack_of_fit_chi2(d, phys);
-    let mut worst: f64 = 1.0;
+    let (mut worst, mut noise_p, mut excess_max): (f64, f64, f64) = (1.0, 1.0, 0.0);
     let (mut beyond, mut total) = (0.0, 0.0);
     let tfs = d.supported.len().max(1) as f64;
     for &tf in &d.supported {
         let (chi, n) = lack_of_fit_chi2_of(d, phys, Some(tf));
         total += chi;
         let dof = n as f64 - p as f64 * n as f64 / n_all.max(1) as f64;
+        // Material only beyond the forward model's accuracy in size too (a
+        // static balance, whose values may be near zero, by its noise alone).
+        let excess = if tf == crate::data::Tf::Balance {
+            f64::INFINITY
+        } else {
+            let e = excess_relative(d, phys, tf);
+            excess_max = excess_max.max(e);
+            e
+        };
         if dof > 0.0 {
             if let Ok(dist) = statrs::distribution::ChiSquared::new(dof) {
                 use statrs::distribution::ContinuousCDF;
                 let p_tf = (tfs * dist.sf(chi)).min(1.0);
+                noise_p = noise_p.min(p_tf);
+                if excess <= MODEL_ACCURACY {
+                    continue;
+                }
                 worst = worst.min(p_tf);
                 if p_tf < level {
                     beyond += chi - dof;
@@ -228,6 +266,35 @@ pub fn lack_of_fit(d: &Dataset, phys: &Physics, p: usize, level: f64) -> LackOfF
         p_value: worst,
         beyond_noise: beyond,
         chi2: total,
+        noise_p,
+        excess: excess_max,
+    }
+}
+
+/// The size of `phys`'s misfit on transfer function `tf` beyond what the
+/// σ's of the lack-of-fit χ² account for, relative to the values: `√(max(Σ
+/// (|r|² − σ_re² − σ_im²), 0) / Σ |value|²)`. A misfit the noise cannot
+/// explain but smaller than the forward model's accuracy
+/// ([`MODEL_ACCURACY`]) is no missing physics.
+pub fn excess_relative(d: &Dataset, phys: &Physics, tf: crate::data::Tf) -> f64 {
+    let (mut excess, mut scale) = (0.0, 0.0);
+    for o in d.observations.iter().filter(|o| o.tf == tf) {
+        let acc = model_accuracy(phys, o) * o.value.norm();
+        let r = phys.predict(o, &d.conditions[o.window]) - o.value;
+        let fl = absolute_floor(o.tf);
+        excess += r.norm_sqr()
+            - o.sigma[0].hypot(acc).max(fl).powi(2)
+            - if tf.is_dynamic() {
+                o.sigma[1].hypot(acc).max(fl).powi(2)
+            } else {
+                0.0
+            };
+        scale += o.value.norm_sqr();
+    }
+    if scale > 0.0 {
+        (excess.max(0.0) / scale).sqrt()
+    } else {
+        0.0
     }
 }
 
@@ -419,6 +486,7 @@ mod tests {
             omega_rad_s: 3.0,
             value: Complex64::new(value, 0.0),
             sigma: [sigma; 2],
+            line_sigma: [sigma; 2],
             transient_free: None,
             accuracy,
             window: 0,
@@ -486,6 +554,71 @@ mod tests {
         assert!((all - want_sh - 4.0).abs() < 1e-6 * all, "{all}");
     }
 
+    /// The materiality rule by hand: 40 `S_h` values of one window, each
+    /// `bias` of the prediction's magnitude off it in its real part, with a
+    /// σ of 1e-4 of it and no accuracy of their own. A 0.2 % bias is 20 σ:
+    /// far beyond the noise (`noise_p` ≈ 0), yet its size beyond the noise,
+    /// `√((b² − 2σ²)/1)` of the values, is below the forward model's 0.5 %:
+    /// no missing physics (`p_value` 1, nothing beyond). A 1 % bias is
+    /// beyond both.
+    #[test]
+    fn a_misfit_is_material_only_beyond_the_noise_and_the_models_accuracy() {
+        let plant = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("../../configs/plants/default.toml");
+        let phys = Physics::from_plant(
+            &exo_plant_model::PlantModel::from_file(&plant).unwrap(),
+            &[1],
+        );
+        let c = crate::data::Condition {
+            experiment: 1,
+            period: 1,
+            load_kg: 0.0,
+            bias_nm: 0.0,
+            alpha: 1.0,
+            amplitude_nm: 2.0,
+            theta0_rad: 0.5,
+            theta_amp_rad: 0.1,
+            sin_theta_mean: 0.5f64.sin(),
+            tau_s_mean_nm: f64::NAN,
+            tau_c_mean_nm: 0.0,
+            command: None,
+            gravity: None,
+            sample_period_s: 0.001,
+            start_s: 0.0,
+            elapsed_s: 0.0,
+        };
+        let p = phys.predict(&observation(Tf::Sh, 0.0, 1.0, 0.0), &c);
+        let data = |bias: f64| {
+            let mut o = observation(Tf::Sh, 0.0, 1e-4 * p.norm(), 0.0);
+            o.value = Complex64::new(p.re + bias * p.norm(), p.im);
+            Dataset {
+                conditions: vec![c.clone()],
+                observations: vec![o; 40],
+                supported: vec![Tf::Sh],
+                ..Dataset::default()
+            }
+        };
+        for (bias, material) in [(0.002, false), (0.01, true)] {
+            let d = data(bias);
+            let v = d.observations[0].value.norm();
+            let sigma = 1e-4 * p.norm();
+            let want = ((bias * p.norm()).powi(2) - 2.0 * sigma * sigma).sqrt() / v;
+            let got = excess_relative(&d, &phys, Tf::Sh);
+            assert!(
+                (got - want).abs() < 1e-9,
+                "bias {bias}: {got} against {want}"
+            );
+            let l = lack_of_fit(&d, &phys, 0, 0.05);
+            assert!(l.noise_p < 1e-12, "bias {bias}: noise p {}", l.noise_p);
+            assert_eq!(l.excess, got);
+            if material {
+                assert!(l.p_value < 1e-12 && l.beyond_noise > 0.0, "{l:?}");
+            } else {
+                assert_eq!((l.p_value, l.beyond_noise), (1.0, 0.0), "{l:?}");
+            }
+        }
+    }
+
     /// Each value is held to its own systematic uncertainty; a model with
     /// Coulomb friction to 2.5 % at every dynamic transfer function, one
     /// with an ideal actuator to at least 1 %; the static balance to its
@@ -535,11 +668,15 @@ mod tests {
             p_value: 1e-6,
             beyond_noise: 40.0,
             chi2: 100.0,
+            noise_p: 1e-6,
+            excess: 0.02,
         };
         let after = |chi2: f64| LackOfFit {
             p_value: 0.5,
             beyond_noise: 0.0,
             chi2,
+            noise_p: 0.5,
+            excess: 0.0,
         };
         assert_eq!(before.explained_share(&after(90.0)), 0.25);
         assert_eq!(before.explained_share(&after(50.0)), 1.0);

@@ -102,6 +102,24 @@ impl Term {
     /// search over the transfer functions ([`crate::posture`]).
     pub const HARMONIC_FORMS: [Term; 1] = [Term::PostureStiffness];
 
+    /// Whether its forward model is a describing function (the response at
+    /// the excitation's frequency of a nonlinearity, its harmonics left
+    /// out): accurate to [`crate::fit::MODEL_ACCURACY`] (Coulomb friction
+    /// to [`crate::fit::COULOMB_ACCURACY`]), not to the noise, so it is
+    /// fitted and tested with every value held to that accuracy
+    /// ([`crate::data::Dataset::held_to`]).
+    pub fn describing_function(self) -> bool {
+        matches!(
+            self,
+            Term::CoulombFriction
+                | Term::ActuatorSaturation
+                | Term::CubicStiffness
+                | Term::CubicDamping
+                | Term::Backlash
+                | Term::PostureStiffness
+        )
+    }
+
     /// A generic form (not a named term of the catalogue).
     pub fn generic(self) -> bool {
         Term::FORMS.contains(&self) || Term::HARMONIC_FORMS.contains(&self)

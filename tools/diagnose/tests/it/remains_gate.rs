@@ -43,6 +43,7 @@ fn window(
         omega_rad_s: omega,
         value: Complex64::new(0.0, 0.0),
         sigma: [1.0; 2],
+        line_sigma: [1.0; 2],
         accuracy: exo_diagnose::fit::MODEL_ACCURACY,
         transient_free: None,
         window: i,
