@@ -32,31 +32,35 @@
 //! frame of that cycle, not the end of the master (ethercrab's own
 //! `tx_rx_task` stops for good at the first failed send, so a master on it
 //! cannot survive a pulled cable).
+//!
+//! Here the cyclic exchange; the bring-up in `bringup.rs`, the mapping
+//! resolved to offsets in `map.rs`, the hand-driven TX/RX loop in
+//! `pump.rs`, the raw socket in [`socket`], the errors ([`EthercatError`])
+//! in `error.rs`.
 
+mod bringup;
+mod error;
+mod map;
+mod pump;
 pub mod socket;
 
-use std::future::Future;
-use std::pin::pin;
-use std::task::{Context, Poll, Waker};
 use std::time::{Duration, Instant};
 
-use anyhow::{anyhow, bail, Context as _, Result};
 use ethercrab::subdevice_group::Op;
-use ethercrab::{
-    std::ethercat_now, MainDevice, MainDeviceConfig, PduRx, PduStorage, PduTx, SubDeviceGroup,
-    SubDeviceState, Timeouts,
-};
-use exo_config::{EthercatSettings, PdoEntry, PdoRole, PdoSettings};
+use ethercrab::{MainDevice, PduStorage, SubDeviceGroup, SubDeviceState};
 use exo_messages::bus_status;
 use exo_service_kit::{monotonic_ns, sleep_until_ns};
 use tracing::{error, info, warn};
+
+pub use error::EthercatError;
+use map::Map;
+use pump::Pump;
 
 use crate::cia402::{self, Cia402, Departure, Phase};
 use crate::{BusFault, HardwareBus, RawFrame, RoundTrip, RoundTripReport};
 
 /// Seconds of cycles left out of the timing statistics (bring-up, caches).
 const TIMING_WARMUP_S: f64 = 1.0;
-use socket::RawSocket;
 
 /// Devices on one bus this master handles.
 const MAX_SUBDEVICES: usize = 16;
@@ -68,177 +72,6 @@ const MAX_FRAMES: usize = 16;
 static PDU_STORAGE: PduStorage<MAX_FRAMES, { PduStorage::element_size(1100) }> = PduStorage::new();
 
 type OpGroup = SubDeviceGroup<MAX_SUBDEVICES, PDI_BYTES, ethercrab::DefaultLock, Op>;
-
-/// Errors of the cyclic exchange (the bring-up reports `anyhow` errors
-/// naming the run-file key).
-#[derive(Debug, thiserror::Error)]
-pub enum EthercatError {
-    /// ethercrab reported an error outside the cyclic exchange.
-    #[error("EtherCAT: {0}")]
-    Master(String),
-}
-
-/// One mapped value: where it sits in the process image, its width, its scale.
-#[derive(Debug, Clone, Copy, PartialEq)]
-struct Field {
-    offset: usize,
-    bits: u8,
-    scale: f64,
-}
-
-impl Field {
-    fn of(pdo: &PdoSettings, role: PdoRole) -> Option<Field> {
-        pdo.find(role).map(|(offset, e): (usize, PdoEntry)| Field {
-            offset,
-            bits: e.bits,
-            scale: e.scale.unwrap_or(1.0),
-        })
-    }
-
-    /// The value as a signed integer of its width (little-endian).
-    fn read(&self, image: &[u8]) -> i64 {
-        let b = |i: usize| image.get(self.offset + i).copied().unwrap_or(0);
-        match self.bits {
-            8 => i64::from(b(0) as i8),
-            16 => i64::from(i16::from_le_bytes([b(0), b(1)])),
-            _ => i64::from(i32::from_le_bytes([b(0), b(1), b(2), b(3)])),
-        }
-    }
-
-    /// Writes `value`, saturated to the width's range.
-    fn write(&self, image: &mut [u8], value: i64) {
-        let n = usize::from(self.bits / 8);
-        let (lo, hi) = self.range();
-        let bytes = value.clamp(lo, hi).to_le_bytes();
-        if let Some(dst) = image.get_mut(self.offset..self.offset + n) {
-            dst.copy_from_slice(&bytes[..n]);
-        }
-    }
-
-    fn range(&self) -> (i64, i64) {
-        match self.bits {
-            8 => (i64::from(i8::MIN), i64::from(i8::MAX)),
-            16 => (i64::from(i16::MIN), i64::from(i16::MAX)),
-            _ => (i64::from(i32::MIN), i64::from(i32::MAX)),
-        }
-    }
-}
-
-/// The run file's mapping resolved to offsets.
-#[derive(Debug, Clone, Copy)]
-struct Map {
-    controlword: Field,
-    mode: Option<Field>,
-    torque: Field,
-    statusword: Field,
-    position: Field,
-    velocity: Option<Field>,
-    torque_actual: Option<Field>,
-    error_code: Option<Field>,
-    sea: Option<Field>,
-    cuff: [Option<Field>; 6],
-    in_bytes: usize,
-    out_bytes: usize,
-}
-
-impl Map {
-    fn new(s: &EthercatSettings) -> Result<Map> {
-        let need = |pdo: &PdoSettings, role, key: &str| {
-            Field::of(pdo, role).ok_or_else(|| {
-                anyhow!(
-                    "{key}.entries: no entry with role = \"{}\"",
-                    exo_config::role_name(role)
-                )
-            })
-        };
-        let (rx, tx) = (&s.rx_pdo, &s.tx_pdo);
-        let rxk = "bus.ethercat.rx_pdo";
-        let txk = "bus.ethercat.tx_pdo";
-        Ok(Map {
-            controlword: need(rx, PdoRole::Controlword, rxk)?,
-            mode: Field::of(rx, PdoRole::ModeOfOperation),
-            torque: need(rx, PdoRole::TargetTorque, rxk)?,
-            statusword: need(tx, PdoRole::Statusword, txk)?,
-            position: need(tx, PdoRole::PositionActual, txk)?,
-            velocity: Field::of(tx, PdoRole::VelocityActual),
-            torque_actual: Field::of(tx, PdoRole::TorqueActual),
-            error_code: Field::of(tx, PdoRole::ErrorCode),
-            sea: Field::of(tx, PdoRole::SeaDeflection),
-            cuff: [
-                PdoRole::CuffFx,
-                PdoRole::CuffFy,
-                PdoRole::CuffFz,
-                PdoRole::CuffTx,
-                PdoRole::CuffTy,
-                PdoRole::CuffTz,
-            ]
-            .map(|r| Field::of(tx, r)),
-            in_bytes: tx.bytes(),
-            out_bytes: rx.bytes(),
-        })
-    }
-}
-
-/// Our TX/RX loop: ethercrab's frames over the raw socket.
-struct Pump {
-    socket: RawSocket,
-    tx: PduTx<'static>,
-    rx: PduRx<'static>,
-    buf: Box<[u8; 2048]>,
-    last_os_error: i32,
-}
-
-/// A frame that did not come back: the OS error of a failed send, if any.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-struct Lost {
-    os_error: i32,
-}
-
-impl Pump {
-    /// Sends every frame ethercrab has queued, then receives what comes
-    /// back within `wait`. `Err` when a send failed (link down).
-    fn pump(&mut self, wait: Duration) -> Result<(), Lost> {
-        while let Some(frame) = self.tx.next_sendable_frame() {
-            let socket = &self.socket;
-            let mut os_error = 0;
-            let sent = frame.send_blocking(|data| {
-                socket.send(data).map_err(|e| {
-                    os_error = e.raw_os_error().unwrap_or(-1);
-                    ethercrab::error::Error::SendFrame
-                })
-            });
-            if sent.is_err() {
-                self.last_os_error = os_error;
-                return Err(Lost { os_error });
-            }
-        }
-        let mut wait = wait;
-        while let Ok(Some(n)) = self.socket.recv(&mut self.buf[..], wait) {
-            // A frame that is not ours, or answers a frame given up on, is ignored.
-            let _ = self.rx.receive_frame(&self.buf[..n]);
-            wait = Duration::ZERO;
-        }
-        Ok(())
-    }
-
-    /// Drives `fut` to completion by hand, moving its frames, until
-    /// `deadline`; `Err` when it is not done by then or a send failed.
-    /// Dropping an unfinished ethercrab future releases its frame.
-    fn drive<F: Future>(&mut self, fut: F, deadline: Instant) -> Result<F::Output, Lost> {
-        let mut fut = pin!(fut);
-        let mut cx = Context::from_waker(Waker::noop());
-        loop {
-            if let Poll::Ready(v) = fut.as_mut().poll(&mut cx) {
-                return Ok(v);
-            }
-            let now = Instant::now();
-            if now >= deadline {
-                return Err(Lost { os_error: 0 });
-            }
-            self.pump((deadline - now).min(Duration::from_micros(500)))?;
-        }
-    }
-}
 
 /// What the drive reported last, beyond the raw frame (for logs and tests).
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
@@ -303,182 +136,6 @@ pub struct EthercatBus {
 }
 
 impl EthercatBus {
-    /// Brings the bus up and the drive to OP (not yet enabled: that
-    /// happens in the first cycles). Refuses, naming the run-file key, an
-    /// interface that cannot be opened, a bus without the device, a device
-    /// with another identity and a mapping the drive refuses or that does
-    /// not match its process image. Once per process (ethercrab's frame
-    /// storage is static).
-    pub fn open(s: &EthercatSettings, rate_hz: f64) -> Result<Self> {
-        let map = Map::new(s)?;
-        let socket = RawSocket::open(&s.interface)
-            .with_context(|| format!("bus.ethercat.interface = {:?}", s.interface))?;
-        let (tx, rx, pdu_loop) = PDU_STORAGE
-            .try_split()
-            .map_err(|()| anyhow!("the EtherCAT backend can be opened once per process"))?;
-        let md: &'static MainDevice<'static> = Box::leak(Box::new(MainDevice::new(
-            pdu_loop,
-            Timeouts {
-                pdu: Duration::from_millis(50),
-                state_transition: Duration::from_secs(5),
-                mailbox_response: Duration::from_secs(1),
-                ..Default::default()
-            },
-            MainDeviceConfig::default(),
-        )));
-        let mut pump = Pump {
-            socket,
-            tx,
-            rx,
-            buf: Box::new([0; 2048]),
-            last_os_error: 0,
-        };
-        let iface = &s.interface;
-        let soon = |secs| Instant::now() + Duration::from_secs(secs);
-        let group = pump
-            .drive(
-                md.init_single_group::<MAX_SUBDEVICES, PDI_BYTES>(ethercat_now),
-                soon(20),
-            )
-            .map_err(|l| lost_at_start(iface, l))?
-            .map_err(|e| {
-                anyhow!("bus.ethercat.interface = {iface:?}: no EtherCAT bus answered ({e})")
-            })?;
-        let position = usize::from(s.position);
-        if position >= group.len() {
-            bail!(
-                "bus.ethercat.position = {position}: the bus on {iface:?} has {} device(s)",
-                group.len()
-            );
-        }
-        {
-            let sd = group
-                .subdevice(md, position)
-                .map_err(|e| anyhow!("bus.ethercat.position = {position}: {e}"))?;
-            let id = sd.identity();
-            let name = sd.name();
-            for (key, want, got) in [
-                ("bus.ethercat.vendor_id", Some(s.vendor_id), id.vendor_id),
-                (
-                    "bus.ethercat.product_code",
-                    Some(s.product_code),
-                    id.product_id,
-                ),
-                ("bus.ethercat.revision", s.revision, id.revision),
-            ] {
-                if let Some(want) = want.filter(|w| *w != got) {
-                    bail!(
-                        "{key} = {want:#x}: the device at position {position} ({name:?}) reports {got:#x} in its SII \
-                         (vendor {:#x}, product {:#x}, revision {:#x}): not the drive this run file names",
-                        id.vendor_id,
-                        id.product_id,
-                        id.revision
-                    );
-                }
-            }
-            info!(
-                "sensor-driver: EtherCAT device {position} on {iface}: {name:?}, vendor {:#x}, product {:#x}, revision {:#x}",
-                id.vendor_id, id.product_id, id.revision
-            );
-            for (pdo, key) in [
-                (&s.rx_pdo, "bus.ethercat.rx_pdo"),
-                (&s.tx_pdo, "bus.ethercat.tx_pdo"),
-            ] {
-                check_objects(&mut pump, &sd, pdo, key)?;
-            }
-            if s.write_mapping {
-                for (pdo, assign, key) in [
-                    (&s.rx_pdo, 0x1C12u16, "bus.ethercat.rx_pdo"),
-                    (&s.tx_pdo, 0x1C13u16, "bus.ethercat.tx_pdo"),
-                ] {
-                    write_mapping(&mut pump, &sd, pdo, assign, key)?;
-                }
-            }
-            if map.mode.is_none() {
-                let sdo = sd.sdo_write(0x6060, 0, cia402::MODE_CST);
-                pump.drive(sdo, soon(2))
-                    .map_err(|l| lost_at_start(iface, l))?
-                    .map_err(|e| anyhow!("bus.ethercat.rx_pdo.entries: 0x6060 is not mapped and writing CST to it by SDO failed: {e}"))?;
-            }
-        }
-        let group = pump
-            .drive(group.into_op(md), soon(20))
-            .map_err(|l| lost_at_start(iface, l))?
-            .map_err(|e| {
-                anyhow!(
-                    "bus.ethercat.rx_pdo, bus.ethercat.tx_pdo: the drive did not reach OP with this mapping ({e})"
-                )
-            })?;
-        let mut expected_wkc = 0u16;
-        for sd in group.iter(md) {
-            let io = sd.io_raw();
-            expected_wkc +=
-                u16::from(!io.inputs().is_empty()) + 2 * u16::from(!io.outputs().is_empty());
-        }
-        {
-            let sd = group
-                .subdevice(md, position)
-                .map_err(|e| anyhow!("bus.ethercat.position = {position}: {e}"))?;
-            let io = sd.io_raw();
-            for (key, what, got, want) in [
-                (
-                    "bus.ethercat.tx_pdo.entries",
-                    "input",
-                    io.inputs().len(),
-                    map.in_bytes,
-                ),
-                (
-                    "bus.ethercat.rx_pdo.entries",
-                    "output",
-                    io.outputs().len(),
-                    map.out_bytes,
-                ),
-            ] {
-                if got != want {
-                    bail!("{key}: the mapping is {want} {what} bytes, the drive's process image {got}: the mapping does not fit this drive");
-                }
-            }
-        }
-        let pdu_timeout = Duration::from_secs_f64(s.pdu_timeout_ms(rate_hz) / 1000.0);
-        let quick_stop_cycles = (s.quick_stop_ms * rate_hz / 1000.0).ceil() as u32;
-        let mut cia = Cia402::new(quick_stop_cycles);
-        cia.enable(false);
-        info!(
-            "sensor-driver: EtherCAT drive in OP, {} input and {} output bytes, expected working counter {expected_wkc}, cycle {:.3} ms, PDU time-out {:?}",
-            map.in_bytes,
-            map.out_bytes,
-            1000.0 / rate_hz,
-            pdu_timeout
-        );
-        let torque_scale = map.torque.scale;
-        Ok(EthercatBus {
-            md,
-            group,
-            pump,
-            position,
-            map,
-            cia,
-            torque_scale,
-            period_ns: (1e9 / rate_hz).round() as u64,
-            pdu_timeout,
-            expected_wkc,
-            next_ns: 0,
-            seq: 0,
-            last: RawFrame::default(),
-            readings: DriveReadings::default(),
-            latched: None,
-            new_fault: None,
-            saw_disable: false,
-            counters: EthercatCounters::default(),
-            last_master_error: None,
-            announced_enabled: false,
-            exchange_time: RoundTrip::new(TIMING_WARMUP_S),
-            wake_lateness: RoundTrip::new(TIMING_WARMUP_S),
-            driver_part: RoundTrip::new(TIMING_WARMUP_S),
-            handed_over_ns: 0,
-        })
-    }
-
     /// What the drive reported last.
     pub fn readings(&self) -> DriveReadings {
         self.readings
@@ -593,106 +250,6 @@ fn al_code(s: SubDeviceState) -> u8 {
         SubDeviceState::Op => 8,
         SubDeviceState::Other(x) => x,
         SubDeviceState::None => 0,
-    }
-}
-
-/// Reads every object a PDO maps, by SDO, at the entry's width: an object
-/// the drive lacks (or of another width) is refused naming its entry.
-fn check_objects<S>(
-    pump: &mut Pump,
-    sd: &ethercrab::SubDeviceRef<'_, S>,
-    pdo: &PdoSettings,
-    key: &str,
-) -> Result<()>
-where
-    S: std::ops::Deref<Target = ethercrab::SubDevice>,
-{
-    for (i, e) in pdo.entries.iter().enumerate() {
-        let soon = Instant::now() + Duration::from_secs(2);
-        let (index, sub) = (e.index, e.subindex);
-        let read = match e.bits {
-            8 => pump
-                .drive(sd.sdo_read::<u8>(index, sub), soon)
-                .map(|r| r.map(drop)),
-            16 => pump
-                .drive(sd.sdo_read::<u16>(index, sub), soon)
-                .map(|r| r.map(drop)),
-            _ => pump
-                .drive(sd.sdo_read::<u32>(index, sub), soon)
-                .map(|r| r.map(drop)),
-        };
-        match read {
-            Ok(Ok(())) => {}
-            Ok(Err(err)) => bail!(
-                "{key}.entries[{i}]: the drive has no {}-bit object {index:#06x}:{sub} to map ({err})",
-                e.bits
-            ),
-            Err(_) => bail!("{key}.entries[{i}]: no answer to the SDO read of {index:#06x}:{sub}"),
-        }
-    }
-    Ok(())
-}
-
-/// Writes one PDO's mapping and assignment by SDO in PRE-OP (CiA 301).
-fn write_mapping<S>(
-    pump: &mut Pump,
-    sd: &ethercrab::SubDeviceRef<'_, S>,
-    pdo: &PdoSettings,
-    assign: u16,
-    key: &str,
-) -> Result<()>
-where
-    S: std::ops::Deref<Target = ethercrab::SubDevice>,
-{
-    let soon = || Instant::now() + Duration::from_secs(2);
-    let mut sdo = |what: String, index: u16, sub: u8, value: SdoValue| -> Result<()> {
-        let done = match value {
-            SdoValue::U8(v) => pump.drive(sd.sdo_write(index, sub, v), soon()),
-            SdoValue::U16(v) => pump.drive(sd.sdo_write(index, sub, v), soon()),
-            SdoValue::U32(v) => pump.drive(sd.sdo_write(index, sub, v), soon()),
-        };
-        match done {
-            Ok(Ok(())) => Ok(()),
-            Ok(Err(e)) => bail!("{what}: the drive refused {index:#06x}:{sub} ({e})"),
-            Err(_) => bail!("{what}: no answer to the SDO write of {index:#06x}:{sub}"),
-        }
-    };
-    sdo(format!("{key}.index"), assign, 0, SdoValue::U8(0))?;
-    sdo(format!("{key}.index"), pdo.index, 0, SdoValue::U8(0))?;
-    for (i, e) in pdo.entries.iter().enumerate() {
-        let word = (u32::from(e.index) << 16) | (u32::from(e.subindex) << 8) | u32::from(e.bits);
-        sdo(
-            format!("{key}.entries[{i}]"),
-            pdo.index,
-            (i + 1) as u8,
-            SdoValue::U32(word),
-        )?;
-    }
-    sdo(
-        format!("{key}.entries"),
-        pdo.index,
-        0,
-        SdoValue::U8(pdo.entries.len() as u8),
-    )?;
-    sdo(format!("{key}.index"), assign, 1, SdoValue::U16(pdo.index))?;
-    sdo(format!("{key}.index"), assign, 0, SdoValue::U8(1))?;
-    Ok(())
-}
-
-enum SdoValue {
-    U8(u8),
-    U16(u16),
-    U32(u32),
-}
-
-fn lost_at_start(iface: &str, l: Lost) -> anyhow::Error {
-    if l.os_error != 0 {
-        anyhow!(
-            "bus.ethercat.interface = {iface:?}: cannot send on it ({}); is it up?",
-            std::io::Error::from_raw_os_error(l.os_error)
-        )
-    } else {
-        anyhow!("bus.ethercat.interface = {iface:?}: no answer from the bus in time")
     }
 }
 
@@ -877,40 +434,5 @@ impl HardwareBus for EthercatBus {
             }
         }
         f
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn fields_read_and_write_little_endian_signed_and_saturate() {
-        let mut image = [0u8; 8];
-        let f16 = Field {
-            offset: 2,
-            bits: 16,
-            scale: 1.0,
-        };
-        f16.write(&mut image, -2);
-        assert_eq!(image[2..4], [0xFE, 0xFF]);
-        assert_eq!(f16.read(&image), -2);
-        f16.write(&mut image, 100_000);
-        assert_eq!(f16.read(&image), 32767, "saturated, not wrapped");
-        let f32_ = Field {
-            offset: 4,
-            bits: 32,
-            scale: 1.0,
-        };
-        f32_.write(&mut image, 0x0102_0304);
-        assert_eq!(image[4..8], [4, 3, 2, 1]);
-        let f8 = Field {
-            offset: 0,
-            bits: 8,
-            scale: 1.0,
-        };
-        f8.write(&mut image, -200);
-        assert_eq!(f8.read(&image), -128);
-        assert_eq!(image[2..4], [0xFF, 0x7F], "neighbours untouched");
     }
 }

@@ -30,7 +30,7 @@ use std::time::{Duration, Instant};
 use exo_config::RunConfig;
 use exo_messages::{bus_status, status, ActuatorCommand, OperatorCommand, OperatorCommandKind};
 use exo_sensor_driver::cia402::{DriveState, Phase};
-use exo_sensor_driver::ethercat::EthercatBus;
+use exo_sensor_driver::ethercat::{EthercatBus, EthercatError};
 use exo_sensor_driver::{BusFault, DriverNode, HardwareBus, SafetyEvent};
 use exo_tests::netns::{self, ip};
 use exo_tests::Scenario;
@@ -118,7 +118,7 @@ fn config() -> RunConfig {
 
 /// Opens the bus, retrying while the bridge's ports come up (the first
 /// frames of a fresh bridge can be dropped).
-fn open(cfg: &RunConfig) -> anyhow::Result<EthercatBus> {
+fn open(cfg: &RunConfig) -> Result<EthercatBus, EthercatError> {
     EthercatBus::open(cfg.bus.ethercat.as_ref().unwrap(), cfg.run.rate_hz)
 }
 
