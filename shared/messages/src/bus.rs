@@ -5,6 +5,7 @@
 //! sensor driver's calibration (counts → rad, wrench → joint torque) is the
 //! same code on hardware and in simulation.
 
+#[cfg(feature = "ipc")]
 use iceoryx2::prelude::ZeroCopySend;
 
 use crate::error::{check_abs, check_finite, check_flags, MessageError};
@@ -61,8 +62,12 @@ pub mod wrench {
 /// One raw frame from the hardware bus: plant simulator (or rig) → sensor driver.
 ///
 /// 88 bytes, 8-aligned, no implicit padding.
-#[derive(Debug, Clone, Copy, Default, PartialEq, ZeroCopySend)]
-#[type_name("exo.BusSensorFrame.v1")]
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+#[cfg_attr(
+    feature = "ipc",
+    derive(ZeroCopySend),
+    type_name("exo.BusSensorFrame.v1")
+)]
 #[repr(C)]
 pub struct BusSensorFrame {
     /// Frame sequence number (count), one per bus cycle.
@@ -139,8 +144,12 @@ impl BusSensorFrame {
 /// The motor torque command on the hardware bus: sensor driver → plant simulator (or rig).
 ///
 /// 40 bytes, 8-aligned, no implicit padding.
-#[derive(Debug, Clone, Copy, Default, PartialEq, ZeroCopySend)]
-#[type_name("exo.BusMotorCommand.v1")]
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+#[cfg_attr(
+    feature = "ipc",
+    derive(ZeroCopySend),
+    type_name("exo.BusMotorCommand.v1")
+)]
 #[repr(C)]
 pub struct BusMotorCommand {
     /// Command sequence number (count).

@@ -154,7 +154,7 @@ pub struct ChannelInfo {
     /// segment is the instance's name ([`Channel::service_name`]).
     pub topic: &'static str,
     /// Payload type name (the message's [`Message::TYPE_NAME`], which is the
-    /// `type_name` of its `ZeroCopySend` derive).
+    /// `type_name` of its `ZeroCopySend` derive with the feature `ipc`).
     pub payload: &'static str,
     /// Publishing process.
     pub publisher: ProcessName,

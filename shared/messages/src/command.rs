@@ -1,5 +1,6 @@
 //! The controller's command: controller → sensor driver, identifier, recorder.
 
+#[cfg(feature = "ipc")]
 use iceoryx2::prelude::ZeroCopySend;
 
 use crate::error::{check_abs, check_finite, MessageError};
@@ -87,8 +88,12 @@ impl From<ControlMode> for u32 {
 ///
 /// Recording contract: field names and order are fixed; 72 bytes, 8-aligned,
 /// no implicit padding.
-#[derive(Debug, Clone, Copy, Default, PartialEq, ZeroCopySend)]
-#[type_name("exo.ActuatorCommand.v1")]
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+#[cfg_attr(
+    feature = "ipc",
+    derive(ZeroCopySend),
+    type_name("exo.ActuatorCommand.v1")
+)]
 #[repr(C)]
 pub struct ActuatorCommand {
     /// Sequence number (count) of this command, one per answered sample.

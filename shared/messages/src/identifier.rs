@@ -5,6 +5,7 @@
 //! does not have are sent as 0 (with standard error 0), never NaN, so the
 //! messages stay finite.
 
+#[cfg(feature = "ipc")]
 use iceoryx2::prelude::ZeroCopySend;
 
 use crate::error::{check_finite, check_range, MessageError};
@@ -19,8 +20,8 @@ use crate::error::{check_finite, check_range, MessageError};
 ///   measured from the SEA torque (the *whole* `M_e`, whatever α is).
 ///
 /// 120 bytes, 8-aligned, no implicit padding.
-#[derive(Debug, Clone, Copy, Default, PartialEq, ZeroCopySend)]
-#[type_name("exo.FrfPoint.v2")]
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+#[cfg_attr(feature = "ipc", derive(ZeroCopySend), type_name("exo.FrfPoint.v2"))]
 #[repr(C)]
 pub struct FrfPoint {
     /// Sequence number (count) of this point.
@@ -124,8 +125,12 @@ impl FitModel {
 /// Unknown or absent values are 0.
 ///
 /// 176 bytes, 8-aligned, no implicit padding.
-#[derive(Debug, Clone, Copy, Default, PartialEq, ZeroCopySend)]
-#[type_name("exo.ImpedanceEstimate.v1")]
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+#[cfg_attr(
+    feature = "ipc",
+    derive(ZeroCopySend),
+    type_name("exo.ImpedanceEstimate.v1")
+)]
 #[repr(C)]
 pub struct ImpedanceEstimate {
     /// Sequence number (count) of this estimate.

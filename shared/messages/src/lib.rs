@@ -3,11 +3,14 @@
 //! Every sample the exo processes exchange over iceoryx2 shared memory, the
 //! one list of service names, and the IPC helpers every process uses.
 //!
-//! Each message is a `#[repr(C)]`, fixed-size, `Copy` struct deriving
-//! iceoryx2's [`ZeroCopySend`] with a stable,
-//! versioned `type_name` (`exo.<Type>.v<N>`; bump `N` whenever the layout
-//! changes), so a publisher writes it once into shared memory and every
-//! subscriber reads it in place. Padding is explicit (`_pad` fields, always
+//! Each message is a `#[repr(C)]`, fixed-size, `Copy` struct with a stable,
+//! versioned type name (`exo.<Type>.v<N>`, [`Message::TYPE_NAME`]; bump `N`
+//! whenever the layout changes). With the cargo feature `ipc` (off by
+//! default) each also derives iceoryx2's `ZeroCopySend` with that name as its
+//! `type_name`, so a publisher writes it once into shared memory and every
+//! subscriber reads it in place; only the crates that open channels enable it
+//! (`exo-service-kit`, `exo-pipeline-bench`), so the crates that only read or
+//! write recordings build without iceoryx2. Padding is explicit (`_pad` fields, always
 //! 0), so the layout tests pin every byte and the recording contract can
 //! mirror it. Every field's doc gives its unit.
 //!
@@ -35,7 +38,7 @@
 //! MCAP schema, and the processes' names) is here too, beside the payloads
 //! it names; the IPC helpers that open the channels live in
 //! `exo-service-kit` (`ipc`), so tools that read recordings need no iceoryx2
-//! node.
+//! node (nor, without the feature `ipc`, the iceoryx2 crate).
 
 #![deny(missing_docs)]
 
@@ -51,6 +54,7 @@ pub mod sensor;
 
 use core::fmt::Debug;
 
+#[cfg(feature = "ipc")]
 use iceoryx2::prelude::ZeroCopySend;
 
 pub use bus::{bus_status, wrench, BusLimits, BusMotorCommand, BusSensorFrame, MotorLimits};
@@ -63,12 +67,28 @@ pub use progress::OffPathProgress;
 pub use protocol::{ProtocolPhase, ProtocolState};
 pub use sensor::{status, SensorLimits, SensorSample};
 
-/// What every exo message is: a fixed-layout, shared-memory-safe sample with
-/// a stable type name and named floating-point fields.
-pub trait Message: ZeroCopySend + Copy + Debug + Default + PartialEq + Send + 'static {
-    /// The stable iceoryx2 type name (the `#[type_name]` of its `ZeroCopySend`
-    /// derive), e.g. `"exo.SensorSample.v1"`; iceoryx2 refuses to connect
-    /// ports whose type names, sizes or alignments differ.
+/// The shared-memory bound of a [`Message`]: iceoryx2's `ZeroCopySend` with
+/// the feature `ipc`, no bound without it (every type has it then).
+#[cfg(feature = "ipc")]
+pub trait Shareable: ZeroCopySend {}
+#[cfg(feature = "ipc")]
+impl<T: ZeroCopySend> Shareable for T {}
+
+/// The shared-memory bound of a [`Message`]: iceoryx2's `ZeroCopySend` with
+/// the feature `ipc`, no bound without it (every type has it then).
+#[cfg(not(feature = "ipc"))]
+pub trait Shareable {}
+#[cfg(not(feature = "ipc"))]
+impl<T> Shareable for T {}
+
+/// What every exo message is: a fixed-layout sample with a stable type name
+/// and named floating-point fields (and, with the feature `ipc`,
+/// shared-memory-safe: [`Shareable`]).
+pub trait Message: Shareable + Copy + Debug + Default + PartialEq + Send + 'static {
+    /// The stable type name, e.g. `"exo.SensorSample.v1"`; with the feature
+    /// `ipc` it is the `#[type_name]` of its `ZeroCopySend` derive, and
+    /// iceoryx2 refuses to connect ports whose type names, sizes or
+    /// alignments differ.
     const TYPE_NAME: &'static str;
     /// The Rust type name used in errors, e.g. `"SensorSample"`.
     const NAME: &'static str;
@@ -119,6 +139,7 @@ pub(crate) use impl_message;
 mod tests {
     use super::*;
 
+    #[cfg(feature = "ipc")]
     fn type_name_of<T: Message>() -> &'static str {
         // SAFETY: `type_name` only returns the string literal of the derive's
         // `#[type_name]` attribute; it has no preconditions for these types.
@@ -128,6 +149,7 @@ mod tests {
     #[test]
     fn derive_type_names_match_the_message_constants() {
         fn check<T: Message>() {
+            #[cfg(feature = "ipc")]
             assert_eq!(type_name_of::<T>(), T::TYPE_NAME);
             // exo.<Name>.v<layout version>; FrfPoint is at v2 (fields appended).
             let version = T::TYPE_NAME

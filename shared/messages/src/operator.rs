@@ -1,5 +1,6 @@
 //! Operator commands: operator console (the `exo` tool) → controller, sensor driver.
 
+#[cfg(feature = "ipc")]
 use iceoryx2::prelude::ZeroCopySend;
 
 use crate::error::{check_finite, check_range, MessageError};
@@ -128,8 +129,12 @@ impl SeenSeqs {
 /// A command from the operator.
 ///
 /// 32 bytes, 8-aligned, no implicit padding.
-#[derive(Debug, Clone, Copy, Default, PartialEq, ZeroCopySend)]
-#[type_name("exo.OperatorCommand.v1")]
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+#[cfg_attr(
+    feature = "ipc",
+    derive(ZeroCopySend),
+    type_name("exo.OperatorCommand.v1")
+)]
 #[repr(C)]
 pub struct OperatorCommand {
     /// Sequence number (count); receivers act on each `seq` once.
@@ -232,8 +237,12 @@ pub const REPLY_TEXT_BYTES: usize = 240;
 /// [`REPLY_TEXT_BYTES`]).
 ///
 /// 280 bytes, 8-aligned, no implicit padding.
-#[derive(Debug, Clone, Copy, PartialEq, ZeroCopySend)]
-#[type_name("exo.OperatorReply.v1")]
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(
+    feature = "ipc",
+    derive(ZeroCopySend),
+    type_name("exo.OperatorReply.v1")
+)]
 #[repr(C)]
 pub struct OperatorReply {
     /// The answered command's `seq`.

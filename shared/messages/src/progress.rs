@@ -11,6 +11,7 @@
 //! behind. In real time nobody reads them: control never waits, and what
 //! the recorder misses it counts and names (`exo.drops`).
 
+#[cfg(feature = "ipc")]
 use iceoryx2::prelude::ZeroCopySend;
 
 /// How far a process off the control path has taken the run. The
@@ -22,8 +23,12 @@ use iceoryx2::prelude::ZeroCopySend;
 /// the frames whose sample and the command answering it it has taken.
 ///
 /// 40 bytes, 8-aligned, no implicit padding.
-#[derive(Debug, Clone, Copy, Default, PartialEq, ZeroCopySend)]
-#[type_name("exo.OffPathProgress.v1")]
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+#[cfg_attr(
+    feature = "ipc",
+    derive(ZeroCopySend),
+    type_name("exo.OffPathProgress.v1")
+)]
 #[repr(C)]
 pub struct OffPathProgress {
     /// Progress message sequence number (count), from 0 in each recorder

@@ -1,5 +1,6 @@
 //! Where the identification protocol is: controller → plant simulator, identifier, recorder.
 
+#[cfg(feature = "ipc")]
 use iceoryx2::prelude::ZeroCopySend;
 
 use crate::error::{check_finite, check_range, MessageError};
@@ -80,8 +81,12 @@ pub const MAX_PERIOD: u32 = 10;
 ///
 /// Recording contract: field names and order are fixed; 72 bytes, 8-aligned,
 /// no implicit padding.
-#[derive(Debug, Clone, Copy, Default, PartialEq, ZeroCopySend)]
-#[type_name("exo.ProtocolState.v1")]
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+#[cfg_attr(
+    feature = "ipc",
+    derive(ZeroCopySend),
+    type_name("exo.ProtocolState.v1")
+)]
 #[repr(C)]
 pub struct ProtocolState {
     /// Experiment number (1–9, Table I); 0 when none is running.

@@ -1,5 +1,6 @@
 //! The calibrated sensor sample: sensor driver → controller, identifier, recorder.
 
+#[cfg(feature = "ipc")]
 use iceoryx2::prelude::ZeroCopySend;
 
 use crate::error::{check_abs, check_finite, check_flags, check_range, MessageError};
@@ -49,8 +50,12 @@ pub mod status {
 ///
 /// Recording contract: field names and order are fixed; 56 bytes, 8-aligned,
 /// no implicit padding.
-#[derive(Debug, Clone, Copy, Default, PartialEq, ZeroCopySend)]
-#[type_name("exo.SensorSample.v1")]
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+#[cfg_attr(
+    feature = "ipc",
+    derive(ZeroCopySend),
+    type_name("exo.SensorSample.v1")
+)]
 #[repr(C)]
 pub struct SensorSample {
     /// Sequence number (count), incremented by one per control tick; a gap means lost samples.
