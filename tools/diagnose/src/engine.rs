@@ -1347,12 +1347,17 @@ fn not_named(steps: &[Step]) -> Vec<String> {
     let Some(last) = steps.last() else {
         return Vec::new();
     };
+    // Up to three of each family tried at the last step (the catalogue,
+    // the generic forms): each was its own Holm family.
     steps
         .iter()
         .filter(|s| s.step == last.step)
-        .flat_map(|s| s.candidates.iter())
-        .filter(|c| !c.chosen && c.significant && !c.rejected_because.is_empty())
-        .take(3)
+        .flat_map(|s| {
+            s.candidates
+                .iter()
+                .filter(|c| !c.chosen && c.significant && !c.rejected_because.is_empty())
+                .take(3)
+        })
         .map(|c| {
             format!(
                 "not named: {} (F = {:.1}, would explain {:.0} % of the misfit): {}",
@@ -2092,7 +2097,11 @@ pub fn diagnose(
     verdict.extend(within_tick.iter().map(|w| {
         format!("the rig's timing, taken into the model and not named as missing physics: {w}")
     }));
-    let remains = crate::remains::characterise(d, &current.physics, s.level);
+    // What remains is described against the lines' own noise and the
+    // forward model's accuracy (the materiality rule's size): a strongly
+    // nonlinear response that the local polynomials took for a transient
+    // would otherwise widen the very values that show it.
+    let remains = crate::remains::characterise(&d_floor, &current.physics, s.level);
     // Where structure remains, how it depends on amplitude and operating
     // point (only the significant findings, or that one amplitude cannot tell).
     let remains_words: Vec<String> = remains
@@ -2198,6 +2207,94 @@ pub fn diagnose(
 mod tests {
     use super::*;
     use crate::data::Condition;
+
+    /// The verdict's "not named" lines: of the last step only, up to three
+    /// of each family tried there (four significant, rejected catalogue
+    /// terms and two such forms give 3 + 2 lines), never a chosen one, one
+    /// not significant or one without a reason.
+    #[test]
+    fn not_named_lists_three_of_each_family_of_the_last_step() {
+        let cand = |term: Term, significant: bool, chosen: bool, why: &[&str]| Candidate {
+            term,
+            words: term.words(),
+            added_parameters: 1,
+            f: 10.0,
+            f_critical: 5.0,
+            p_value: 1e-3,
+            p_holm: 1e-3,
+            delta_aic: -5.0,
+            heldout_change: -0.1,
+            description: String::new(),
+            identified: true,
+            tf_checks: Vec::new(),
+            within_window_check: None,
+            harmonic_check: None,
+            explained_share: 0.5,
+            amplitude_check: None,
+            significant,
+            rejected_because: why.iter().map(|w| w.to_string()).collect(),
+            untested: false,
+            chosen,
+            held_to_model_accuracy: false,
+        };
+        let catalogue = [
+            Term::EncoderDelay,
+            Term::CuffCompliance,
+            Term::InertiaError,
+            Term::GravityError,
+        ];
+        let step = |n: usize, forms: bool, c: Vec<Candidate>| Step {
+            step: n,
+            forms,
+            candidates: c,
+        };
+        let steps = vec![
+            // An earlier step: never listed.
+            step(
+                1,
+                false,
+                vec![cand(Term::SeaSensorGain, true, false, &["earlier"])],
+            ),
+            step(
+                2,
+                false,
+                catalogue
+                    .iter()
+                    .map(|&t| cand(t, true, false, &["why"]))
+                    .chain([
+                        cand(Term::ActuatorDelay, true, true, &[]),
+                        cand(Term::CuffSensorGain, false, false, &["not significant"]),
+                        cand(Term::SeaSensorDelay, true, false, &[]),
+                    ])
+                    .collect(),
+            ),
+            step(
+                2,
+                true,
+                vec![
+                    cand(Term::CubicStiffness, true, false, &["harmonic"]),
+                    cand(Term::Backlash, true, false, &["amplitude"]),
+                ],
+            ),
+        ];
+        let lines = not_named(&steps);
+        let want: Vec<String> = catalogue[..3]
+            .iter()
+            .map(|t| (t, "why"))
+            .chain([
+                (&Term::CubicStiffness, "harmonic"),
+                (&Term::Backlash, "amplitude"),
+            ])
+            .map(|(t, why)| {
+                format!(
+                    "not named: {} (F = 10.0, would explain 50 % of the misfit): {why}",
+                    t.words()
+                )
+            })
+            .collect();
+        assert_eq!(lines, want);
+        assert!(not_named(&[]).is_empty());
+    }
 
     /// A delay is timing only while every delay the term fits is shorter
     /// than the recordings' longest sample period (two windows: 1 ms and
