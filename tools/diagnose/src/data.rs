@@ -1013,10 +1013,43 @@ mod tests {
         let s = with_transient([2.0, 1.0], Complex64::new(0.0, -2.0), 1.0);
         assert!((s[0] - 2.0).abs() < 1e-12, "{s:?}");
         assert!((s[1] - 5f64.sqrt()).abs() < 1e-12, "{s:?}");
-        // A leverage below 1 is taken as 1.
+        // A leverage below 1 is taken as 1 (and the estimate's noise as none).
         assert_eq!(
             with_transient([1.0, 1.0], Complex64::new(1.0, 1.0), 0.5),
             with_transient([1.0, 1.0], Complex64::new(1.0, 1.0), 1.0)
         );
+    }
+
+    /// Held to an accuracy: every dynamic value to its line's own σ and at
+    /// least that accuracy (a coarser one of its own kept), the static
+    /// balance as it was; the values themselves unchanged.
+    #[test]
+    fn data_held_to_an_accuracy_take_their_lines_own_sigma_and_the_floor() {
+        let o = |tf: Tf, accuracy: f64| Observation {
+            tf,
+            omega_rad_s: 3.0,
+            value: Complex64::new(10.0, 1.0),
+            sigma: [2.0, 3.0],
+            line_sigma: [0.5, 0.7],
+            transient_free: None,
+            accuracy,
+            window: 0,
+            gravity_comp: Complex64::new(0.0, 0.0),
+            statics: [0.0; 2],
+        };
+        let d = Dataset {
+            observations: vec![o(Tf::Sh, 0.0), o(Tf::Sea, 0.02), o(Tf::Balance, 0.0)],
+            ..Dataset::default()
+        };
+        let h = d.held_to(0.005);
+        assert_eq!(h.observations.len(), 3);
+        assert_eq!(h.observations[0].sigma, [0.5, 0.7]);
+        assert_eq!(h.observations[0].accuracy, 0.005);
+        assert_eq!(h.observations[1].sigma, [0.5, 0.7]);
+        assert_eq!(h.observations[1].accuracy, 0.02);
+        assert_eq!(h.observations[2], d.observations[2]);
+        for (a, b) in h.observations.iter().zip(&d.observations) {
+            assert_eq!(a.value, b.value);
+        }
     }
 }

@@ -658,6 +658,21 @@ mod tests {
         let coarse = observation(Tf::Sh, 100.0, 0.3, 0.02);
         assert_eq!(model_accuracy(&ideal, &coarse), 0.02);
         assert_eq!(model_accuracy(&ideal, &balance), 0.0);
+        // A describing function's physics: every dynamic value to at least
+        // the forward model's accuracy, the balance to its own.
+        for set in [
+            |p: &mut Physics| p.k3 = 120.0,
+            |p: &mut Physics| p.b3 = 0.1,
+            |p: &mut Physics| p.lash_half_rad = 0.02,
+            |p: &mut Physics| p.k2 = 15.0,
+        ] {
+            let mut nl = base.clone();
+            set(&mut nl);
+            assert_eq!(model_accuracy(&nl, &free), MODEL_ACCURACY, "{nl:?}");
+            assert_eq!(model_accuracy(&nl, &sea), MODEL_ACCURACY);
+            assert_eq!(model_accuracy(&nl, &coarse), 0.02);
+            assert_eq!(model_accuracy(&nl, &balance), 0.0);
+        }
     }
 
     /// A term's share is its fall of χ² over the misfit beyond the noise

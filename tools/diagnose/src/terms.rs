@@ -563,3 +563,31 @@ pub fn value_pm(v: f64, se: Option<f64>, digits: usize, unit: &str) -> String {
         ),
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::Term;
+
+    /// The terms whose forward model is a describing function, by name:
+    /// the nonlinearities (friction, the torque limit, the polynomial
+    /// spring, the cubic damper, backlash, the posture form); every linear
+    /// term of the catalogue and the drift (a linear model per window) not.
+    #[test]
+    fn the_describing_functions_are_the_nonlinear_terms() {
+        let nonlinear = [
+            Term::CoulombFriction,
+            Term::ActuatorSaturation,
+            Term::CubicStiffness,
+            Term::CubicDamping,
+            Term::Backlash,
+            Term::PostureStiffness,
+        ];
+        for t in Term::ALL
+            .iter()
+            .chain(&Term::FORMS)
+            .chain(&Term::HARMONIC_FORMS)
+        {
+            assert_eq!(t.describing_function(), nonlinear.contains(t), "{t:?}");
+        }
+    }
+}
