@@ -1013,6 +1013,9 @@ mod tests {
         let s = with_transient([2.0, 1.0], Complex64::new(0.0, -2.0), 1.0);
         assert!((s[0] - 2.0).abs() < 1e-12, "{s:?}");
         assert!((s[1] - 5f64.sqrt()).abs() < 1e-12, "{s:?}");
+        // At leverage 3 the estimate's noise is 2σ²: √(1 + 9 − 2) = √8.
+        let s = with_transient([1.0, 1.0], Complex64::new(3.0, 0.0), 3.0);
+        assert!((s[0] - 8f64.sqrt()).abs() < 1e-12, "{s:?}");
         // A leverage below 1 is taken as 1 (and the estimate's noise as none).
         assert_eq!(
             with_transient([1.0, 1.0], Complex64::new(1.0, 1.0), 0.5),

@@ -2208,6 +2208,35 @@ mod tests {
     use super::*;
     use crate::data::Condition;
 
+    /// Why a misfit is no missing physics, in words: within the noise
+    /// (its test's p at or above the level), or beyond it by less than the
+    /// forward model's accuracy (the excess and the accuracy in %).
+    #[test]
+    fn a_misfit_within_the_noise_or_the_accuracy_is_said_so() {
+        let score = |noise_p: f64| Score {
+            per_tf: Vec::new(),
+            rss: 1.0,
+            heldout_rss: 1.0,
+            chi2_per_dof: 1.14,
+            lack_of_fit_p: 1.0,
+            noise_p,
+            excess: 0.0021,
+            parameters: 3,
+        };
+        assert_eq!(
+            score(0.2).within_words(0.05, "the rest"),
+            "the rest is within the measured noise (χ²/dof 1.14, lack-of-fit p = 0.20)"
+        );
+        assert_eq!(
+            score(0.01).within_words(0.05, "the model"),
+            "the model is beyond the measured noise (χ²/dof 1.14, p = 1.0e-2) by 0.21 % of the values, within the forward model's accuracy (0.5 %)"
+        );
+        // At the level itself: not beyond.
+        assert!(score(0.05)
+            .within_words(0.05, "x")
+            .starts_with("x is within"));
+    }
+
     /// The verdict's "not named" lines: of the last step only, up to three
     /// of each family tried there (four significant, rejected catalogue
     /// terms and two such forms give 3 + 2 lines), never a chosen one, one
