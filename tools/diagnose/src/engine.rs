@@ -2287,15 +2287,16 @@ mod tests {
             step(
                 2,
                 false,
-                catalogue
-                    .iter()
-                    .map(|&t| cand(t, true, false, &["why"]))
-                    .chain([
-                        cand(Term::ActuatorDelay, true, true, &[]),
-                        cand(Term::CuffSensorGain, false, false, &["not significant"]),
-                        cand(Term::SeaSensorDelay, true, false, &[]),
-                    ])
-                    .collect(),
+                // The ones never listed first, so that the three taken
+                // are the right three.
+                [
+                    cand(Term::ActuatorDelay, true, true, &["chosen"]),
+                    cand(Term::CuffSensorGain, false, false, &["not significant"]),
+                    cand(Term::SeaSensorDelay, true, false, &[]),
+                ]
+                .into_iter()
+                .chain(catalogue.iter().map(|&t| cand(t, true, false, &["why"])))
+                .collect(),
             ),
             step(
                 2,
