@@ -480,6 +480,28 @@ mod tests {
     use crate::data::Tf;
     use num_complex::Complex64;
 
+    /// One window of experiment 1 at 0.5 rad, 0.1 rad of swing, 1 kHz.
+    fn window() -> crate::data::Condition {
+        crate::data::Condition {
+            experiment: 1,
+            period: 1,
+            load_kg: 0.0,
+            bias_nm: 0.0,
+            alpha: 1.0,
+            amplitude_nm: 2.0,
+            theta0_rad: 0.5,
+            theta_amp_rad: 0.1,
+            sin_theta_mean: 0.5f64.sin(),
+            tau_s_mean_nm: f64::NAN,
+            tau_c_mean_nm: 0.0,
+            command: None,
+            gravity: None,
+            sample_period_s: 0.001,
+            start_s: 0.0,
+            elapsed_s: 0.0,
+        }
+    }
+
     fn observation(tf: Tf, value: f64, sigma: f64, accuracy: f64) -> Observation {
         Observation {
             tf,
@@ -508,24 +530,7 @@ mod tests {
             &exo_plant_model::PlantModel::from_file(&plant).unwrap(),
             &[1],
         );
-        let c = crate::data::Condition {
-            experiment: 1,
-            period: 1,
-            load_kg: 0.0,
-            bias_nm: 0.0,
-            alpha: 1.0,
-            amplitude_nm: 2.0,
-            theta0_rad: 0.5,
-            theta_amp_rad: 0.1,
-            sin_theta_mean: 0.5f64.sin(),
-            tau_s_mean_nm: f64::NAN,
-            tau_c_mean_nm: 0.0,
-            command: None,
-            gravity: None,
-            sample_period_s: 0.001,
-            start_s: 0.0,
-            elapsed_s: 0.0,
-        };
+        let c = window();
         let mut sh = observation(Tf::Sh, 0.0, 0.3, MODEL_ACCURACY);
         let p = phys.predict(&sh, &c);
         sh.value = Complex64::new(p.re + 0.02 * p.norm(), p.im + 0.01 * p.norm());
@@ -569,24 +574,7 @@ mod tests {
             &exo_plant_model::PlantModel::from_file(&plant).unwrap(),
             &[1],
         );
-        let c = crate::data::Condition {
-            experiment: 1,
-            period: 1,
-            load_kg: 0.0,
-            bias_nm: 0.0,
-            alpha: 1.0,
-            amplitude_nm: 2.0,
-            theta0_rad: 0.5,
-            theta_amp_rad: 0.1,
-            sin_theta_mean: 0.5f64.sin(),
-            tau_s_mean_nm: f64::NAN,
-            tau_c_mean_nm: 0.0,
-            command: None,
-            gravity: None,
-            sample_period_s: 0.001,
-            start_s: 0.0,
-            elapsed_s: 0.0,
-        };
+        let c = window();
         let p = phys.predict(&observation(Tf::Sh, 0.0, 1.0, 0.0), &c);
         let data = |bias: f64| {
             let mut o = observation(Tf::Sh, 0.0, 1e-4 * p.norm(), 0.0);
