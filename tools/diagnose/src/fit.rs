@@ -480,6 +480,16 @@ mod tests {
     use crate::data::Tf;
     use num_complex::Complex64;
 
+    /// The default plant's physics for experiment 1.
+    fn default_physics() -> Physics {
+        let plant = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("../../configs/plants/default.toml");
+        Physics::from_plant(
+            &exo_plant_model::PlantModel::from_file(&plant).unwrap(),
+            &[1],
+        )
+    }
+
     /// One window of experiment 1 at 0.5 rad, 0.1 rad of swing, 1 kHz.
     fn window() -> crate::data::Condition {
         crate::data::Condition {
@@ -524,12 +534,7 @@ mod tests {
     /// function counted on its own, and together.
     #[test]
     fn the_lack_of_fit_chi2_is_the_residuals_over_noise_and_accuracy() {
-        let plant = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
-            .join("../../configs/plants/default.toml");
-        let phys = Physics::from_plant(
-            &exo_plant_model::PlantModel::from_file(&plant).unwrap(),
-            &[1],
-        );
+        let phys = default_physics();
         let c = window();
         let mut sh = observation(Tf::Sh, 0.0, 0.3, MODEL_ACCURACY);
         let p = phys.predict(&sh, &c);
@@ -568,12 +573,7 @@ mod tests {
     /// beyond both.
     #[test]
     fn a_misfit_is_material_only_beyond_the_noise_and_the_models_accuracy() {
-        let plant = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
-            .join("../../configs/plants/default.toml");
-        let phys = Physics::from_plant(
-            &exo_plant_model::PlantModel::from_file(&plant).unwrap(),
-            &[1],
-        );
+        let phys = default_physics();
         let c = window();
         let p = phys.predict(&observation(Tf::Sh, 0.0, 1.0, 0.0), &c);
         let data = |bias: f64| {
@@ -613,12 +613,7 @@ mod tests {
     /// own and its 1 mNm floor.
     #[test]
     fn each_value_is_held_to_its_own_accuracy_or_its_terms() {
-        let plant = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
-            .join("../../configs/plants/default.toml");
-        let base = Physics::from_plant(
-            &exo_plant_model::PlantModel::from_file(&plant).unwrap(),
-            &[1],
-        );
+        let base = default_physics();
         assert!(base.sea.is_some() && base.coulomb_nm == 0.0);
         let free = observation(Tf::She, 100.0, 0.3, 0.0);
         let line = observation(Tf::Sh, 100.0, 0.3, MODEL_ACCURACY);
