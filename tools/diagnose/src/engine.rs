@@ -27,11 +27,12 @@ use exo_impedance::ftest::f_survival;
 use exo_plant_model::PlantModel;
 use num_complex::Complex64;
 use serde::Serialize;
-use statrs::distribution::{ChiSquared, ContinuousCDF};
 
+use crate::band::band_of;
 use crate::data::{Dataset, Observation, Tf};
 use crate::fit::{fit, lack_of_fit, lack_of_fit_chi2, lack_of_fit_p, rss, sigma_floor, Fitted};
 use crate::model::{Param, Physics};
+use crate::stats::{chi2_sf, normal_quantile};
 use crate::terms::Term;
 
 /// Settings of a diagnosis.
@@ -583,25 +584,6 @@ impl Diagnosis {
     }
 }
 
-/// The frequency band of ω (rad/s) the location and the characterisation of
-/// what remains summarise by.
-pub(crate) fn band_of(w: f64) -> &'static str {
-    if w < 4.0 {
-        "low (< 4 rad/s)"
-    } else if w < 10.0 {
-        "mid (4–10 rad/s)"
-    } else {
-        "high (≥ 10 rad/s)"
-    }
-}
-
-fn chi2_sf(x: f64, dof: f64) -> f64 {
-    if dof <= 0.0 || !x.is_finite() {
-        return f64::NAN;
-    }
-    ChiSquared::new(dof).map_or(f64::NAN, |d| d.sf(x))
-}
-
 fn score(d: &Dataset, start: &Physics, fitted: &Physics, free: &[Param]) -> Score {
     let mut per_tf = Vec::new();
     let folds = heldout(d, start, free);
@@ -870,11 +852,6 @@ fn time_rows(d: &Dataset, nominal: &Physics, fin: &Physics) -> Vec<TimeRow> {
             }
         })
         .collect()
-}
-
-pub(crate) fn normal_quantile(p: f64) -> f64 {
-    use statrs::distribution::Normal;
-    Normal::new(0.0, 1.0).map_or(f64::NAN, |n| n.inverse_cdf(p.clamp(1e-300, 1.0 - 1e-16)))
 }
 
 /// What `after` does to each supported transfer function compared with

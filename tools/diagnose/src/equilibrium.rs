@@ -135,7 +135,7 @@ pub fn locate(d: &Dataset, phys: &Physics, level: f64) -> Option<Equilibrium> {
         return None;
     }
     let tests = by_exp.len() as f64;
-    let z = crate::engine::normal_quantile(1.0 - level / (2.0 * tests));
+    let z = crate::stats::normal_quantile(1.0 - level / (2.0 * tests));
     let experiments = by_exp
         .into_iter()
         .map(|(experiment, v)| {

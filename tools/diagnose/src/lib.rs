@@ -24,6 +24,7 @@
 //! [`bench`](mod@bench) holds the cases `exo diagnose-bench` proves it on: concealed
 //! effects (and null cases) in a true plant behind a nominal model.
 
+mod band;
 pub mod bench;
 pub mod data;
 pub mod engine;
@@ -33,6 +34,7 @@ pub mod model;
 pub mod posture;
 pub mod remains;
 pub mod signatures;
+mod stats;
 pub mod synth;
 pub mod terms;
 

@@ -608,7 +608,7 @@ fn weighted_mean(y: &[f64], sd: &[f64]) -> Estimate {
 fn bands(rs: &[Row]) -> Vec<BandResidual> {
     let mut by: Vec<(&'static str, f64, Vec<&Row>)> = Vec::new();
     for r in rs {
-        let b = crate::engine::band_of(r.o.omega_rad_s);
+        let b = crate::band::band_of(r.o.omega_rad_s);
         match by.iter_mut().find(|x| x.0 == b) {
             Some(x) => {
                 x.1 = x.1.min(r.o.omega_rad_s);
