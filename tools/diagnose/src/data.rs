@@ -120,6 +120,36 @@ pub struct Condition {
     pub elapsed_s: f64,
 }
 
+#[cfg(test)]
+impl Condition {
+    /// A single-sine window for the unit tests: experiment 1, period 1, no
+    /// load, no bias, `α = 1`, a 2 Nm excitation, the posture `theta0_rad`
+    /// (`sin θ` its sine), the angle amplitude `theta_amp_rad` and the control
+    /// period `sample_period_s`; the SEA's mean torque not measured (NaN), no
+    /// cuff torque, command or gravity fundamentals, at the recording's start.
+    /// A test sets what else it needs with `..Condition::test_window(..)`.
+    pub(crate) fn test_window(theta0_rad: f64, theta_amp_rad: f64, sample_period_s: f64) -> Self {
+        Condition {
+            experiment: 1,
+            period: 1,
+            load_kg: 0.0,
+            bias_nm: 0.0,
+            alpha: 1.0,
+            amplitude_nm: 2.0,
+            theta0_rad,
+            theta_amp_rad,
+            sin_theta_mean: theta0_rad.sin(),
+            tau_s_mean_nm: f64::NAN,
+            tau_c_mean_nm: 0.0,
+            command: None,
+            gravity: None,
+            sample_period_s,
+            start_s: 0.0,
+            elapsed_s: 0.0,
+        }
+    }
+}
+
 /// The fundamentals `(2/n) Σ y_k e^{−jωt_k}` (detrended, over one window's
 /// whole cycles) of the measured angle `θ_m`, of `sin θ_m` and of
 /// `cos θ_m`: gravity's moment at the fundamental is `m g l [sin θ]₁`

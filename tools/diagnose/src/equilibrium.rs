@@ -177,20 +177,8 @@ mod tests {
         Condition {
             experiment,
             period,
-            load_kg: 0.0,
-            bias_nm: 0.0,
-            alpha: 1.0,
-            amplitude_nm: 2.0,
-            theta0_rad: theta,
-            theta_amp_rad: 0.1,
-            sin_theta_mean: theta.sin(),
-            tau_s_mean_nm: f64::NAN,
             tau_c_mean_nm: tau_c,
-            command: None,
-            gravity: None,
-            sample_period_s: 1e-3,
-            start_s: 0.0,
-            elapsed_s: 0.0,
+            ..Condition::test_window(theta, 0.1, 1e-3)
         }
     }
 

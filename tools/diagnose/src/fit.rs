@@ -492,24 +492,7 @@ mod tests {
 
     /// One window of experiment 1 at 0.5 rad, 0.1 rad of swing, 1 kHz.
     fn window() -> crate::data::Condition {
-        crate::data::Condition {
-            experiment: 1,
-            period: 1,
-            load_kg: 0.0,
-            bias_nm: 0.0,
-            alpha: 1.0,
-            amplitude_nm: 2.0,
-            theta0_rad: 0.5,
-            theta_amp_rad: 0.1,
-            sin_theta_mean: 0.5f64.sin(),
-            tau_s_mean_nm: f64::NAN,
-            tau_c_mean_nm: 0.0,
-            command: None,
-            gravity: None,
-            sample_period_s: 0.001,
-            start_s: 0.0,
-            elapsed_s: 0.0,
-        }
+        crate::data::Condition::test_window(0.5, 0.1, 0.001)
     }
 
     fn observation(tf: Tf, value: f64, sigma: f64, accuracy: f64) -> Observation {

@@ -953,24 +953,7 @@ mod tests {
         let mut p = Physics::from_plant(&PlantModel::from_file(&plant).unwrap(), &[1]);
         p.k.insert(1, 30.0);
         p.delay_s = [0.0; 4];
-        let c = Condition {
-            experiment: 1,
-            period: 1,
-            load_kg: 0.0,
-            bias_nm: 0.0,
-            alpha: 1.0,
-            amplitude_nm: 2.0,
-            theta0_rad: 0.0,
-            theta_amp_rad: 0.1 * p.gain[0],
-            sin_theta_mean: 0.0,
-            tau_s_mean_nm: f64::NAN,
-            tau_c_mean_nm: 0.0,
-            command: None,
-            gravity: None,
-            sample_period_s: 0.001,
-            start_s: 0.0,
-            elapsed_s: 0.0,
-        };
+        let c = Condition::test_window(0.0, 0.1 * p.gain[0], 0.001);
         let zero = Complex64::new(0.0, 0.0);
         let before = p.predict_tf(Tf::Sh, 3.0, &c, zero);
         p.k2 = 20.0;
@@ -1014,22 +997,9 @@ mod tests {
         };
         let g = crate::data::GravityFundamentals::new(&t[..n], &th, w).expect("measurable");
         let mut c = Condition {
-            experiment: 1,
-            period: 1,
             load_kg: 4.5,
-            bias_nm: 0.0,
-            alpha: 1.0,
-            amplitude_nm: 2.0,
-            theta0_rad: th0,
-            theta_amp_rad: a,
-            sin_theta_mean: th0.sin(),
-            tau_s_mean_nm: f64::NAN,
-            tau_c_mean_nm: 0.0,
-            command: None,
             gravity: Some(g),
-            sample_period_s: 0.001,
-            start_s: 0.0,
-            elapsed_s: 0.0,
+            ..Condition::test_window(th0, a, 0.001)
         };
         for delta in [0.0, 0.03] {
             p.theta_offset = delta;

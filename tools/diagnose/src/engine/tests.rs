@@ -138,24 +138,7 @@ fn a_delay_is_timing_only_within_the_longest_tick() {
     let plant =
         std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../configs/plants/default.toml");
     let mut p = Physics::from_plant(&PlantModel::from_file(&plant).unwrap(), &[1]);
-    let window = |dt: f64| Condition {
-        experiment: 1,
-        period: 1,
-        load_kg: 0.0,
-        bias_nm: 0.0,
-        alpha: 1.0,
-        amplitude_nm: 2.0,
-        theta0_rad: 0.0,
-        theta_amp_rad: 0.1,
-        sin_theta_mean: 0.0,
-        tau_s_mean_nm: f64::NAN,
-        tau_c_mean_nm: 0.0,
-        command: None,
-        gravity: None,
-        sample_period_s: dt,
-        start_s: 0.0,
-        elapsed_s: 0.0,
-    };
+    let window = |dt: f64| Condition::test_window(0.0, 0.1, dt);
     let d = Dataset {
         conditions: vec![window(0.001), window(0.002)],
         ..Dataset::default()
