@@ -87,8 +87,9 @@ pub enum SafetyEvent {
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum BusFault {
     /// The cycle's frame could not be sent (`os_error`, e.g. ENETDOWN on
-    /// a link taken down) or did not come back within the PDU time-out
-    /// (`os_error` 0).
+    /// a link taken down): latched in its cycle. A frame that did not come
+    /// back within the PDU time-out (`os_error` 0) is a missed cycle,
+    /// latched only as [`BusFault::MissedCycles`].
     FrameLost {
         /// The OS error of the failed send, 0 for a time-out.
         os_error: i32,
@@ -103,10 +104,15 @@ pub enum BusFault {
     },
     /// The frame came back unprocessed (working counter 0): the device is gone.
     DeviceVanished,
-    /// The cycle started more than one period late.
-    CycleMissed {
-        /// How late (µs).
-        late_us: u32,
+    /// `bus.ethercat.max_missed_cycles` cycles in a row were missed: the
+    /// master woke more than a period late for them (each period skipped
+    /// counts one), or their replies did not come back within the PDU
+    /// time-out (a drive that stopped answering too).
+    MissedCycles {
+        /// Missed cycles in a row.
+        in_a_row: u32,
+        /// Whether the last of them lost its reply (else it woke late).
+        reply_lost: bool,
     },
     /// The drive's EtherCAT (AL) state is no longer OP.
     AlState {
@@ -206,6 +212,13 @@ impl Driver {
         // fault of the devices.
         if f.status & exo_messages::bus_status::FAULTS != 0 {
             st |= status::BUS_FAULT;
+        }
+        if f.status & exo_messages::bus_status::LATE != 0 {
+            st |= status::LATE;
+        }
+        // A lost reply: the bus repeated the last values.
+        if f.status & exo_messages::bus_status::STALE != 0 {
+            st |= status::STALE;
         }
         let theta = self.calibration.theta_rad(f.encoder_counts);
         let tau_c = self.calibration.tau_c_nm(&f.cuff_wrench);
@@ -416,7 +429,18 @@ mod tests {
             status: bus_status::LATE,
             ..frame(1)
         };
-        assert_eq!(d.on_frame(&late).status & status::BUS_FAULT, 0);
+        assert_eq!(d.on_frame(&late).status, status::LATE, "late, no fault");
+        // A lost reply (the bus repeats the last values): stale, no fault.
+        let stale = RawFrame {
+            status: bus_status::STALE,
+            ..frame(2)
+        };
+        assert_eq!(d.on_frame(&stale).status, status::STALE);
+        assert_eq!(
+            d.on_command(2, 5.0).unwrap().source,
+            CommandSource::Controller,
+            "a stale frame is answered"
+        );
         for (k, bit) in [
             bus_status::FRAME_ERROR,
             bus_status::ENCODER_ERROR,

@@ -228,8 +228,15 @@ impl Process for DriverProcess {
                 }
             }
             info!(
-                "sensor-driver: EtherCAT {} cycles, {} frames lost, {} working-counter errors, {} cycles missed",
-                c.cycles, c.frames_lost, c.wkc_errors, c.cycles_missed
+                "sensor-driver: EtherCAT {} cycles: {} woke late, {} frames lost, {} cycles missed, longest run of misses {} (latching at {}), {} late replies ignored, {} working-counter errors",
+                c.cycles,
+                c.cycles_late,
+                c.frames_lost,
+                c.cycles_missed,
+                c.longest_miss_run,
+                bus.max_missed_cycles(),
+                c.late_replies,
+                c.wkc_errors
             );
             let sw = bus.power_down();
             info!(

@@ -50,6 +50,17 @@ pub struct EthercatSettings {
     /// quick stop active, then disable voltage (0x0000). Range [0, 1000].
     #[serde(default = "default_quick_stop_ms")]
     pub quick_stop_ms: f64,
+    /// Missed cycles in a row after which the safe state latches. A cycle
+    /// is missed when the master wakes for it more than a period late
+    /// (each period skipped counts one) or its reply does not come back
+    /// within the PDU time-out; the drive holds its last set-point
+    /// meanwhile (CST) and the sample is flagged `LATE` or `STALE`. A
+    /// cycle on time with its reply back ends the run. Range [1, 1000],
+    /// and at most [`MAX_MISSED_SPAN_MS`] of cycles. Default: the cycles
+    /// in [`DEFAULT_MISSED_SPAN_MS`] (50 at 1 kHz, 5 at 100 Hz;
+    /// docs/hardware.md says why), [`EthercatSettings::max_missed_cycles`].
+    #[serde(default)]
+    pub max_missed_cycles: Option<u32>,
     /// Write the PDO mapping below into the drive in PRE-OP (CiA 301:
     /// 0x1C1x:0 = 0, the PDO's entries and count, 0x1C1x:1, 0x1C1x:0 = 1).
     /// `false`: the drive's own mapping is used and only its size is
@@ -65,6 +76,18 @@ pub struct EthercatSettings {
 fn default_quick_stop_ms() -> f64 {
     20.0
 }
+
+/// The span (ms) of missed cycles in a row that latches by default
+/// (docs/hardware.md, "Late and lost cycles": the stalls measured on an
+/// ordinary 2-core Linux computer, against how long a held set-point is
+/// harmless).
+pub const DEFAULT_MISSED_SPAN_MS: f64 = 50.0;
+
+/// The longest span (ms) of missed cycles `bus.ethercat.max_missed_cycles`
+/// may allow: the EtherCAT slave controller's own default sync-manager
+/// watchdog (100 ms, ETG.1000.4), the longest a drive holds a set-point
+/// by itself.
+pub const MAX_MISSED_SPAN_MS: f64 = 100.0;
 
 fn default_true() -> bool {
     true
@@ -205,6 +228,13 @@ impl EthercatSettings {
         self.pdu_timeout_ms.unwrap_or(1000.0 / rate_hz)
     }
 
+    /// Missed cycles in a row that latch at `rate_hz`: `max_missed_cycles`,
+    /// or the cycles in [`DEFAULT_MISSED_SPAN_MS`] (at least 1).
+    pub fn max_missed_cycles(&self, rate_hz: f64) -> u32 {
+        self.max_missed_cycles
+            .unwrap_or_else(|| ((DEFAULT_MISSED_SPAN_MS * rate_hz / 1000.0).floor() as u32).max(1))
+    }
+
     /// Records every value at fault, naming its key under `bus.ethercat`.
     pub(crate) fn check(&self, c: &Check<'_>, rate_hz: f64) {
         let iface = &self.interface;
@@ -225,6 +255,16 @@ impl EthercatSettings {
             }
         }
         c.key("bus.ethercat.quick_stop_ms", self.quick_stop_ms);
+        if let Some(n) = self.max_missed_cycles {
+            let span_ms = f64::from(n) * 1000.0 / rate_hz;
+            if c.key("bus.ethercat.max_missed_cycles", f64::from(n)) && span_ms > MAX_MISSED_SPAN_MS
+            {
+                c.note(
+                    "bus.ethercat.max_missed_cycles",
+                    format!("{n} cycles at {rate_hz} Hz are {span_ms} ms, longer than {MAX_MISSED_SPAN_MS} ms without a fresh exchange"),
+                );
+            }
+        }
         self.rx_pdo.check(c, "bus.ethercat.rx_pdo", true);
         self.tx_pdo.check(c, "bus.ethercat.tx_pdo", false);
         for (pdo, key, role) in [
@@ -398,13 +438,22 @@ mod tests {
         assert_eq!(s.tx_pdo.find(PdoRole::TorqueActual).unwrap().0, 6);
         assert!(s.tx_pdo.find(PdoRole::ErrorCode).is_none());
         assert_eq!(s.pdu_timeout_ms(1000.0), 1.0);
+        // The default: the cycles in 50 ms, whatever the rate.
+        assert_eq!(s.max_missed_cycles, None);
+        assert_eq!(s.max_missed_cycles(1000.0), 50);
+        assert_eq!(s.max_missed_cycles(100.0), 5);
+        assert_eq!(s.max_missed_cycles(10.0), 1);
+        let mut edge = settings();
+        edge.max_missed_cycles = Some(100); // 100 ms at 1 kHz: the limit itself
+        assert_eq!(errors(&edge), "");
+        assert_eq!(edge.max_missed_cycles(1000.0), 100);
         assert_eq!(role_name(PdoRole::TargetTorque), "target_torque");
     }
 
     #[test]
     fn each_bad_mapping_is_refused_naming_its_key() {
         type Spoil = fn(&mut EthercatSettings);
-        let cases: [(&str, Spoil); 10] = [
+        let cases: [(&str, Spoil); 12] = [
             ("bus.ethercat.rx_pdo.entries[1].scale", |s| {
                 s.rx_pdo.entries[1].scale = None
             }),
@@ -431,6 +480,13 @@ mod tests {
                 s.pdu_timeout_ms = Some(2.0)
             }),
             ("bus.ethercat.interface", |s| s.interface.clear()),
+            ("bus.ethercat.max_missed_cycles", |s| {
+                s.max_missed_cycles = Some(0)
+            }),
+            // 101 cycles at 1 kHz: 101 ms, beyond the slave controller's 100 ms.
+            ("bus.ethercat.max_missed_cycles", |s| {
+                s.max_missed_cycles = Some(101)
+            }),
         ];
         for (key, spoil) in cases {
             let mut s = settings();

@@ -493,7 +493,8 @@ mod subject;
 pub mod toml_paths;
 
 pub use ethercat::{
-    role_name, EthercatSettings, PdoEntry, PdoRole, PdoSettings, MAX_PDO_BYTES, MAX_PDO_ENTRIES,
+    role_name, EthercatSettings, PdoEntry, PdoRole, PdoSettings, DEFAULT_MISSED_SPAN_MS,
+    MAX_MISSED_SPAN_MS, MAX_PDO_BYTES, MAX_PDO_ENTRIES,
 };
 pub use experiments::{ExperimentSpec, ExperimentTable, ProtocolTiming, EXPERIMENT_RANGES};
 pub use run::{

@@ -24,14 +24,22 @@ pub mod bus_status {
     pub const DRIVE_FAULT: u32 = 1 << 4;
     /// Not a fault of the devices: the bus sent this frame past its
     /// cycle's deadline (the simulated bus, in real time, missed a
-    /// deadline before it). The sensor driver does not latch on it; `exo
-    /// run` counts and names it in its summary.
+    /// deadline before it; the EtherCAT master woke more than a period
+    /// late for it). The sensor driver does not latch on it; the EtherCAT
+    /// backend latches after `bus.ethercat.max_missed_cycles` missed
+    /// cycles in a row; `exo run` counts and names it in its summary.
     pub const LATE: u32 = 1 << 5;
+    /// Not a fault of the devices: the cycle's reply did not come back
+    /// within the PDU time-out, so the frame repeats the last values
+    /// received (the drive holds its last set-point meanwhile). The
+    /// EtherCAT backend latches after `bus.ethercat.max_missed_cycles`
+    /// missed cycles in a row.
+    pub const STALE: u32 = 1 << 6;
     /// The bits that report a fault of the devices or the frame.
     pub const FAULTS: u32 =
         FRAME_ERROR | ENCODER_ERROR | FT_ERROR | SEA_ENCODER_ERROR | DRIVE_FAULT;
     /// Every bit with a meaning.
-    pub const KNOWN: u32 = FAULTS | LATE;
+    pub const KNOWN: u32 = FAULTS | LATE | STALE;
 }
 
 /// Indices into [`BusSensorFrame::cuff_wrench`].

@@ -30,6 +30,10 @@ pub mod status {
     /// behind and its bus buffer overflowed): the gap in `seq` before this
     /// sample is the control path's, not a loss of whoever records it.
     pub const FRAMES_SKIPPED: u32 = 1 << 8;
+    /// The bus frame behind this sample was late (`bus_status::LATE`: the
+    /// bus or its master missed the cycle's deadline before it). Counted,
+    /// not acted on; the bus decides how many in a row it tolerates.
+    pub const LATE: u32 = 1 << 9;
     /// Bits that mean "do not act on this sample" (the driver's own mask). [`STALE`]
     /// is not among them: how many stale samples in a row to tolerate is the
     /// consumer's decision.
@@ -43,7 +47,8 @@ pub mod status {
         | STALE
         | SATURATED
         | REPLAY
-        | FRAMES_SKIPPED;
+        | FRAMES_SKIPPED
+        | LATE;
 }
 
 /// A calibrated sensor sample, one per control tick.
@@ -165,6 +170,7 @@ mod tests {
             status::SATURATED,
             status::REPLAY,
             status::FRAMES_SKIPPED,
+            status::LATE,
         ];
         let mut seen = 0u32;
         for b in all {

@@ -42,10 +42,19 @@ impl ServiceArgs {
     }
 }
 
+/// ethercrab's line for each reply that came back after its cycle gave up
+/// on it: the sensor driver counts those and summarises them at most once
+/// a second (issue 33, item 4), so the per-frame line is off.
+const ETHERCRAB_PER_FRAME: &str = "ethercrab::pdu_loop::frame_element=off";
+
 /// Logs to standard error (`RUST_LOG` filters; default `info`).
 pub fn init_logging(service: &str) {
     let filter = tracing_subscriber::EnvFilter::try_from_default_env()
         .unwrap_or_else(|_| tracing_subscriber::EnvFilter::new("info"));
+    let filter = match ETHERCRAB_PER_FRAME.parse() {
+        Ok(d) => filter.add_directive(d),
+        Err(_) => filter,
+    };
     let _ = tracing_subscriber::fmt()
         .with_env_filter(filter)
         .with_writer(std::io::stderr)

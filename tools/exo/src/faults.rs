@@ -71,8 +71,10 @@ impl FaultWatch {
                 },
             )
             .context("watching the commands for a safe state")?,
-            samples: Collector::start_filtered(&node, instance, SENSOR, is_fault_sample)
-                .context("watching the samples for faults")?,
+            samples: Collector::start_filtered(&node, instance, SENSOR, |s: &SensorSample| {
+                is_fault_sample(s) || is_missed_sample(s)
+            })
+            .context("watching the samples for faults")?,
             // Keeps the late frames, and the last one's stamp.
             frames: Collector::start_filtered(
                 &node,
@@ -89,8 +91,9 @@ impl FaultWatch {
         })
     }
 
-    /// The faults seen before the run's end ([`describe`]).
-    pub fn faults(self) -> Result<Vec<String>> {
+    /// The faults seen before the run's end ([`describe`]), and the
+    /// missed cycles the bus tolerated ([`describe_missed`]).
+    pub fn faults(self) -> Result<(Vec<String>, Option<String>)> {
         let (commands, samples) = (self.commands.finish()?, self.samples.finish()?);
         let late = self.frames.finish()?;
         let end_ns = self
@@ -110,10 +113,37 @@ impl FaultWatch {
             .into_iter()
             .filter(|f| before_end(f.stamp_ns))
             .collect();
-        let mut faults = describe(&commands, &samples);
+        let (faulty, missed): (Vec<_>, Vec<_>) = samples.into_iter().partition(is_fault_sample);
+        let mut faults = describe(&commands, &faulty);
         faults.extend(describe_late(&late));
-        Ok(faults)
+        Ok((faults, describe_missed(&missed)))
     }
+}
+
+/// A sample whose bus cycle was missed and tolerated: its frame late, or
+/// its reply lost (the last values repeated).
+pub fn is_missed_sample(s: &SensorSample) -> bool {
+    s.status & (status::LATE | status::STALE) != 0
+}
+
+/// The missed cycles the bus tolerated (samples passing
+/// [`is_missed_sample`]), as one line with the counts and the longest run
+/// of consecutive samples, or none.
+pub fn describe_missed(missed: &[SensorSample]) -> Option<String> {
+    let first = missed.first()?;
+    let count = |bit: u32| missed.iter().filter(|s| s.status & bit != 0).count();
+    let (mut longest, mut run) = (1, 1);
+    for w in missed.windows(2) {
+        run = if w[1].seq == w[0].seq + 1 { run + 1 } else { 1 };
+        longest = longest.max(run);
+    }
+    Some(format!(
+        "the bus missed cycles and rode through: {} samples late, {} stale (reply lost, last values repeated), the longest run {longest} in a row, the first at sample {} (stamp {:.3} s)",
+        count(status::LATE),
+        count(status::STALE),
+        first.seq,
+        first.stamp_ns as f64 * 1e-9
+    ))
 }
 
 /// The bus frames flagged late ([`bus_status::LATE`]: the simulated bus
@@ -186,6 +216,33 @@ pub fn describe(commands: &[ActuatorCommand], samples: &[SensorSample]) -> Vec<S
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn missed_cycles_are_counted_with_their_longest_run() {
+        assert_eq!(describe_missed(&[]), None);
+        let sample = |seq: u64, status: u32| SensorSample {
+            seq,
+            stamp_ns: seq * 1_000_000,
+            status,
+            ..Default::default()
+        };
+        let missed = [
+            sample(7, status::LATE),
+            sample(20, status::STALE),
+            sample(21, status::STALE),
+            sample(22, status::STALE | status::LATE),
+            sample(24, status::STALE),
+        ];
+        assert!(missed.iter().all(is_missed_sample));
+        assert!(!is_missed_sample(&sample(3, status::REPLAY)));
+        let line = describe_missed(&missed).unwrap();
+        assert!(
+            line.contains("2 samples late, 4 stale")
+                && line.contains("longest run 3 in a row")
+                && line.contains("first at sample 7 (stamp 0.007 s)"),
+            "{line}"
+        );
+    }
 
     #[test]
     fn late_frames_are_named_with_their_count_and_the_first() {

@@ -156,7 +156,11 @@ pub fn run_config(config: &std::path::Path, logs: Logs) -> Result<Finished> {
         }
         faults.extend(recorder_misses(&segments));
     }
-    faults.extend(watch.faults()?);
+    let (seen, missed) = watch.faults()?;
+    faults.extend(seen);
+    if let Some(m) = missed {
+        eprintln!("exo: note: {m}");
+    }
     for f in &faults {
         eprintln!("exo: fault: {f}");
     }

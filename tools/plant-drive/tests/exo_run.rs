@@ -141,8 +141,7 @@ fn exo_run_identifies_the_simulated_human_behind_the_emulated_drive() {
     let _ = drive.wait();
     let log = stderr(&out);
     let timing_fault = [
-        "CycleMissed",
-        "FrameLost { os_error: 0 }",
+        "MissedCycles",
         "CommandDeadlineMissed",
         "no sensor sample within the deadline",
     ];

@@ -50,7 +50,7 @@ impl EthercatBus {
             tx,
             rx,
             buf: Box::new([0; 2048]),
-            last_os_error: 0,
+            late_replies: 0,
         };
         let iface = &s.interface;
         let soon = |secs| Instant::now() + Duration::from_secs(secs);
@@ -169,11 +169,12 @@ impl EthercatBus {
         let mut cia = Cia402::new(quick_stop_cycles);
         cia.enable(false);
         info!(
-            "sensor-driver: EtherCAT drive in OP, {} input and {} output bytes, expected working counter {expected_wkc}, cycle {:.3} ms, PDU time-out {:?}",
+            "sensor-driver: EtherCAT drive in OP, {} input and {} output bytes, expected working counter {expected_wkc}, cycle {:.3} ms, PDU time-out {:?}, latching after {} missed cycles in a row",
             map.in_bytes,
             map.out_bytes,
             1000.0 / rate_hz,
-            pdu_timeout
+            pdu_timeout,
+            s.max_missed_cycles(rate_hz)
         );
         let torque_scale = map.torque.scale;
         Ok(EthercatBus {
@@ -186,6 +187,10 @@ impl EthercatBus {
             torque_scale,
             period_ns: (1e9 / rate_hz).round() as u64,
             pdu_timeout,
+            max_missed_cycles: u64::from(s.max_missed_cycles(rate_hz)),
+            miss_run: 0,
+            late_replies_logged_ns: 0,
+            late_replies_logged: 0,
             expected_wkc,
             next_ns: 0,
             seq: 0,

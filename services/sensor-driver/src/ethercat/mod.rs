@@ -13,12 +13,21 @@
 //!   the last `write` for the drive's inputs; the statusword goes through
 //!   the CiA 402 state machine ([`Cia402`]), whose controlword is staged
 //!   with the torque set-point of the next `write`.
-//! - **Faults** latch within the cycle they are seen in: a frame that does
-//!   not come back within the PDU time-out or cannot be sent (a lost link),
-//!   a working counter short of the expected one, a device that no longer
-//!   answers (working counter 0), a cycle started more than one period late,
-//!   the drive's AL state other than OP, the drive in Fault, or any other
-//!   departure from Operation Enabled. The drive is then powered down
+//! - **Late and lost cycles** are tolerated as real drives and masters do
+//!   (issue 33): a cycle the master wakes for more than a period late
+//!   (each whole period skipped counts one missed cycle) or whose reply
+//!   does not come back within the PDU time-out is counted and flagged
+//!   (`bus_status::LATE`, `bus_status::STALE`: the last values repeated),
+//!   and the drive holds its last set-point meanwhile, as a CST drive
+//!   does. `bus.ethercat.max_missed_cycles` missed cycles in a row latch
+//!   ([`BusFault::MissedCycles`]); a cycle on time with its reply back
+//!   ends the run. A drive that stops answering altogether is caught
+//!   this way too, within that many cycles.
+//! - **Faults** latch within the cycle they are seen in: a frame that
+//!   cannot be sent (a lost link), a working counter short of the expected
+//!   one, a device that no longer answers (working counter 0), the drive's
+//!   AL state other than OP, the drive in Fault, or any other departure
+//!   from Operation Enabled. The drive is then powered down
 //!   (quick stop, then disable voltage), the frame carries `FRAME_ERROR` on
 //!   the cycle of the fault and `DRIVE_FAULT` until the operator's reset,
 //!   and [`HardwareBus::take_fault`] names the fault for the driver's latch.
@@ -97,12 +106,21 @@ pub struct DriveReadings {
 pub struct EthercatCounters {
     /// Cycles run.
     pub cycles: u64,
-    /// Frames lost (not sent or not back in time).
+    /// Frames lost (not sent, or their reply not back within the PDU
+    /// time-out).
     pub frames_lost: u64,
     /// Cycles with a working counter other than expected.
     pub wkc_errors: u64,
-    /// Cycles started more than one period late.
+    /// Cycles the master woke for more than one period late.
+    pub cycles_late: u64,
+    /// Missed cycles: the periods skipped by late wake-ups plus the lost
+    /// replies.
     pub cycles_missed: u64,
+    /// The longest run of missed cycles in a row.
+    pub longest_miss_run: u64,
+    /// Replies that came back after their cycle had given up on them
+    /// (ethercrab could not claim them); ignored.
+    pub late_replies: u64,
 }
 
 /// The EtherCAT backend of the sensor driver.
@@ -116,6 +134,12 @@ pub struct EthercatBus {
     torque_scale: f64,
     period_ns: u64,
     pdu_timeout: Duration,
+    max_missed_cycles: u64,
+    /// Missed cycles in a row up to now.
+    miss_run: u64,
+    /// When the late replies were last summarised in the log (ns).
+    late_replies_logged_ns: u64,
+    late_replies_logged: u64,
     expected_wkc: u16,
     next_ns: u64,
     seq: u64,
@@ -165,6 +189,17 @@ impl EthercatBus {
         ]
     }
 
+    /// Missed cycles in a row that latch (`bus.ethercat.max_missed_cycles`).
+    pub fn max_missed_cycles(&self) -> u64 {
+        self.max_missed_cycles
+    }
+
+    /// Missed cycles in a row up to the last cycle (0 after one on time
+    /// with its reply back).
+    pub fn misses_in_a_row(&self) -> u64 {
+        self.miss_run
+    }
+
     /// The CiA 402 phase the master is in.
     pub fn phase(&self) -> Phase {
         self.cia.phase()
@@ -206,10 +241,10 @@ impl EthercatBus {
                 })
             }
             Ok(Err(e)) => {
+                // ethercrab gave up on the frame itself (its own time-out):
+                // the send went out (a failed one ends `drive` above).
                 self.last_master_error = Some(e);
-                return Err(BusFault::FrameLost {
-                    os_error: pump.last_os_error,
-                });
+                return Err(BusFault::FrameLost { os_error: 0 });
             }
             Ok(Ok(r)) => r,
         };
@@ -228,6 +263,22 @@ impl EthercatBus {
             Some(SubDeviceState::Op) => Ok(()),
             Some(s) => Err(BusFault::AlState { state: al_code(*s) }),
             None => Err(BusFault::DeviceVanished),
+        }
+    }
+
+    /// Logs the replies that came back too late since the last summary,
+    /// at most once a second (ethercrab's own line for each is silenced:
+    /// `exo_service_kit::init_logging`).
+    fn summarise_late_replies(&mut self, now_ns: u64) {
+        self.counters.late_replies = self.pump.late_replies;
+        let new = self.counters.late_replies - self.late_replies_logged;
+        if new > 0 && now_ns.saturating_sub(self.late_replies_logged_ns) >= 1_000_000_000 {
+            warn!(
+                "sensor-driver: EtherCAT {new} replies came back after their cycle gave up on them ({} in all); ignored",
+                self.counters.late_replies
+            );
+            self.late_replies_logged = self.counters.late_replies;
+            self.late_replies_logged_ns = now_ns;
         }
     }
 
@@ -276,7 +327,12 @@ impl HardwareBus for EthercatBus {
         }
         let start = monotonic_ns();
         let late_ns = start.saturating_sub(self.next_ns);
-        let missed = self.counters.cycles > 0 && late_ns > self.period_ns;
+        // Each whole period a late wake-up skipped is a missed cycle.
+        let skipped = if self.counters.cycles > 0 && late_ns > self.period_ns {
+            late_ns / self.period_ns
+        } else {
+            0
+        };
         self.next_ns = if late_ns > self.period_ns {
             start + self.period_ns
         } else {
@@ -285,11 +341,9 @@ impl HardwareBus for EthercatBus {
         self.counters.cycles += 1;
         let mut status = 0;
         let mut cycle_fault = None;
-        if missed {
-            self.counters.cycles_missed += 1;
-            cycle_fault = Some(BusFault::CycleMissed {
-                late_us: (late_ns / 1000).min(u64::from(u32::MAX)) as u32,
-            });
+        if skipped > 0 {
+            self.counters.cycles_late += 1;
+            status |= bus_status::LATE;
         }
         let scheduled_ns = start - late_ns;
         let exchanged = self.exchange();
@@ -297,6 +351,11 @@ impl HardwareBus for EthercatBus {
             self.exchange_time.record(start, monotonic_ns());
         }
         self.wake_lateness.record(scheduled_ns, start);
+        self.summarise_late_replies(start);
+        // A reply not back within the PDU time-out is a missed cycle; a
+        // frame that could not be sent (the link) and every other fault
+        // latch now.
+        let reply_lost = matches!(exchanged, Err(BusFault::FrameLost { os_error: 0 }));
         match exchanged {
             Err(BusFault::FrameLost { .. }) => self.counters.frames_lost += 1,
             Err(BusFault::WorkingCounter { .. } | BusFault::DeviceVanished) => {
@@ -304,8 +363,24 @@ impl HardwareBus for EthercatBus {
             }
             _ => {}
         }
-        if let Err(f) = exchanged {
-            cycle_fault = cycle_fault.or(Some(f));
+        if reply_lost {
+            status |= bus_status::STALE;
+        } else if let Err(f) = exchanged {
+            cycle_fault = Some(f);
+        }
+        let missed = skipped + u64::from(reply_lost);
+        self.counters.cycles_missed += missed;
+        self.miss_run = if missed > 0 {
+            self.miss_run + missed
+        } else {
+            0
+        };
+        self.counters.longest_miss_run = self.counters.longest_miss_run.max(self.miss_run);
+        if self.miss_run >= self.max_missed_cycles {
+            cycle_fault = cycle_fault.or(Some(BusFault::MissedCycles {
+                in_a_row: self.miss_run.min(u64::from(u32::MAX)) as u32,
+                reply_lost,
+            }));
         }
         if exchanged.is_ok() {
             let sd = self

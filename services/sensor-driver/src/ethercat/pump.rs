@@ -16,7 +16,9 @@ pub(super) struct Pump {
     pub(super) tx: PduTx<'static>,
     pub(super) rx: PduRx<'static>,
     pub(super) buf: Box<[u8; 2048]>,
-    pub(super) last_os_error: i32,
+    /// Frames received that ethercrab did not accept (a reply to a frame
+    /// already given up on, mostly).
+    pub(super) late_replies: u64,
 }
 
 /// A frame that did not come back: the OS error of a failed send, if any.
@@ -39,14 +41,16 @@ impl Pump {
                 })
             });
             if sent.is_err() {
-                self.last_os_error = os_error;
                 return Err(Lost { os_error });
             }
         }
         let mut wait = wait;
         while let Ok(Some(n)) = self.socket.recv(&mut self.buf[..], wait) {
-            // A frame that is not ours, or answers a frame given up on, is ignored.
-            let _ = self.rx.receive_frame(&self.buf[..n]);
+            // A frame that answers a frame given up on is counted and
+            // ignored (one that is not ours is ignored by ethercrab).
+            if self.rx.receive_frame(&self.buf[..n]).is_err() {
+                self.late_replies += 1;
+            }
             wait = Duration::ZERO;
         }
         Ok(())
