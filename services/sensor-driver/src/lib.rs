@@ -58,4 +58,13 @@ pub trait HardwareBus {
     fn take_fault(&mut self) -> Option<BusFault> {
         None
     }
+    /// The controller's command for the cycle just read did not come
+    /// within the deadline (real time). A bus whose drive holds its last
+    /// set-point (EtherCAT in CST) counts it as a missed cycle and returns
+    /// `true` while its run of misses stays below its limit: the driver
+    /// then writes nothing this cycle and the drive holds. Default `false`:
+    /// the driver latches its safe state now.
+    fn hold_missed_command(&mut self) -> bool {
+        false
+    }
 }

@@ -228,10 +228,11 @@ impl Process for DriverProcess {
                 }
             }
             info!(
-                "sensor-driver: EtherCAT {} cycles: {} woke late, {} frames lost, {} cycles missed, longest run of misses {} (latching at {}), {} late replies ignored, {} working-counter errors",
+                "sensor-driver: EtherCAT {} cycles: {} woke late, {} frames lost, {} commands late (held), {} cycles missed, longest run of misses {} (latching at {}), {} late replies ignored, {} working-counter errors",
                 c.cycles,
                 c.cycles_late,
                 c.frames_lost,
+                c.commands_missed,
                 c.cycles_missed,
                 c.longest_miss_run,
                 bus.max_missed_cycles(),
@@ -387,6 +388,12 @@ impl Cycle<'_> {
                         );
                     }
                     continue;
+                }
+                // In real time a bus whose drive holds its last set-point
+                // (EtherCAT) takes a late command as a missed cycle, up to
+                // its limit: nothing is written, the drive holds.
+                if !self.timing.lockstep && bus.hold_missed_command() {
+                    return Ok(Flow::Continue);
                 }
                 break node.on_deadline();
             }

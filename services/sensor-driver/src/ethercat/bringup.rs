@@ -189,6 +189,7 @@ impl EthercatBus {
             pdu_timeout,
             max_missed_cycles: u64::from(s.max_missed_cycles(rate_hz)),
             miss_run: 0,
+            cycle_clean: false,
             late_replies_logged_ns: 0,
             late_replies_logged: 0,
             expected_wkc,

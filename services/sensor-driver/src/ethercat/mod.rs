@@ -21,7 +21,11 @@
 //!   and the drive holds its last set-point meanwhile, as a CST drive
 //!   does. `bus.ethercat.max_missed_cycles` missed cycles in a row latch
 //!   ([`BusFault::MissedCycles`]); a cycle on time with its reply back
-//!   ends the run. A drive that stops answering altogether is caught
+//!   and its command in time ends the run. A command that does not come
+//!   within the deadline is a missed cycle too
+//!   ([`HardwareBus::hold_missed_command`]): the drive holds the staged
+//!   set-point, and the one that reaches the limit latches
+//!   `CommandDeadlineMissed` in the driver. A drive that stops answering altogether is caught
 //!   this way too, within that many cycles.
 //! - **Faults** latch within the cycle they are seen in: a frame that
 //!   cannot be sent (a lost link), a working counter short of the expected
@@ -116,6 +120,8 @@ pub struct EthercatCounters {
     /// Missed cycles: the periods skipped by late wake-ups plus the lost
     /// replies.
     pub cycles_missed: u64,
+    /// Cycles whose command did not come within the deadline (held).
+    pub commands_missed: u64,
     /// The longest run of missed cycles in a row.
     pub longest_miss_run: u64,
     /// Replies that came back after their cycle had given up on them
@@ -137,6 +143,8 @@ pub struct EthercatBus {
     max_missed_cycles: u64,
     /// Missed cycles in a row up to now.
     miss_run: u64,
+    /// Whether the cycle read last missed nothing so far.
+    cycle_clean: bool,
     /// When the late replies were last summarised in the log (ns).
     late_replies_logged_ns: u64,
     late_replies_logged: u64,
@@ -194,8 +202,8 @@ impl EthercatBus {
         self.max_missed_cycles
     }
 
-    /// Missed cycles in a row up to the last cycle (0 after one on time
-    /// with its reply back).
+    /// Missed cycles in a row up to the last cycle (0 after one on time,
+    /// with its reply back and its command in time).
     pub fn misses_in_a_row(&self) -> u64 {
         self.miss_run
     }
@@ -264,6 +272,13 @@ impl EthercatBus {
             Some(s) => Err(BusFault::AlState { state: al_code(*s) }),
             None => Err(BusFault::DeviceVanished),
         }
+    }
+
+    /// Adds `missed` cycles to the run and the counts.
+    fn count_missed(&mut self, missed: u64) {
+        self.counters.cycles_missed += missed;
+        self.miss_run += missed;
+        self.counters.longest_miss_run = self.counters.longest_miss_run.max(self.miss_run);
     }
 
     /// Logs the replies that came back too late since the last summary,
@@ -369,13 +384,10 @@ impl HardwareBus for EthercatBus {
             cycle_fault = Some(f);
         }
         let missed = skipped + u64::from(reply_lost);
-        self.counters.cycles_missed += missed;
-        self.miss_run = if missed > 0 {
-            self.miss_run + missed
-        } else {
-            0
-        };
-        self.counters.longest_miss_run = self.counters.longest_miss_run.max(self.miss_run);
+        // The run ends at the write of a cycle that missed nothing (its
+        // command came in time too).
+        self.cycle_clean = missed == 0;
+        self.count_missed(missed);
         if self.miss_run >= self.max_missed_cycles {
             cycle_fault = cycle_fault.or(Some(BusFault::MissedCycles {
                 in_a_row: self.miss_run.min(u64::from(u32::MAX)) as u32,
@@ -487,6 +499,9 @@ impl HardwareBus for EthercatBus {
         } else {
             0
         };
+        if self.cycle_clean {
+            self.miss_run = 0;
+        }
         let sd = self
             .group
             .subdevice(self.md, self.position)
@@ -496,6 +511,16 @@ impl HardwareBus for EthercatBus {
         let (lo, hi) = self.map.torque.range();
         self.readings.target_torque_units = units.clamp(lo, hi);
         Ok(())
+    }
+
+    /// A command that did not come in time is a missed cycle: the staged
+    /// set-point stays (the drive holds it) while the run of misses stays
+    /// below `max_missed_cycles`.
+    fn hold_missed_command(&mut self) -> bool {
+        self.counters.commands_missed += 1;
+        self.cycle_clean = false;
+        self.count_missed(1);
+        self.latched.is_none() && self.miss_run < self.max_missed_cycles
     }
 
     fn take_fault(&mut self) -> Option<BusFault> {

@@ -199,6 +199,41 @@ impl Rig {
         }
     }
 
+    /// A cycle whose command does not come: the process's path at the
+    /// deadline (the bus holds the last set-point, or the driver latches
+    /// its safe state and writes it). Whether the bus held.
+    fn step_unanswered(&mut self) -> (Seen, bool) {
+        let frame = self
+            .bus
+            .read(Duration::from_millis(100))
+            .unwrap()
+            .expect("a frame every cycle");
+        let fault = self.bus.take_fault();
+        if let Some(f) = fault {
+            self.node.on_bus_fault(frame.seq, f);
+        }
+        let sample = self.node.on_frame(&frame, 0);
+        let held = self.node.latched_output().is_none() && self.bus.hold_missed_command();
+        let mut tau = f64::NAN;
+        if !held {
+            let out = self.node.on_deadline();
+            tau = out.tau_motor_nm;
+            let enable = self.node.motor_enable();
+            self.bus
+                .write(frame.seq, frame.stamp_ns, tau, enable)
+                .unwrap();
+        }
+        self.cycle += 1;
+        let seen = Seen {
+            seq: frame.seq,
+            frame_status: frame.status,
+            sample_status: sample.status,
+            fault,
+            tau_written_nm: tau,
+        };
+        (seen, held)
+    }
+
     /// Cycles at zero torque until the drive is in Operation Enabled.
     fn enable(&mut self) -> u64 {
         for k in 0..200 {
@@ -499,6 +534,58 @@ fn late_wake_ups_ride_through_until_max_missed_cycles_in_a_row_latch() {
     for k in 0..50 {
         assert_eq!(rig.step(tau_of(k)).fault, None);
     }
+}
+
+#[test]
+fn late_commands_are_held_until_max_missed_cycles_in_a_row_latch() {
+    let Some(_net) = netns("late_commands_are_held_until_max_missed_cycles_in_a_row_latch") else {
+        return;
+    };
+    let cfg = tolerant_config();
+    let mut rig = Rig::new(&cfg);
+    rig.enable();
+    for k in 0..50 {
+        rig.step(tau_of(k));
+    }
+    rig.provoking = true;
+    rig.step(0.02);
+    // `MAX_MISSED − 1` cycles without the controller's command: the drive
+    // holds the set-point staged last, nothing latches.
+    for k in 1..u64::from(MAX_MISSED) {
+        let (s, held) = rig.step_unanswered();
+        unprovoked(&rig, &s, k);
+        assert!(held, "late command {k}: {s:?}");
+        assert_eq!(s.fault, None);
+        assert_eq!(rig.node.driver().latched(), None);
+        assert_eq!(rig.bus.readings().target_torque_units, 20);
+        assert_eq!(rig.bus.misses_in_a_row(), k);
+    }
+    // A command in time ends the run.
+    let s = rig.step(0.01);
+    unprovoked(&rig, &s, u64::from(MAX_MISSED) - 1);
+    assert!(run_ends_on_a_clean_cycle(&rig, &s), "{s:?}");
+    assert_eq!(
+        rig.bus.counters().commands_missed,
+        u64::from(MAX_MISSED) - 1
+    );
+    while rig.bus.misses_in_a_row() > 0 {
+        rig.step(0.01);
+    }
+    // `MAX_MISSED` in a row: the last is not held, the driver latches.
+    for k in 1..=u64::from(MAX_MISSED) {
+        let (s, held) = rig.step_unanswered();
+        unprovoked(&rig, &s, k);
+        assert_eq!(held, k < u64::from(MAX_MISSED), "late command {k}: {s:?}");
+    }
+    assert!(
+        matches!(
+            rig.node.driver().latched(),
+            Some(SafetyEvent::CommandDeadlineMissed { .. })
+        ),
+        "{:?}",
+        rig.node.driver().latched()
+    );
+    assert_eq!(rig.bus.readings().target_torque_units, 0);
 }
 
 #[test]
