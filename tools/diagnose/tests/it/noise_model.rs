@@ -332,9 +332,12 @@ fn an_exact_relation_on_a_large_drift_is_recovered_to_rounding() {
 /// components; its judged σ adds the transient the local polynomials
 /// estimated (the line less the transient-free value, recomputed here with
 /// `local_polynomial_ratio`) less that estimate's own noise, `σ²·(leverage
-/// − 1)`, component by component; and such a value is held to no blanket
-/// floor, a line without one to the forward model's accuracy. Windows of
-/// three cycles or more have one, one-cycle windows none.
+/// − 1)`, relative to `σ²`, pooled over the experiment's lines and both
+/// components, clipped at zero (a component whose own excess is beyond
+/// 6.635 times the estimate's noise keeps its own when larger); and such a
+/// value is held to no blanket floor, a line without one to the forward
+/// model's accuracy. Windows of three cycles or more have one, one-cycle
+/// windows none.
 #[test]
 fn the_reduction_gives_each_line_its_transient_free_value_with_sqrt_leverage() {
     use exo_diagnose::data::{reduce, Reduction};
@@ -346,7 +349,31 @@ fn the_reduction_gives_each_line_its_transient_free_value_with_sqrt_leverage() {
         &SynthSettings::default(),
     );
     let d = reduce(&[rec], &Reduction::default());
-    let (mut with, mut grown) = (0, 0);
+    // Per line with a transient-free value, per component: (white σ², the
+    // estimate's own noise, the squared leak), from the window's signals.
+    let parts = |o: &exo_diagnose::data::Observation| {
+        o.transient_free?;
+        let line_sigma = line_white_sigma(&d, o);
+        let sig = &d.signals[o.window];
+        let n = whole_cycles(&sig.t_s, sig.omega_rad_s).expect("whole cycles");
+        let lp = local_polynomial_ratio(
+            &sig.t_s[..n],
+            &sig.theta_rad[..n],
+            &sig.tau_c_nm[..n],
+            sig.omega_rad_s,
+        )
+        .expect("local polynomials");
+        let leak = o.value - lp.ratio;
+        let part = |k: usize, dk: f64| {
+            let s2 = line_sigma[k] * line_sigma[k];
+            (s2, s2 * (lp.leverage - 1.0).max(0.0), dk * dk)
+        };
+        Some([part(0, leak.re), part(1, leak.im)])
+    };
+    let all: Vec<_> = d.of(Tf::Sh).filter_map(&parts).flatten().collect();
+    let pooled =
+        (all.iter().map(|(s2, v, d2)| (d2 - v) / s2).sum::<f64>() / all.len() as f64).max(0.0);
+    let mut with = 0;
     for o in d.of(Tf::Sh) {
         let line_sigma = line_white_sigma(&d, o);
         for k in 0..2 {
@@ -369,35 +396,26 @@ fn the_reduction_gives_each_line_its_transient_free_value_with_sqrt_leverage() {
         let (r0, r1) = (free.sigma[0] / line_sigma[0], free.sigma[1] / line_sigma[1]);
         assert!((r0 - r1).abs() < 1e-3 * r0, "{r0} against {r1}");
         assert!((0.999..=2.5_f64.sqrt()).contains(&r0), "√leverage {r0}");
-        // The judged σ: the line's, with the transient estimated at it.
-        let sig = &d.signals[o.window];
-        let n = whole_cycles(&sig.t_s, sig.omega_rad_s).expect("whole cycles");
-        let lp = local_polynomial_ratio(
-            &sig.t_s[..n],
-            &sig.theta_rad[..n],
-            &sig.tau_c_nm[..n],
-            sig.omega_rad_s,
-        )
-        .expect("local polynomials");
-        let leak = o.value - lp.ratio;
-        for (k, leak_k) in [leak.re, leak.im].into_iter().enumerate() {
-            let s2 = line_sigma[k] * line_sigma[k];
-            let want = (s2 + (leak_k * leak_k - s2 * (lp.leverage - 1.0)).max(0.0)).sqrt();
+        // The judged σ: the line's, with the experiment's pooled
+        // transient, or its own where that is clearly larger.
+        for (k, (s2, v, d2)) in parts(o)
+            .expect("a transient-free value")
+            .into_iter()
+            .enumerate()
+        {
+            let own = if d2 > 6.635 * v { d2 - v } else { 0.0 };
+            let want = (s2 + (pooled * s2).max(own)).sqrt();
             assert!(
                 (o.sigma[k] / want - 1.0).abs() < 1e-3,
                 "component {k}: {} against {want}",
                 o.sigma[k]
             );
-            if o.sigma[k] > 1.01 * line_sigma[k] {
-                grown += 1;
-            }
         }
     }
+    // (Here the pooled excess is near zero, below 2 %: this protocol's
+    // transients are within their estimates' noise, and every judged σ is
+    // within 1 % of the white one; `data::tests` pools a transient by hand.)
     assert!(with >= 5, "{with} windows with a transient-free value");
-    assert!(
-        grown >= 1,
-        "no window's transient beyond its estimate's noise"
-    );
 }
 
 /// The white σ of `o`'s line (`S_h`), recomputed from its window's signals.
