@@ -106,7 +106,12 @@ fn wait_ready(pending: &mut Pending, stop: &AtomicBool) {
 }
 
 const MAX_RESTARTS: u32 = 3;
-const STOP_GRACE: Duration = Duration::from_secs(3);
+/// How long a service is given to stop after SIGTERM before SIGKILL. The
+/// recorder spends it writing its file's last chunks and summary: on a
+/// loaded 2-CPU machine (a test suite and a mutation run at once) 3 s was
+/// not enough, and the killed recorder's file lost its summary (stop 35).
+/// A service that has stopped costs nothing of it.
+const STOP_GRACE: Duration = Duration::from_secs(15);
 
 struct Running {
     spec: ServiceSpec,
