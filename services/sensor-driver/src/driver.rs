@@ -133,6 +133,16 @@ pub enum BusFault {
     },
     /// A non-finite torque reached the backend (never sent).
     NonFiniteTorque,
+    /// The drive did not take the sync-manager watchdog the master armed
+    /// in its first cycle (`bus.ethercat.drive_watchdog_cycles`): the
+    /// divider (0x0400) and time (0x0420) read back, 0 when the write or
+    /// the read got no answer.
+    WatchdogRefused {
+        /// The divider read back.
+        divider: u16,
+        /// The time read back (units of the divider).
+        time: u16,
+    },
 }
 
 /// What to write to the bus for the current frame.

@@ -61,6 +61,18 @@ pub struct EthercatSettings {
     /// docs/hardware.md says why), [`EthercatSettings::max_missed_cycles`].
     #[serde(default)]
     pub max_missed_cycles: Option<u32>,
+    /// The drive's own sync-manager watchdog, in cycles: the drive takes
+    /// its outputs (the torque) away by itself when no process data has
+    /// reached it for this long, whatever the master does. The master
+    /// arms it in its first cycle (ESC registers 0x0400, a 100 µs unit,
+    /// and 0x0420) and reads it back: a drive that refuses it is named
+    /// before Operation Enabled. At least `max_missed_cycles` (a shorter
+    /// one would stop the drive while the master still rides a run of
+    /// misses through), at most 100 ms of cycles. Default: the cycles in
+    /// 100 ms, a real ESC's power-on setting (KickCAT's emulated one
+    /// starts with it off) ([`EthercatSettings::drive_watchdog_cycles`]).
+    #[serde(default)]
+    pub drive_watchdog_cycles: Option<u32>,
     /// Write the PDO mapping below into the drive in PRE-OP (CiA 301:
     /// 0x1C1x:0 = 0, the PDO's entries and count, 0x1C1x:1, 0x1C1x:0 = 1).
     /// `false`: the drive's own mapping is used and only its size is
@@ -88,6 +100,10 @@ pub const DEFAULT_MISSED_SPAN_MS: f64 = 50.0;
 /// watchdog (100 ms, ETG.1000.4), the longest a drive holds a set-point
 /// by itself.
 pub const MAX_MISSED_SPAN_MS: f64 = 100.0;
+
+/// The ESC watchdog divider (register 0x0400) for a 100 µs unit:
+/// `(2498 + 2) × 40 ns` (ETG.1000.4; also the ESC's power-on value).
+pub const WATCHDOG_DIVIDER_100_US: u16 = 2498;
 
 fn default_true() -> bool {
     true
@@ -235,6 +251,26 @@ impl EthercatSettings {
             .unwrap_or_else(|| ((DEFAULT_MISSED_SPAN_MS * rate_hz / 1000.0).floor() as u32).max(1))
     }
 
+    /// The drive's sync-manager watchdog at `rate_hz` (cycles):
+    /// `drive_watchdog_cycles`, or the cycles in [`MAX_MISSED_SPAN_MS`]
+    /// (at least 1).
+    pub fn drive_watchdog_cycles(&self, rate_hz: f64) -> u32 {
+        self.drive_watchdog_cycles
+            .unwrap_or_else(|| ((MAX_MISSED_SPAN_MS * rate_hz / 1000.0).floor() as u32).max(1))
+    }
+
+    /// The ESC's watchdog registers for [`Self::drive_watchdog_cycles`]:
+    /// the divider (0x0400) that makes its unit 100 µs, `(divider + 2) ×
+    /// 40 ns` (ETG.1000.4), and the process-data watchdog time (0x0420) in
+    /// that unit, rounded up, at least 1.
+    pub fn drive_watchdog_registers(&self, rate_hz: f64) -> (u16, u16) {
+        let units = (f64::from(self.drive_watchdog_cycles(rate_hz)) * 1e4 / rate_hz).ceil();
+        (
+            WATCHDOG_DIVIDER_100_US,
+            units.clamp(1.0, f64::from(u16::MAX)) as u16,
+        )
+    }
+
     /// Records every value at fault, naming its key under `bus.ethercat`.
     pub(crate) fn check(&self, c: &Check<'_>, rate_hz: f64) {
         let iface = &self.interface;
@@ -255,6 +291,23 @@ impl EthercatSettings {
             }
         }
         c.key("bus.ethercat.quick_stop_ms", self.quick_stop_ms);
+        if let Some(n) = self.drive_watchdog_cycles {
+            let span_ms = f64::from(n) * 1000.0 / rate_hz;
+            let missed = self.max_missed_cycles(rate_hz);
+            if c.key("bus.ethercat.drive_watchdog_cycles", f64::from(n)) {
+                if span_ms > MAX_MISSED_SPAN_MS {
+                    c.note(
+                        "bus.ethercat.drive_watchdog_cycles",
+                        format!("{n} cycles at {rate_hz} Hz are {span_ms} ms, longer than {MAX_MISSED_SPAN_MS} ms"),
+                    );
+                } else if n < missed {
+                    c.note(
+                        "bus.ethercat.drive_watchdog_cycles",
+                        format!("{n} cycles is shorter than the {missed} missed cycles in a row the master rides through (bus.ethercat.max_missed_cycles): the drive would stop first"),
+                    );
+                }
+            }
+        }
         if let Some(n) = self.max_missed_cycles {
             let span_ms = f64::from(n) * 1000.0 / rate_hz;
             if c.key("bus.ethercat.max_missed_cycles", f64::from(n)) && span_ms > MAX_MISSED_SPAN_MS
@@ -447,13 +500,23 @@ mod tests {
         edge.max_missed_cycles = Some(100); // 100 ms at 1 kHz: the limit itself
         assert_eq!(errors(&edge), "");
         assert_eq!(edge.max_missed_cycles(1000.0), 100);
+        // The drive's watchdog: 100 ms of cycles by default (100 at
+        // 1 kHz, 10 at 100 Hz: 1000 units of 100 µs either way); a given
+        // one in units rounded up (7 cycles at 300 Hz: 23.33 ms → 234).
+        assert_eq!(s.drive_watchdog_cycles(1000.0), 100);
+        assert_eq!(s.drive_watchdog_registers(1000.0), (2498, 1000));
+        assert_eq!(s.drive_watchdog_cycles(100.0), 10);
+        assert_eq!(s.drive_watchdog_registers(100.0), (2498, 1000));
+        let mut given = settings();
+        given.drive_watchdog_cycles = Some(7);
+        assert_eq!(given.drive_watchdog_registers(300.0), (2498, 234));
         assert_eq!(role_name(PdoRole::TargetTorque), "target_torque");
     }
 
     #[test]
     fn each_bad_mapping_is_refused_naming_its_key() {
         type Spoil = fn(&mut EthercatSettings);
-        let cases: [(&str, Spoil); 12] = [
+        let cases: [(&str, Spoil); 15] = [
             ("bus.ethercat.rx_pdo.entries[1].scale", |s| {
                 s.rx_pdo.entries[1].scale = None
             }),
@@ -486,6 +549,17 @@ mod tests {
             // 101 cycles at 1 kHz: 101 ms, beyond the slave controller's 100 ms.
             ("bus.ethercat.max_missed_cycles", |s| {
                 s.max_missed_cycles = Some(101)
+            }),
+            ("bus.ethercat.drive_watchdog_cycles", |s| {
+                s.drive_watchdog_cycles = Some(0)
+            }),
+            // 101 ms at 1 kHz.
+            ("bus.ethercat.drive_watchdog_cycles", |s| {
+                s.drive_watchdog_cycles = Some(101)
+            }),
+            // Shorter than the default 50 missed cycles at 1 kHz.
+            ("bus.ethercat.drive_watchdog_cycles", |s| {
+                s.drive_watchdog_cycles = Some(49)
             }),
         ];
         for (key, spoil) in cases {

@@ -494,7 +494,7 @@ pub mod toml_paths;
 
 pub use ethercat::{
     role_name, EthercatSettings, PdoEntry, PdoRole, PdoSettings, DEFAULT_MISSED_SPAN_MS,
-    MAX_MISSED_SPAN_MS, MAX_PDO_BYTES, MAX_PDO_ENTRIES,
+    MAX_MISSED_SPAN_MS, MAX_PDO_BYTES, MAX_PDO_ENTRIES, WATCHDOG_DIVIDER_100_US,
 };
 pub use experiments::{ExperimentSpec, ExperimentTable, ProtocolTiming, EXPERIMENT_RANGES};
 pub use run::{

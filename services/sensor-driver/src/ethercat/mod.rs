@@ -27,6 +27,10 @@
 //!   set-point, and the one that reaches the limit latches
 //!   `CommandDeadlineMissed` in the driver. A drive that stops answering altogether is caught
 //!   this way too, within that many cycles.
+//! - **The drive's own watchdog**: in the first cycle the master arms the
+//!   drive's sync-manager watchdog (`bus.ethercat.drive_watchdog_cycles`)
+//!   and reads it back; a drive that refuses it latches
+//!   ([`BusFault::WatchdogRefused`]) before it is ever enabled.
 //! - **Faults** latch within the cycle they are seen in: a frame that
 //!   cannot be sent (a lost link), a working counter short of the expected
 //!   one, a device that no longer answers (working counter 0), the drive's
@@ -81,6 +85,10 @@ const MAX_SUBDEVICES: usize = 16;
 const PDI_BYTES: usize = 1024;
 /// Frames in flight at once.
 const MAX_FRAMES: usize = 16;
+/// ESC register: the watchdog divider (ETG.1000.4).
+const WATCHDOG_DIVIDER: u16 = 0x0400;
+/// ESC register: the sync managers' (process data) watchdog time.
+const SM_WATCHDOG_TIME: u16 = 0x0420;
 
 static PDU_STORAGE: PduStorage<MAX_FRAMES, { PduStorage::element_size(1100) }> = PduStorage::new();
 
@@ -141,6 +149,11 @@ pub struct EthercatBus {
     period_ns: u64,
     pdu_timeout: Duration,
     max_missed_cycles: u64,
+    /// The drive's sync-manager watchdog: (divider, time) for ESC
+    /// registers 0x0400 and 0x0420, armed in the first cycle.
+    watchdog: (u16, u16),
+    watchdog_cycles: u32,
+    watchdog_armed: bool,
     /// Missed cycles in a row up to now.
     miss_run: u64,
     /// Whether the cycle read last missed nothing so far.
@@ -297,6 +310,63 @@ impl EthercatBus {
         }
     }
 
+    /// Arms the drive's sync-manager watchdog (ESC registers 0x0400 and
+    /// 0x0420, ETG.1000.4) and reads both back: the drive takes the torque
+    /// away by itself when no process data reaches it for that long. Done
+    /// in the first cycle, after its exchange, so the watchdog starts from
+    /// a write of the process data (an emulated ESC times it from the last
+    /// one).
+    fn arm_watchdog(&mut self) -> Result<(), BusFault> {
+        let (divider, time) = self.watchdog;
+        let (md, group, pump) = (self.md, &self.group, &mut self.pump);
+        let sd = group
+            .subdevice(md, self.position)
+            .map_err(|_| BusFault::DeviceVanished)?;
+        let arm = async {
+            sd.register_write(WATCHDOG_DIVIDER, divider).await?;
+            sd.register_write(SM_WATCHDOG_TIME, time).await?;
+            let d: u16 = sd.register_read(WATCHDOG_DIVIDER).await?;
+            let t: u16 = sd.register_read(SM_WATCHDOG_TIME).await?;
+            Ok::<_, ethercrab::error::Error>((d, t))
+        };
+        let deadline = Instant::now() + 4 * self.pdu_timeout;
+        match pump.drive(arm, deadline) {
+            Ok(Ok(back)) if back == self.watchdog => {
+                info!(
+                    "sensor-driver: EtherCAT drive's sync-manager watchdog armed: {time} × {:.1} µs (read back)",
+                    f64::from(divider + 2) * 0.04
+                );
+                Ok(())
+            }
+            Ok(Ok((divider, time))) => Err(BusFault::WatchdogRefused { divider, time }),
+            _ => Err(BusFault::WatchdogRefused {
+                divider: 0,
+                time: 0,
+            }),
+        }
+    }
+
+    /// The drive's sync-manager watchdog registers as it reports them now
+    /// (divider 0x0400, time 0x0420).
+    pub fn drive_watchdog(&mut self) -> Result<(u16, u16), EthercatError> {
+        let (md, group, pump) = (self.md, &self.group, &mut self.pump);
+        let sd = group
+            .subdevice(md, self.position)
+            .map_err(|e| EthercatError::Master(e.to_string()))?;
+        let read = async {
+            let d: u16 = sd.register_read(WATCHDOG_DIVIDER).await?;
+            let t: u16 = sd.register_read(SM_WATCHDOG_TIME).await?;
+            Ok::<_, ethercrab::error::Error>((d, t))
+        };
+        match pump.drive(read, Instant::now() + 4 * self.pdu_timeout) {
+            Ok(Ok(back)) => Ok(back),
+            Ok(Err(e)) => Err(EthercatError::Master(e.to_string())),
+            Err(_) => Err(EthercatError::Master(
+                "no answer reading the watchdog registers".into(),
+            )),
+        }
+    }
+
     fn fault(&mut self, f: BusFault) {
         self.cia.power_down();
         if self.latched.is_none() {
@@ -337,6 +407,15 @@ impl HardwareBus for EthercatBus {
         }
         if self.next_ns == 0 {
             self.next_ns = now;
+            // One warm-up for the three, from the first cycle: the first
+            // cycle is the longest (the watchdog is armed in it).
+            for t in [
+                &mut self.exchange_time,
+                &mut self.wake_lateness,
+                &mut self.driver_part,
+            ] {
+                t.start_warmup_at(now);
+            }
         } else if now < self.next_ns {
             sleep_until_ns(self.next_ns);
         }
@@ -382,6 +461,12 @@ impl HardwareBus for EthercatBus {
             status |= bus_status::STALE;
         } else if let Err(f) = exchanged {
             cycle_fault = Some(f);
+        }
+        if exchanged.is_ok() && !self.watchdog_armed {
+            self.watchdog_armed = true;
+            if let Err(f) = self.arm_watchdog() {
+                cycle_fault = cycle_fault.or(Some(f));
+            }
         }
         let missed = skipped + u64::from(reply_lost);
         // The run ends at the write of a cycle that missed nothing (its
@@ -529,6 +614,10 @@ impl HardwareBus for EthercatBus {
             match f {
                 BusFault::DriveFault { error_code, .. } => error!(
                     "sensor-driver: EtherCAT drive fault {f:?}, error code {error_code:#06x}; powering down"
+                ),
+                BusFault::WatchdogRefused { .. } => error!(
+                    "sensor-driver: EtherCAT drive refused its sync-manager watchdog (bus.ethercat.drive_watchdog_cycles = {} cycles: divider {:#06x}, time {}): {f:?}; not enabling it",
+                    self.watchdog_cycles, self.watchdog.0, self.watchdog.1
                 ),
                 _ => warn!("sensor-driver: EtherCAT fault {f:?}; powering the drive down"),
             }

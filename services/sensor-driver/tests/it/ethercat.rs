@@ -289,6 +289,10 @@ fn the_drive_comes_up_to_operation_enabled_and_follows_torque_set_points() {
         "three transitions need three cycles, took {took}"
     );
     assert_eq!(rig.bus.readings().statusword & 0x6F, 0x27);
+    // The drive's sync-manager watchdog, armed in the first cycle, reads
+    // back as set: by default 100 ms (ETG.1000.4: a divider of 2498 makes
+    // the unit (2498 + 2) × 40 ns = 100 µs, and 100 ms is 1000 of them).
+    assert_eq!(rig.bus.drive_watchdog().unwrap(), (2498, 1000));
     let scale = 0.001; // Nm per unit of 0x6071 and 0x6077, as in the run file
     let mut targets = Vec::new();
     let mut actuals = Vec::new();

@@ -93,6 +93,10 @@ pub const RUN_RANGES: Ranges = &[
     ("bus.ethercat.quick_stop_ms", Range::closed(0.0, 1000.0)),
     ("bus.ethercat.max_missed_cycles", Range::closed(1.0, 1000.0)),
     (
+        "bus.ethercat.drive_watchdog_cycles",
+        Range::closed(1.0, 1000.0),
+    ),
+    (
         "bus.ethercat.rx_pdo.entries[*].scale",
         Range::closed(-1e9, 1e9),
     ),
