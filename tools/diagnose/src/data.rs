@@ -1113,12 +1113,12 @@ mod tests {
         second.experiment = 2;
         d.conditions = vec![Condition::test_window(0.0, 0.1, 1e-3), second];
         let c = |re: f64, im: f64| Complex64::new(re, im);
-        // Experiment 1, S_h, σ 1, leverage 2 (estimate noise 1): parts
-        // (4 − 1, 0 − 1) and (2 − 1, 1 − 1): sum 3 − 1 + 1 + 0 = 3 over 4,
-        // r = 0.75. No d² above 6.635.
-        d.observations.push(line(Tf::Sh, 0, 1.0, c(2.0, 0.0), 2.0));
+        // Experiment 1, S_h, σ 2, leverage 2 (estimate noise 4): parts
+        // (16 − 4)/4, (0 − 4)/4 and (8 − 4)/4, (4 − 4)/4: sum 3 − 1 + 1 + 0
+        // = 3 over 4, r = 0.75: σ² = 4 + 0.75·4 = 7. No d² above 6.635·4.
+        d.observations.push(line(Tf::Sh, 0, 2.0, c(4.0, 0.0), 2.0));
         d.observations
-            .push(line(Tf::Sh, 0, 1.0, c(2f64.sqrt(), 1.0), 2.0));
+            .push(line(Tf::Sh, 0, 2.0, c(8f64.sqrt(), 2.0), 2.0));
         // Experiment 1, S_h-e, σ 2, leverage 3 (estimate noise 8): parts
         // (0 − 8)/4 twice and (4 − 8)/4, (0 − 8)/4: sum −7, r clipped to
         // 0: the white σ alone.
@@ -1137,18 +1137,33 @@ mod tests {
         let mut alone = line(Tf::Sh, 1, 3.0, c(9.0, 9.0), 2.0);
         alone.transient_free = None;
         d.observations.push(alone);
+        // A line of σ 0 adds nothing to its pool (its parts would divide
+        // by zero) and keeps σ 0.
+        d.observations.push(line(Tf::Sh, 1, 0.0, c(0.0, 0.0), 2.0));
+        // Experiment 2, S_h-e, σ 2, leverage 2 (estimate noise 4): one real
+        // part at d² = 20, between 6.635 + 4 and 6.635·4 = 26.5: not its
+        // own; the pool (20 − 4)/4 − 1 − 6·1 = −3 is clipped: σ 2 for all.
+        d.observations
+            .push(line(Tf::She, 1, 2.0, c(20f64.sqrt(), 0.0), 2.0));
+        for _ in 0..3 {
+            d.observations.push(line(Tf::She, 1, 2.0, c(0.0, 0.0), 2.0));
+        }
         pool_transients(&mut d);
         let close =
             |a: [f64; 2], b: [f64; 2]| (a[0] - b[0]).abs() < 1e-12 && (a[1] - b[1]).abs() < 1e-12;
         let s = |i: usize| d.observations[i].sigma;
-        assert!(close(s(0), [1.75f64.sqrt(); 2]), "{:?}", s(0));
-        assert!(close(s(1), [1.75f64.sqrt(); 2]), "{:?}", s(1));
+        assert!(close(s(0), [7f64.sqrt(); 2]), "{:?}", s(0));
+        assert!(close(s(1), [7f64.sqrt(); 2]), "{:?}", s(1));
         assert!(close(s(2), [2.0; 2]), "{:?}", s(2));
         assert!(close(s(3), [2.0; 2]), "{:?}", s(3));
         let r: f64 = 11.0 / 14.0; // (25 − 1) − 13 over 14 components
         assert!(close(s(4), [(1.0 + r).sqrt(); 2]), "{:?}", s(4));
         assert!(close(s(5), [25f64.sqrt(), (1.0 + r).sqrt()]), "{:?}", s(5));
         assert_eq!(s(11), [3.0, 3.0], "no transient-free value: untouched");
+        assert_eq!(s(12), [0.0, 0.0]);
+        for i in 13..17 {
+            assert!(close(s(i), [2.0, 2.0]), "{i}: {:?}", s(i));
+        }
     }
 
     /// Held to an accuracy: every dynamic value to its line's own σ and at
