@@ -69,7 +69,10 @@ mod lpm;
 mod sine;
 mod welch;
 
-pub use lpm::{local_polynomial_ratio, mean_standard_error, LocalPolynomialPoint};
+pub use lpm::{
+    hann_mean, local_polynomial_ratio, mean_standard_error, LocalPolynomialPoint,
+    HANN_MEAN_NOISE_GAIN,
+};
 pub use sine::{
     sine_amplitude, sine_ratio, whole_cycles, SineAmplitude, SineCorrelator, SinePoint,
 };

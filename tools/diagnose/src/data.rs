@@ -280,8 +280,8 @@ pub struct Observation {
     pub value: Complex64,
     /// Standard deviation of the real and of the imaginary part (same units
     /// as `value`), from the window's residual taken as white noise (a
-    /// static balance's with each cycle counted as one sample,
-    /// conservative): what the fits weight with.
+    /// static balance's from the noise of its mean near zero frequency,
+    /// with [`Self::sigma_dof`]): what the fits weight with.
     pub sigma: [f64; 2],
     /// The line's own σ, without its window's transient (a single-sine
     /// line whose transient the local polynomials estimated holds it in
@@ -315,6 +315,14 @@ pub struct Observation {
     pub gravity_comp: Complex64,
     /// For [`Tf::Balance`]: the window's mean `τ_gravity` and mean `τ_c` (Nm).
     pub statics: [f64; 2],
+    /// Degrees of freedom of [`Self::sigma`] where it was estimated from so
+    /// few values that a residual over it is Student-t distributed rather
+    /// than normal: the static balance's mean noise, two per DFT bin it was
+    /// measured at (`exo_impedance::frf::mean_standard_error`, 4–8). The
+    /// lack-of-fit χ² takes such a residual at its normal equivalent
+    /// ([`crate::fit::lack_of_fit_chi2`]). `None` where σ is known well
+    /// enough to be taken as exact.
+    pub sigma_dof: Option<f64>,
 }
 
 /// A line with its window's transient taken out ([`Observation::transient_free`]).
@@ -892,6 +900,7 @@ fn single_sine(
                     window,
                     gravity_comp,
                     statics: [0.0; 2],
+                    sigma_dof: None,
                 })
             }
             Ok(p) => d.notes.push(format!(
@@ -918,9 +927,16 @@ fn single_sine(
     }
 }
 
-/// The static balance over the window's whole cycles, with the standard
-/// error of its mean from the residual after the fundamental (each cycle
-/// counted as one independent sample: conservative).
+/// The static balance over the window's whole cycles. Where the window
+/// allows the noise of its mean to be measured near zero frequency
+/// (`exo_impedance::frf::mean_standard_error`: two cycles or more) every
+/// mean of the balance is the Hann-tapered one
+/// (`exo_impedance::frf::hann_mean`: the line and a ringing mode's
+/// boundary term `M_e Δθ̇/T` left out), judged by that noise times the
+/// taper's gain with its few degrees of freedom
+/// ([`Observation::sigma_dof`]). A shorter window keeps plain means and the
+/// residual's standard error with each cycle counted as one sample
+/// (conservative).
 fn balance(
     what: &str,
     sig: &WindowSignals,
@@ -929,6 +945,7 @@ fn balance(
     cond: &mut Condition,
     d: &mut Dataset,
 ) {
+    use exo_impedance::frf::{hann_mean, mean_standard_error, HANN_MEAN_NOISE_GAIN};
     let w = sig.omega_rad_s;
     let Some(n) = exo_impedance::frf::whole_cycles(&sig.t_s, w) else {
         d.notes
@@ -938,38 +955,47 @@ fn balance(
     let y: Vec<f64> = (0..n)
         .map(|i| sig.tau_s_net_nm[i] - sig.tau_c_nm[i])
         .collect();
-    let nf = n as f64;
-    let mean = y.iter().sum::<f64>() / nf;
-    let g_mean = tau_g[..n].iter().sum::<f64>() / nf;
-    let c_mean = sig.tau_c_nm[..n].iter().sum::<f64>() / nf;
-    cond.sin_theta_mean = sig.theta_rad[..n].iter().map(|t| t.sin()).sum::<f64>() / nf;
+    let sin_theta: Vec<f64> = sig.theta_rad[..n].iter().map(|t| t.sin()).collect();
+    let (t_s, tau_c) = (&sig.t_s[..n], &sig.tau_c_nm[..n]);
+    let plain = |v: &[f64]| v.iter().sum::<f64>() / n as f64;
     // τ_s = its net part + the controller's gravity compensation.
-    cond.tau_s_mean_nm = sig.tau_s_net_nm[..n].iter().sum::<f64>() / nf + g_mean;
-    // Judged with each cycle counted as one sample of the residual
-    // (conservative); the mean's own noise, measured near zero frequency,
-    // is reported beside it (docs/diagnose.md, "The noise model").
-    let Ok(a) = exo_impedance::frf::sine_amplitude(&sig.t_s[..n], &y, w, true) else {
+    cond.tau_s_mean_nm = plain(&sig.tau_s_net_nm[..n]) + plain(&tau_g[..n]);
+    let Ok(a) = exo_impedance::frf::sine_amplitude(t_s, &y, w, true) else {
+        cond.sin_theta_mean = plain(&sin_theta);
         return;
     };
-    let se = (a.residual_var.max(0.0) / a.cycles.max(1) as f64).sqrt();
-    let transient_free =
-        exo_impedance::frf::mean_standard_error(&sig.t_s[..n], &y, w).map(|(se, _)| {
-            TransientFree {
-                value: Complex64::new(mean, 0.0),
-                sigma: [se, se],
-            }
-        });
+    let measured = mean_standard_error(t_s, &y, w).filter(|(se, _)| *se > 0.0);
+    let mean: &dyn Fn(&[f64]) -> f64 = if measured.is_some() {
+        &hann_mean
+    } else {
+        &plain
+    };
+    let value = mean(&y);
+    cond.sin_theta_mean = mean(&sin_theta);
+    let statics = [mean(&tau_g[..n]), mean(tau_c)];
+    let (se, sigma_dof) = match measured {
+        Some((se, bins)) => (se * HANN_MEAN_NOISE_GAIN, Some(2.0 * bins as f64)),
+        None => (
+            (a.residual_var.max(0.0) / a.cycles.max(1) as f64).sqrt(),
+            None,
+        ),
+    };
+    let transient_free = measured.map(|_| TransientFree {
+        value: Complex64::new(value, 0.0),
+        sigma: [se, se],
+    });
     d.observations.push(Observation {
         tf: Tf::Balance,
         omega_rad_s: 0.0,
-        value: Complex64::new(mean, 0.0),
+        value: Complex64::new(value, 0.0),
         sigma: [se, se],
         line_sigma: [se, se],
         transient_free,
-        accuracy: crate::fit::MODEL_ACCURACY,
+        accuracy: 0.0,
         window,
         gravity_comp: Complex64::new(0.0, 0.0),
-        statics: [g_mean, c_mean],
+        statics,
+        sigma_dof,
     });
 }
 
@@ -1049,6 +1075,7 @@ fn broadband(
             window,
             gravity_comp: zero,
             statics: [0.0; 2],
+            sigma_dof: None,
         });
         if let Some((h_s, h_sea, h_g)) = &extra {
             let gravity_comp = average_bins(h_g, g).map_or(zero, |b| b.h);
@@ -1066,6 +1093,7 @@ fn broadband(
                             window,
                             gravity_comp,
                             statics: [0.0; 2],
+                            sigma_dof: None,
                         });
                     }
                 }
@@ -1096,6 +1124,7 @@ mod tests {
             window,
             gravity_comp: Complex64::new(0.0, 0.0),
             statics: [0.0; 2],
+            sigma_dof: None,
         }
     }
 
@@ -1182,6 +1211,7 @@ mod tests {
             window: 0,
             gravity_comp: Complex64::new(0.0, 0.0),
             statics: [0.0; 2],
+            sigma_dof: None,
         };
         let d = Dataset {
             observations: vec![o(Tf::Sh, 0.0), o(Tf::Sea, 0.02), o(Tf::Balance, 0.0)],

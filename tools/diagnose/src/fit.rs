@@ -74,11 +74,13 @@ pub fn sigma_floor(o: &Observation, k: usize) -> f64 {
         .max(absolute_floor(o.tf))
 }
 
-/// The smallest standard deviation of a component: 1 mNm for the static
-/// balance (whose value may be near zero), otherwise negligible.
+/// The smallest standard deviation of a component: 1 µNm for the static
+/// balance (held to its measured noise alone, which a constant signal makes
+/// zero; a µNm is far below any joint torque sensor's resolution),
+/// otherwise negligible.
 fn absolute_floor(tf: crate::data::Tf) -> f64 {
     if tf == crate::data::Tf::Balance {
-        1e-3
+        1e-6
     } else {
         1e-12
     }
@@ -147,10 +149,16 @@ pub fn lack_of_fit_chi2_of(
         let acc = model_accuracy(phys, o) * o.value.norm();
         let r = phys.predict(o, &d.conditions[o.window]) - o.value;
         let fl = absolute_floor(o.tf);
-        chi += (r.re / o.sigma[0].hypot(acc).max(fl)).powi(2);
+        // A residual over a σ estimated with few degrees of freedom is
+        // Student-t: taken at the normal quantile of the same probability.
+        let z = |x: f64| match o.sigma_dof {
+            Some(dof) => crate::stats::t_as_normal(x, dof),
+            None => x,
+        };
+        chi += z(r.re / o.sigma[0].hypot(acc).max(fl)).powi(2);
         n += 1;
         if o.tf.is_dynamic() {
-            chi += (r.im / o.sigma[1].hypot(acc).max(fl)).powi(2);
+            chi += z(r.im / o.sigma[1].hypot(acc).max(fl)).powi(2);
             n += 1;
         }
     }
@@ -507,14 +515,17 @@ mod tests {
             window: 0,
             gravity_comp: Complex64::new(0.0, 0.0),
             statics: [0.0; 2],
+            sigma_dof: None,
         }
     }
 
     /// The lack-of-fit χ² by hand: an `S_h` value 2 % off the model's
     /// prediction in its real part, 1 % in its imaginary part, with a σ of
     /// 0.3 and the 0.5 % accuracy on |value|; and a static balance 2 mNm
-    /// off with σ 0.5 mNm (one residual, its 1 mNm floor). Each transfer
-    /// function counted on its own, and together.
+    /// off with σ 0.5 mNm (one residual, no accuracy: 16). Each transfer
+    /// function counted on its own, and together. A balance whose σ was
+    /// measured with 6 degrees of freedom, off by Student's two-sided 5 %
+    /// point (2.447 σ), counts as the normal's (1.960², 3.84).
     #[test]
     fn the_lack_of_fit_chi2_is_the_residuals_over_noise_and_accuracy() {
         let phys = default_physics();
@@ -541,10 +552,21 @@ mod tests {
         );
         let (chi_b, n_b) = lack_of_fit_chi2_of(&d, &phys, Some(Tf::Balance));
         assert_eq!(n_b, 1);
-        assert!((chi_b - 4.0).abs() < 1e-6, "{chi_b}");
+        assert!((chi_b - 16.0).abs() < 1e-6, "{chi_b}");
         let (all, n_all) = lack_of_fit_chi2(&d, &phys);
         assert_eq!(n_all, 3);
-        assert!((all - want_sh - 4.0).abs() < 1e-6 * all, "{all}");
+        assert!((all - want_sh - 16.0).abs() < 1e-6 * all, "{all}");
+        let mut t6 = bal;
+        t6.sigma_dof = Some(6.0);
+        t6.value = Complex64::new(pb.re - 2.447 * 5e-4, 0.0);
+        let d6 = Dataset {
+            conditions: vec![window()],
+            observations: vec![t6],
+            supported: vec![Tf::Balance],
+            ..Dataset::default()
+        };
+        let (chi_t, _) = lack_of_fit_chi2_of(&d6, &phys, Some(Tf::Balance));
+        assert!((chi_t - 1.960f64.powi(2)).abs() < 1e-2, "{chi_t}");
     }
 
     /// The materiality rule by hand: 40 `S_h` values of one window, each
@@ -593,7 +615,7 @@ mod tests {
     /// Each value is held to its own systematic uncertainty; a model with
     /// Coulomb friction to 2.5 % at every dynamic transfer function, one
     /// with an ideal actuator to at least 1 %; the static balance to its
-    /// own and its 1 mNm floor.
+    /// measured noise alone, down to the 1 µNm floor.
     #[test]
     fn each_value_is_held_to_its_own_accuracy_or_its_terms() {
         let base = default_physics();
@@ -608,7 +630,9 @@ mod tests {
         assert_eq!(sigma_floor(&free, 0), 0.3);
         assert!((sigma_floor(&line, 1) - 0.3f64.hypot(0.5)).abs() < 1e-12);
         assert!((sigma_floor(&quantised, 0) - 0.3f64.hypot(0.2)).abs() < 1e-12);
-        assert_eq!(sigma_floor(&balance, 0), 1e-3);
+        assert_eq!(sigma_floor(&balance, 0), 1e-4);
+        let silent = observation(Tf::Balance, 0.01, 0.0, 0.0);
+        assert_eq!(sigma_floor(&silent, 0), 1e-6);
         let mut friction = base.clone();
         friction.coulomb_nm = 0.3;
         for o in [&free, &line, &quantised] {

@@ -96,6 +96,31 @@ pub fn mean_standard_error(t_s: &[f64], y: &[f64], omega_rad_s: f64) -> Option<(
     (bins >= 2).then(|| ((sum / bins as f64 / 4.0).sqrt(), bins))
 }
 
+/// The mean of `v` weighted by the periodic Hann taper
+/// `w_i = ½ − ½ cos(2π i/n)` over its `n` samples. Over a block of `c ≥ 2`
+/// whole cycles of ω the taper's spectrum (DFT bins 0 and ±1 only) leaves
+/// the line and its harmonics out exactly, and since the taper and its
+/// slope vanish at both ends, a transient's boundary terms do too: the
+/// plain mean of `M θ̈` is `M (θ̇(T) − θ̇(0))/T`, a mode still ringing at
+/// the window's ends, where the tapered mean keeps only what is slow in
+/// the window. Its noise is that of the plain mean times
+/// [`HANN_MEAN_NOISE_GAIN`]. NaN for an empty block.
+pub fn hann_mean(v: &[f64]) -> f64 {
+    let n = v.len() as f64;
+    let (mut sum, mut weight) = (0.0, 0.0);
+    for (i, x) in v.iter().enumerate() {
+        let w = 0.5 - 0.5 * (std::f64::consts::TAU * i as f64 / n).cos();
+        sum += w * x;
+        weight += w;
+    }
+    sum / weight
+}
+
+/// The standard error of [`hann_mean`] over that of the plain mean for
+/// noise flat near zero frequency: `√(n Σw²)/Σw` with `Σw = n/2` and
+/// `Σw² = 3n/8` for the periodic Hann taper of `n ≥ 3` samples, `√(3/2)`.
+pub const HANN_MEAN_NOISE_GAIN: f64 = 1.224_744_871_391_589;
+
 /// Bins each side of the line the local polynomial method looks at.
 const LPM_HALF_WIDTH: i64 = 4;
 
@@ -208,4 +233,60 @@ pub fn local_polynomial_ratio(
         residual_sigma,
         dof,
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The tapered mean by hand: a constant is itself; a ramp `i` weighs to
+    /// `n/2` (the periodic taper is symmetric about sample `n/2`); a sine
+    /// of two whole cycles to zero, where its plain mean over a block a
+    /// sample short is not; an exponential's boundary term is gone.
+    #[test]
+    fn the_hann_mean_keeps_the_level_and_drops_whole_cycles_and_ends() {
+        assert!((hann_mean(&[2.5; 40]) - 2.5).abs() < 1e-12);
+        let ramp: Vec<f64> = (0..40).map(f64::from).collect();
+        assert!((hann_mean(&ramp) - 20.0).abs() < 1e-12);
+        let n = 100;
+        let sine: Vec<f64> = (0..n)
+            .map(|i| 3.0 * (std::f64::consts::TAU * 2.0 * i as f64 / n as f64 + 0.4).sin())
+            .collect();
+        assert!(hann_mean(&sine).abs() < 1e-12);
+        let short = &sine[..n - 1];
+        assert!((short.iter().sum::<f64>() / (n - 1) as f64).abs() > 1e-3);
+        assert!(hann_mean(&[]).is_nan());
+        // The velocity of a mode ringing at 4.3 rad/s (decay 0.2/s) over
+        // [0, 5] s: its plain mean is the boundary term (g(5) − g(0))/5 =
+        // e^{−1} sin 21.5 / 5 ≈ 0.0347; the tapered one keeps only the
+        // mode's content near zero frequency, of order (2π/T)²/ω² ≈ 0.09
+        // of its size (here −0.0057, a sixth of the plain mean).
+        let m = 5000;
+        let d: Vec<f64> = (0..m)
+            .map(|i| {
+                let t = 5.0 * i as f64 / m as f64;
+                (-0.2 * t).exp() * (4.3 * (4.3 * t).cos() - 0.2 * (4.3 * t).sin())
+            })
+            .collect();
+        let plain = d.iter().sum::<f64>() / m as f64;
+        assert!((plain - 0.0347).abs() < 1e-3, "{plain}");
+        assert!(
+            hann_mean(&d).abs() < 0.25 * plain.abs(),
+            "{}",
+            hann_mean(&d)
+        );
+    }
+
+    /// `√(n Σw²)/Σw` summed directly for a few block lengths.
+    #[test]
+    fn the_hann_means_noise_gain_is_the_tapers_own() {
+        for n in [3usize, 10, 257, 5000] {
+            let w: Vec<f64> = (0..n)
+                .map(|i| 0.5 - 0.5 * (std::f64::consts::TAU * i as f64 / n as f64).cos())
+                .collect();
+            let (s1, s2): (f64, f64) = (w.iter().sum(), w.iter().map(|x| x * x).sum());
+            let gain = (n as f64 * s2).sqrt() / s1;
+            assert!((gain - HANN_MEAN_NOISE_GAIN).abs() < 1e-12, "n {n}: {gain}");
+        }
+    }
 }

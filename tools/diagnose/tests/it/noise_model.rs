@@ -11,7 +11,8 @@ use crate::common;
 use exo_diagnose::data::Tf;
 use exo_diagnose::fit::MODEL_ACCURACY;
 use exo_impedance::frf::{
-    local_polynomial_ratio, mean_standard_error, sine_amplitude, sine_ratio, whole_cycles,
+    hann_mean, local_polynomial_ratio, mean_standard_error, sine_amplitude, sine_ratio,
+    whole_cycles, HANN_MEAN_NOISE_GAIN,
 };
 use num_complex::Complex64;
 
@@ -231,6 +232,51 @@ fn the_mean_s_standard_error_is_the_noise_near_zero_frequency() {
             assert!(var_true.sqrt() > 5.0 * white);
         }
     }
+}
+
+/// The static balance's mean (`data::balance`) over six whole cycles of
+/// 6 rad/s, the balance itself zero. With the arm's mode (15 rad/s,
+/// ζ = 0.03) still ringing, random phase, no noise: the plain mean of
+/// `M_e θ̈` is the boundary term `M_e (θ̇(T) − θ̇(0))/T` (closed form
+/// here), and the Hann-tapered mean a small part of it. With white noise
+/// alone: the tapered mean scatters as the mean's noise measured near zero
+/// frequency times the taper's gain √(3/2).
+#[test]
+fn the_tapered_balance_leaves_a_ringing_modes_boundary_term_out_within_its_noise() {
+    let (w, wn, zeta, m_e, ring) = (6.0_f64, 15.0_f64, 0.03_f64, 1.0_f64, 0.02_f64);
+    let t = six_cycles(w);
+    let n = t.len();
+    let big_t = n as f64 * 1e-3;
+    let p = Complex64::new(-zeta * wn, wn * (1.0 - zeta * zeta).sqrt());
+    let (mut boundary, mut plain, mut tapered, mut z_noise) = (0.0, 0.0, 0.0, 0.0);
+    let trials = 300u64;
+    for s in 0..trials {
+        let c = Complex64::from_polar(ring, 0.61 * s as f64);
+        // The swing's acceleration and the mode's, closed form.
+        let acc = |t: f64| -0.1 * w * w * (w * t).cos() + (p * p * c * (p * t).exp()).re;
+        let vel = |t: f64| 0.1 * w * (w * t).sin() + (p * c * (p * t).exp()).re;
+        let clean: Vec<f64> = t.iter().map(|t| m_e * acc(*t)).collect();
+        boundary += (m_e * (vel(big_t) - vel(0.0)) / big_t).powi(2);
+        plain += (clean.iter().sum::<f64>() / n as f64).powi(2);
+        tapered += hann_mean(&clean).powi(2);
+        let noise = common::normals((4242 + s).wrapping_mul(0x9E37_79B9_7F4A_7C15), n);
+        let y: Vec<f64> = noise.iter().map(|e| 0.5 * e).collect();
+        let (se, _) = mean_standard_error(&t, &y, w).expect("bins");
+        z_noise += (hann_mean(&y) / (se * HANN_MEAN_NOISE_GAIN)).powi(2);
+    }
+    let rms = |x: f64| (x / trials as f64).sqrt();
+    let (boundary, plain, tapered, z_noise) =
+        (rms(boundary), rms(plain), rms(tapered), rms(z_noise));
+    eprintln!(
+        "RMS over phases: boundary term {boundary:.2e}, plain mean {plain:.2e}, \
+         tapered {tapered:.2e} Nm; noise alone: tapered z {z_noise:.2}"
+    );
+    assert!(
+        (plain / boundary - 1.0).abs() < 0.05,
+        "{plain} vs {boundary}"
+    );
+    assert!(tapered < 0.1 * boundary, "{tapered} vs {boundary}");
+    assert!((0.85..1.2).contains(&z_noise), "{z_noise}");
 }
 
 /// The rule that keeps a transient-free value only where the neighbours

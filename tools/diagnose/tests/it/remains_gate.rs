@@ -49,6 +49,7 @@ fn window(
         window: i,
         gravity_comp: Complex64::new(0.0, 0.0),
         statics: [0.0; 2],
+        sigma_dof: None,
     };
     (c, o)
 }
