@@ -263,9 +263,12 @@ fn physics_outside_the_catalogue_is_reported_unexplained_not_named() {
         "exo spring:\n{text}"
     );
     assert!(text.contains("unexplained"), "exo spring:\n{text}");
-    let balance_contradicts = v["steps"].as_array().unwrap().iter().any(|s| {
+    // The cuff gain, which would explain part of S_h, is contradicted by
+    // the static balance (since stop 36 the balance, judged by its own
+    // noise, also keeps it from being significant at all).
+    let cuff_gain_contradicted = v["steps"].as_array().unwrap().iter().any(|s| {
         s["candidates"].as_array().unwrap().iter().any(|c| {
-            c["significant"].as_bool().unwrap()
+            c["term"] == "cuff_sensor_gain"
                 && c["tf_checks"]
                     .as_array()
                     .unwrap()
@@ -274,8 +277,8 @@ fn physics_outside_the_catalogue_is_reported_unexplained_not_named() {
         })
     });
     assert!(
-        balance_contradicts,
-        "no significant candidate contradicted by the static balance:\n{text}"
+        cuff_gain_contradicted,
+        "the cuff gain not contradicted by the static balance:\n{text}"
     );
     assert_exclusive(&v);
     // A linear spring: no dependence on the angle amplitude is claimed.

@@ -332,6 +332,22 @@ pub struct TransientFree {
     pub value: Complex64,
     /// Standard deviation of its real and imaginary part.
     pub sigma: [f64; 2],
+    /// The noise beside the line (the local polynomials' own residual,
+    /// `LocalPolynomialPoint::residual_sigma`) over what the white σ says
+    /// there (`σ_white² · leverage`), with that residual's complex degrees
+    /// of freedom: below 1 where the white σ also counted a ringing
+    /// transient as noise. `None` for a static balance.
+    pub local_noise: Option<LocalNoise>,
+}
+
+/// The noise measured beside a line against its white σ
+/// ([`TransientFree::local_noise`]).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct LocalNoise {
+    /// `residual_sigma² / (σ_white² · leverage)` (1 for white noise).
+    pub ratio: f64,
+    /// Complex degrees of freedom of the residual.
+    pub dof: usize,
 }
 
 /// The samples of one analysis window, kept for the time-domain comparison.
@@ -717,6 +733,15 @@ pub fn smooth_transient(l: &LocalPolynomialPoint, line_sigma: [f64; 2]) -> bool 
     white > 0.0 && l.residual_sigma.powi(2) / white <= chi.inverse_cdf(0.99) / dof
 }
 
+/// The smallest share of a line's white variance taken as noise
+/// ([`pool_transients`]). On null recordings of both generators the share
+/// measured beside the lines is 0.8–0.95 on average (docs/diagnose.md,
+/// "The static balance by its own noise"); a relation with no noise at all
+/// (a signal written as another's copy) measures 0, and its σ would vanish
+/// against any imperfection of the forward model. An assumption: the white
+/// σ is never taken below √0.5 of itself.
+const MIN_NOISE_SHARE: f64 = 0.5;
+
 /// A line's own transient beyond which it keeps its own estimate rather
 /// than its experiment's pooled one: its squared leak over the estimate's
 /// own noise beyond χ²₁'s 99th percentile (a window that clearly rang
@@ -736,33 +761,58 @@ const OWN_TRANSIENT_CHI2: f64 = 6.635;
 /// `d² − v` when that is larger. The line stays the value (a nonlinear
 /// form's describing function); the transient is its uncertainty.
 fn pool_transients(d: &mut Dataset) {
-    // Per component: the white variance, the estimate's own noise, the leak.
-    let parts = |o: &Observation| -> Option<[(f64, f64, f64); 2]> {
+    // The white σ's share that is noise, pooled per experiment and
+    // transfer function: the local polynomials' residual over the white
+    // σ, weighted by its degrees of freedom, within [MIN_NOISE_SHARE, 1].
+    let mut noise: BTreeMap<(u32, Tf), (f64, f64)> = BTreeMap::new();
+    for o in &d.observations {
+        let Some(l) = o.transient_free.and_then(|t| t.local_noise) else {
+            continue;
+        };
+        if o.tf.is_dynamic() && l.ratio.is_finite() && l.dof > 0 {
+            let g = noise
+                .entry((d.conditions[o.window].experiment, o.tf))
+                .or_default();
+            g.0 += l.dof as f64 * l.ratio;
+            g.1 += l.dof as f64;
+        }
+    }
+    let share = |e: u32, tf: Tf| {
+        noise
+            .get(&(e, tf))
+            .filter(|g| g.1 > 0.0)
+            .map_or(1.0, |g| (g.0 / g.1).clamp(MIN_NOISE_SHARE, 1.0))
+    };
+    // Per component: the line's noise variance, the estimate's own noise,
+    // the leak.
+    let parts = |o: &Observation, q: f64| -> Option<[(f64, f64, f64); 2]> {
         let t = o.transient_free.as_ref().filter(|_| o.tf.is_dynamic())?;
         let leak = o.value - t.value;
         let part = |k: usize, dk: f64| {
             let s2 = o.line_sigma[k].powi(2);
-            (s2, (t.sigma[k].powi(2) - s2).max(0.0), dk * dk)
+            (q * s2, q * (t.sigma[k].powi(2) - s2).max(0.0), dk * dk)
         };
         Some([part(0, leak.re), part(1, leak.im)])
     };
     let mut pooled: BTreeMap<(u32, Tf), (f64, usize)> = BTreeMap::new();
     for o in &d.observations {
-        let Some(ps) = parts(o) else { continue };
-        let g = pooled
-            .entry((d.conditions[o.window].experiment, o.tf))
-            .or_default();
+        let e = d.conditions[o.window].experiment;
+        let Some(ps) = parts(o, share(e, o.tf)) else {
+            continue;
+        };
+        let g = pooled.entry((e, o.tf)).or_default();
         for (s2, v, d2) in ps.into_iter().filter(|p| p.0 > 0.0) {
             g.0 += (d2 - v) / s2;
             g.1 += 1;
         }
     }
     for i in 0..d.observations.len() {
-        let Some(ps) = parts(&d.observations[i]) else {
+        let o = &d.observations[i];
+        let e = d.conditions[o.window].experiment;
+        let Some(ps) = parts(o, share(e, o.tf)) else {
             continue;
         };
-        let o = &d.observations[i];
-        let (sum, n) = pooled[&(d.conditions[o.window].experiment, o.tf)];
+        let (sum, n) = pooled[&(e, o.tf)];
         let r = if n > 0 {
             (sum / n as f64).max(0.0)
         } else {
@@ -866,9 +916,14 @@ fn single_sine(
                 let smooth = lpm.filter(|l| smooth_transient(l, line_sigma));
                 let transient_free = smooth.map(|l| {
                     let inflate = l.leverage.max(1.0).sqrt();
+                    let white = 0.5 * (line_sigma[0].powi(2) + line_sigma[1].powi(2));
                     TransientFree {
                         value: l.ratio,
                         sigma: [line_sigma[0] * inflate, line_sigma[1] * inflate],
+                        local_noise: (white > 0.0).then(|| LocalNoise {
+                            ratio: l.residual_sigma.powi(2) / (white * l.leverage.max(1.0)),
+                            dof: l.dof,
+                        }),
                     }
                 });
                 // The encoder's quantiser at this amplitude, for the
@@ -983,6 +1038,7 @@ fn balance(
     let transient_free = measured.map(|_| TransientFree {
         value: Complex64::new(value, 0.0),
         sigma: [se, se],
+        local_noise: None,
     });
     d.observations.push(Observation {
         tf: Tf::Balance,
@@ -1119,6 +1175,7 @@ mod tests {
             transient_free: Some(TransientFree {
                 value: value - leak,
                 sigma: [s * leverage.sqrt(); 2],
+                local_noise: None,
             }),
             accuracy: 0.0,
             window,
@@ -1193,6 +1250,53 @@ mod tests {
         for i in 13..17 {
             assert!(close(s(i), [2.0, 2.0]), "{i}: {:?}", s(i));
         }
+    }
+
+    /// By hand: the white σ's share that is noise is the local noise ratio
+    /// pooled over an experiment's lines of one transfer function, weighted
+    /// by degrees of freedom ((4·0.5 + 6·0.8)/10 = 0.68), within [0.5, 1]; it
+    /// scales the line's noise and its estimate's before the transient is
+    /// pooled, also for a line of the experiment without its own measure.
+    #[test]
+    fn the_white_sigma_is_scaled_by_the_noise_measured_beside_its_lines() {
+        let mut d = Dataset::default();
+        let mut second = Condition::test_window(0.0, 0.1, 1e-3);
+        second.experiment = 2;
+        d.conditions = vec![Condition::test_window(0.0, 0.1, 1e-3), second];
+        let c = |re: f64| Complex64::new(re, 0.0);
+        let with = |mut o: Observation, ratio: f64, dof: usize| {
+            if let Some(t) = o.transient_free.as_mut() {
+                t.local_noise = Some(LocalNoise { ratio, dof });
+            }
+            o
+        };
+        // Experiment 1, σ 2, leverage 3: q = 0.68, noise 2.72, the
+        // estimate's 5.44; parts (4 − 5.44)/2.72, −2, (16 − 5.44)/2.72, −2,
+        // −2, −2: negative, r = 0: every σ² is 2.72 (without the share it
+        // would be 4).
+        d.observations
+            .push(with(line(Tf::Sh, 0, 2.0, c(2.0), 3.0), 0.5, 4));
+        d.observations
+            .push(with(line(Tf::Sh, 0, 2.0, c(4.0), 3.0), 0.8, 6));
+        d.observations.push(line(Tf::Sh, 0, 2.0, c(0.0), 3.0));
+        // Experiment 2: a ratio above 1 pools to 1, the white σ kept.
+        d.observations
+            .push(with(line(Tf::Sh, 1, 2.0, c(0.0), 2.0), 1.5, 5));
+        // Another transfer function of experiment 1: its own pool (none).
+        d.observations.push(line(Tf::She, 0, 2.0, c(0.0), 2.0));
+        // τ_s/τ_d of experiment 1 measured noiseless beside its line (a
+        // copied signal): the share is held at 0.5, σ² = 0.5·4.
+        d.observations
+            .push(with(line(Tf::Sea, 0, 2.0, c(0.0), 2.0), 0.0, 3));
+        pool_transients(&mut d);
+        let s = |i: usize| d.observations[i].sigma;
+        for i in 0..3 {
+            assert!((s(i)[0] - 2.72f64.sqrt()).abs() < 1e-12, "{i}: {:?}", s(i));
+            assert!((s(i)[1] - 2.72f64.sqrt()).abs() < 1e-12, "{i}: {:?}", s(i));
+        }
+        assert_eq!(s(3), [2.0, 2.0]);
+        assert_eq!(s(4), [2.0, 2.0]);
+        assert!((s(5)[0] - 2f64.sqrt()).abs() < 1e-12, "{:?}", s(5));
     }
 
     /// Held to an accuracy: every dynamic value to its line's own σ and at

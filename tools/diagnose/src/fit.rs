@@ -247,14 +247,12 @@ pub fn lack_of_fit(d: &Dataset, phys: &Physics, p: usize, level: f64) -> LackOfF
         total += chi;
         let dof = n as f64 - p as f64 * n as f64 / n_all.max(1) as f64;
         // Material only beyond the forward model's accuracy in size too (a
-        // static balance, whose values may be near zero, by its noise alone).
-        let excess = if tf == crate::data::Tf::Balance {
-            f64::INFINITY
-        } else {
-            let e = excess_relative(d, phys, tf);
-            excess_max = excess_max.max(e);
-            e
-        };
+        // static balance relative to the SEA's mean torque, its values
+        // being near zero; reported apart from the dynamic ones).
+        let excess = excess_relative(d, phys, tf);
+        if tf.is_dynamic() {
+            excess_max = excess_max.max(excess);
+        }
         if dof > 0.0 {
             if let Ok(dist) = statrs::distribution::ChiSquared::new(dof) {
                 use statrs::distribution::ContinuousCDF;
@@ -281,9 +279,12 @@ pub fn lack_of_fit(d: &Dataset, phys: &Physics, p: usize, level: f64) -> LackOfF
 
 /// The size of `phys`'s misfit on transfer function `tf` beyond what the
 /// σ's of the lack-of-fit χ² account for, relative to the values: `√(max(Σ
-/// (|r|² − σ_re² − σ_im²), 0) / Σ |value|²)`. A misfit the noise cannot
-/// explain but smaller than the forward model's accuracy
-/// ([`MODEL_ACCURACY`]) is no missing physics.
+/// (|r|² − σ_re² − σ_im²), 0) / Σ |value|²)`; for the static balance,
+/// whose values are differences near zero, relative to the SEA's mean
+/// torque in each window (what the balance's terms are fractions of: the
+/// gravity moment, the bias), or to the value where that was not measured.
+/// A misfit the noise cannot explain but smaller than the forward model's
+/// accuracy ([`MODEL_ACCURACY`]) is no missing physics.
 pub fn excess_relative(d: &Dataset, phys: &Physics, tf: crate::data::Tf) -> f64 {
     let (mut excess, mut scale) = (0.0, 0.0);
     for o in d.observations.iter().filter(|o| o.tf == tf) {
@@ -297,7 +298,12 @@ pub fn excess_relative(d: &Dataset, phys: &Physics, tf: crate::data::Tf) -> f64 
             } else {
                 0.0
             };
-        scale += o.value.norm_sqr();
+        let tau_s = d.conditions[o.window].tau_s_mean_nm;
+        scale += if tf == crate::data::Tf::Balance && tau_s.is_finite() {
+            tau_s * tau_s
+        } else {
+            o.value.norm_sqr()
+        };
     }
     if scale > 0.0 {
         (excess.max(0.0) / scale).sqrt()
@@ -610,6 +616,53 @@ mod tests {
                 assert_eq!((l.p_value, l.beyond_noise), (1.0, 0.0), "{l:?}");
             }
         }
+    }
+
+    /// The static balance's materiality by hand: 30 windows whose SEA
+    /// holds 16 Nm on average, each balance `off` Nm from the prediction
+    /// with σ 1 mNm. 30 mNm off is 30 σ but √(0.03² − 0.001²)/16 = 0.19 %
+    /// of the torque the balance is made of: not material (and no dynamic
+    /// excess reported). 0.16 Nm off is 1 %: material.
+    #[test]
+    fn a_balance_misfit_is_material_only_beyond_its_noise_and_the_accuracy_of_its_torque() {
+        let phys = default_physics();
+        let mut c = window();
+        c.tau_s_mean_nm = 16.0;
+        for (off, material) in [(0.03, false), (0.16, true)] {
+            let mut o = observation(Tf::Balance, 0.0, 1e-3, 0.0);
+            let pb = phys.predict(&o, &c);
+            o.value = Complex64::new(pb.re + off, 0.0);
+            let d = Dataset {
+                conditions: vec![c.clone()],
+                observations: vec![o; 30],
+                supported: vec![Tf::Balance],
+                ..Dataset::default()
+            };
+            let want = (off * off - 1e-6).sqrt() / 16.0;
+            let got = excess_relative(&d, &phys, Tf::Balance);
+            assert!((got - want).abs() < 1e-9, "off {off}: {got} against {want}");
+            let l = lack_of_fit(&d, &phys, 0, 0.05);
+            assert!(l.noise_p < 1e-12, "off {off}: noise p {}", l.noise_p);
+            assert_eq!(l.excess, 0.0, "the balance is not a dynamic excess");
+            if material {
+                assert!(l.p_value < 1e-12 && l.beyond_noise > 0.0, "{l:?}");
+            } else {
+                assert_eq!((l.p_value, l.beyond_noise), (1.0, 0.0), "{l:?}");
+            }
+        }
+        // Where the SEA's mean torque was not measured, relative to the
+        // value itself.
+        let mut o = observation(Tf::Balance, 0.0, 1e-3, 0.0);
+        let pb = phys.predict(&o, &window());
+        o.value = Complex64::new(pb.re + 0.03, 0.0);
+        let d = Dataset {
+            conditions: vec![window()],
+            observations: vec![o],
+            supported: vec![Tf::Balance],
+            ..Dataset::default()
+        };
+        let want = (0.03f64.powi(2) - 1e-6).sqrt() / o.value.norm();
+        assert!((excess_relative(&d, &phys, Tf::Balance) - want).abs() < 1e-9);
     }
 
     /// Each value is held to its own systematic uncertainty; a model with

@@ -141,6 +141,7 @@ fn the_transient_free_chi2_is_the_misfit_over_its_own_noise() {
         o.transient_free = off.map(|off| TransientFree {
             value: pred + off,
             sigma,
+            local_noise: None,
         });
         d.conditions.push(c);
         d.observations.push(o);
