@@ -26,7 +26,7 @@ pub(crate) fn normal_quantile(p: f64) -> f64 {
 /// square then has the χ² distribution's one degree of freedom). `t` itself
 /// when `dof` is not positive and finite.
 pub(crate) fn t_as_normal(t: f64, dof: f64) -> f64 {
-    if !(dof > 0.0 && dof.is_finite()) || !t.is_finite() {
+    if !(dof > 0.0 && dof.is_finite() && t.is_finite()) {
         return t;
     }
     let Ok(d) = StudentsT::new(0.0, 1.0, dof) else {
