@@ -769,7 +769,9 @@ fn pool_transients(d: &mut Dataset) {
         let Some(l) = o.transient_free.and_then(|t| t.local_noise) else {
             continue;
         };
-        if o.tf.is_dynamic() && l.ratio.is_finite() && l.dof > 0 {
+        // (Only single-sine lines carry one; a line with no degree of
+        // freedom weighs nothing.)
+        if l.ratio.is_finite() {
             let g = noise
                 .entry((d.conditions[o.window].experiment, o.tf))
                 .or_default();
@@ -1288,6 +1290,10 @@ mod tests {
         // copied signal): the share is held at 0.5, σ² = 0.5·4.
         d.observations
             .push(with(line(Tf::Sea, 0, 2.0, c(0.0), 2.0), 0.0, 3));
+        // S_h-e of experiment 2 measured with no degree of freedom: it
+        // weighs nothing, the share stays 1.
+        d.observations
+            .push(with(line(Tf::She, 1, 2.0, c(0.0), 2.0), 0.1, 0));
         pool_transients(&mut d);
         let s = |i: usize| d.observations[i].sigma;
         for i in 0..3 {
@@ -1297,6 +1303,7 @@ mod tests {
         assert_eq!(s(3), [2.0, 2.0]);
         assert_eq!(s(4), [2.0, 2.0]);
         assert!((s(5)[0] - 2f64.sqrt()).abs() < 1e-12, "{:?}", s(5));
+        assert_eq!(s(6), [2.0, 2.0]);
     }
 
     /// Held to an accuracy: every dynamic value to its line's own σ and at

@@ -493,6 +493,88 @@ fn the_reduction_gives_each_line_its_transient_free_value_with_sqrt_leverage() {
     assert!(with >= 5, "{with} windows with a transient-free value");
 }
 
+/// Every static balance of a synthesized recording, recomputed here from
+/// its window's signals: over two cycles or more the Hann-tapered mean
+/// (the taper written out here) of `τ_s_net − τ_c`, of `τ_gravity`, `τ_c`
+/// and `sin θ`, its σ the mean's noise near zero frequency times √(3/2)
+/// with two degrees of freedom per bin; over one cycle the plain means and
+/// the residual's per-cycle standard error, no degrees of freedom; the
+/// SEA's mean torque the plain mean in both.
+#[test]
+fn the_reduction_gives_each_balance_its_tapered_mean_its_noise_and_dof() {
+    use exo_diagnose::data::{reduce, Reduction};
+    use exo_diagnose::synth::{synthesize, SynthSettings};
+    let periods = common::protocol(&[(1, 30.0, 12.0, 4.5, 0.0)]);
+    let rec = synthesize(
+        &common::default_plant(),
+        &periods,
+        &SynthSettings::default(),
+    );
+    let d = reduce(&[rec], &Reduction::default());
+    let (mut tapered, mut plain) = (0, 0);
+    for o in d.of(Tf::Balance) {
+        let sig = &d.signals[o.window];
+        let c = &d.conditions[o.window];
+        let w = sig.omega_rad_s;
+        let n = whole_cycles(&sig.t_s, w).expect("whole cycles");
+        let t = &sig.t_s[..n];
+        let y: Vec<f64> = (0..n)
+            .map(|i| sig.tau_s_net_nm[i] - sig.tau_c_nm[i])
+            .collect();
+        let tau_g: Vec<f64> = (0..n)
+            .map(|i| sig.tau_s_nm[i] - sig.tau_s_net_nm[i])
+            .collect();
+        let sin_theta: Vec<f64> = sig.theta_rad[..n].iter().map(|x| x.sin()).collect();
+        let flat = |v: &[f64]| v.iter().sum::<f64>() / n as f64;
+        let taper = |v: &[f64]| {
+            let w: Vec<f64> = (0..n)
+                .map(|i| 0.5 - 0.5 * (std::f64::consts::TAU * i as f64 / n as f64).cos())
+                .collect();
+            v.iter().zip(&w).map(|(v, w)| v * w).sum::<f64>() / w.iter().sum::<f64>()
+        };
+        let close = |a: f64, b: f64, what: &str| {
+            assert!(
+                (a - b).abs() <= 1e-9 * b.abs().max(1.0),
+                "{what}: {a} against {b}"
+            );
+        };
+        close(
+            c.tau_s_mean_nm,
+            flat(&sig.tau_s_nm[..n]),
+            "the SEA's mean torque",
+        );
+        match mean_standard_error(t, &y, w) {
+            Some((se, bins)) => {
+                tapered += 1;
+                close(o.value.re, taper(&y), "tapered balance");
+                close(o.statics[0], taper(&tau_g), "tapered τ_gravity");
+                close(o.statics[1], taper(&sig.tau_c_nm[..n]), "tapered τ_c");
+                close(c.sin_theta_mean, taper(&sin_theta), "tapered sin θ");
+                close(o.sigma[0], se * 1.5f64.sqrt(), "σ");
+                assert_eq!(o.sigma_dof, Some(2.0 * bins as f64));
+            }
+            None => {
+                plain += 1;
+                close(o.value.re, flat(&y), "plain balance");
+                close(o.statics[1], flat(&sig.tau_c_nm[..n]), "plain τ_c");
+                close(c.sin_theta_mean, flat(&sin_theta), "plain sin θ");
+                let a = sine_amplitude(t, &y, w, true).expect("fit");
+                close(
+                    o.sigma[0],
+                    (a.residual_var / a.cycles as f64).sqrt(),
+                    "per-cycle σ",
+                );
+                assert_eq!(o.sigma_dof, None);
+            }
+        }
+        assert_eq!(o.sigma[0], o.sigma[1]);
+    }
+    assert!(
+        tapered >= 5 && plain >= 1,
+        "{tapered} tapered, {plain} plain"
+    );
+}
+
 /// The white σ of `o`'s line (`S_h`), recomputed from its window's signals.
 fn line_white_sigma(
     d: &exo_diagnose::data::Dataset,
