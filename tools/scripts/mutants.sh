@@ -83,7 +83,7 @@ fresh_shard() {
   local c=$1 used k i
   used=$(awk -F'\t' -v c="$c" -v n="$fresh" '$1 == c { split($2, a, " "); split(a[1], b, "/"); if (b[2] == n) print b[1] }' "$score" | sort -un)
   local free=()
-  for ((k = 1; k <= fresh; k++)); do
+  for ((k = 0; k < fresh; k++)); do
     grep -qx "$k" <<<"$used" || free+=("$k")
   done
   [ ${#free[@]} -gt 0 ] || return 0
