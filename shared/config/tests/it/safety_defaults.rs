@@ -58,6 +58,17 @@ fn safety_defaults() {
     }
 }
 
+/// `[controller]` without `gravity_compensation` compensates gravity: on a
+/// vertical rig a controller that silently stopped would let the arm's
+/// weight (about 16 Nm at 45° for the default plant) fall on the wearer.
+/// Off only when a run file says so (a horizontal rig). The shipped
+/// `configs/default.toml` leaves the key out, so it loads the default.
+#[test]
+fn the_controller_compensates_gravity_unless_told_not_to() {
+    let c = accepted("gravity-default", &[]);
+    assert!(c.controller.gravity_compensation);
+}
+
 /// `[controller.limits]` has no default at all: every limit is the rig's,
 /// and a run file that leaves one out is refused naming it (a default
 /// added to any of them fails here).
