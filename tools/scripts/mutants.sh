@@ -25,7 +25,7 @@ cd "$root"
 
 # The science and safety code: crate and the files of it that are mutated.
 declare -A FILES=(
-  [exo-impedance]="shared/impedance/src/*.rs"
+  [exo-impedance]="shared/impedance/src/*.rs shared/impedance/src/*/*.rs"
   [exo-identifier]="services/identifier/src/*.rs"
   [exo-controller]="services/controller/src/*.rs services/controller/src/*/*.rs"
   [exo-diagnose]="tools/diagnose/src/*.rs tools/diagnose/src/*/*.rs"
