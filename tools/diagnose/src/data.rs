@@ -1164,6 +1164,17 @@ fn broadband(
 mod tests {
     use super::*;
 
+    /// An empty dataset with one window in experiment 1 (index 0) and one
+    /// in experiment 2 (index 1).
+    fn two_experiments() -> Dataset {
+        let mut second = Condition::test_window(0.0, 0.1, 1e-3);
+        second.experiment = 2;
+        Dataset {
+            conditions: vec![Condition::test_window(0.0, 0.1, 1e-3), second],
+            ..Dataset::default()
+        }
+    }
+
     /// A line of white σ `s`, whose transient-free value lies `leak` from
     /// it with σ `s·√leverage`, in experiment `experiment`'s window.
     fn line(tf: Tf, window: usize, s: f64, leak: Complex64, leverage: f64) -> Observation {
@@ -1196,10 +1207,7 @@ mod tests {
     /// left alone.
     #[test]
     fn a_lines_transient_is_pooled_over_its_experiment_less_the_estimates_own() {
-        let mut d = Dataset::default();
-        let mut second = Condition::test_window(0.0, 0.1, 1e-3);
-        second.experiment = 2;
-        d.conditions = vec![Condition::test_window(0.0, 0.1, 1e-3), second];
+        let mut d = two_experiments();
         let c = |re: f64, im: f64| Complex64::new(re, im);
         // Experiment 1, S_h, σ 2, leverage 2 (estimate noise 4): parts
         // (16 − 4)/4, (0 − 4)/4 and (8 − 4)/4, (4 − 4)/4: sum 3 − 1 + 1 + 0
@@ -1261,10 +1269,7 @@ mod tests {
     /// pooled, also for a line of the experiment without its own measure.
     #[test]
     fn the_white_sigma_is_scaled_by_the_noise_measured_beside_its_lines() {
-        let mut d = Dataset::default();
-        let mut second = Condition::test_window(0.0, 0.1, 1e-3);
-        second.experiment = 2;
-        d.conditions = vec![Condition::test_window(0.0, 0.1, 1e-3), second];
+        let mut d = two_experiments();
         let c = |re: f64| Complex64::new(re, 0.0);
         let with = |mut o: Observation, ratio: f64, dof: usize| {
             if let Some(t) = o.transient_free.as_mut() {

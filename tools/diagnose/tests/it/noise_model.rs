@@ -386,15 +386,7 @@ fn an_exact_relation_on_a_large_drift_is_recovered_to_rounding() {
 /// windows none.
 #[test]
 fn the_reduction_gives_each_line_its_transient_free_value_with_sqrt_leverage() {
-    use exo_diagnose::data::{reduce, Reduction};
-    use exo_diagnose::synth::{synthesize, SynthSettings};
-    let periods = common::protocol(&[(1, 30.0, 12.0, 4.5, 0.0)]);
-    let rec = synthesize(
-        &common::default_plant(),
-        &periods,
-        &SynthSettings::default(),
-    );
-    let d = reduce(&[rec], &Reduction::default());
+    let d = experiment_one_reduced();
     // Per line with a transient-free value: the local polynomials, from
     // the window's signals.
     let local = |o: &exo_diagnose::data::Observation| {
@@ -502,15 +494,7 @@ fn the_reduction_gives_each_line_its_transient_free_value_with_sqrt_leverage() {
 /// SEA's mean torque the plain mean in both.
 #[test]
 fn the_reduction_gives_each_balance_its_tapered_mean_its_noise_and_dof() {
-    use exo_diagnose::data::{reduce, Reduction};
-    use exo_diagnose::synth::{synthesize, SynthSettings};
-    let periods = common::protocol(&[(1, 30.0, 12.0, 4.5, 0.0)]);
-    let rec = synthesize(
-        &common::default_plant(),
-        &periods,
-        &SynthSettings::default(),
-    );
-    let d = reduce(&[rec], &Reduction::default());
+    let d = experiment_one_reduced();
     let (mut tapered, mut plain) = (0, 0);
     for o in d.of(Tf::Balance) {
         let sig = &d.signals[o.window];
@@ -573,6 +557,20 @@ fn the_reduction_gives_each_balance_its_tapered_mean_its_noise_and_dof() {
         tapered >= 5 && plain >= 1,
         "{tapered} tapered, {plain} plain"
     );
+}
+
+/// Experiment 1 of the protocol (K 30, H 12, 4.5 kg, no bias) synthesized
+/// with the default plant and reduced as the diagnosis does.
+fn experiment_one_reduced() -> exo_diagnose::data::Dataset {
+    use exo_diagnose::data::{reduce, Reduction};
+    use exo_diagnose::synth::{synthesize, SynthSettings};
+    let periods = common::protocol(&[(1, 30.0, 12.0, 4.5, 0.0)]);
+    let rec = synthesize(
+        &common::default_plant(),
+        &periods,
+        &SynthSettings::default(),
+    );
+    reduce(&[rec], &Reduction::default())
 }
 
 /// The white σ of `o`'s line (`S_h`), recomputed from its window's signals.
