@@ -35,7 +35,7 @@ pub(crate) fn t_as_normal(t: f64, dof: f64) -> f64 {
     // From the tail on the residual's side, so a large |t| keeps its
     // precision.
     let tail = d.sf(t.abs());
-    -normal_quantile(tail) * t.signum()
+    (-normal_quantile(tail)).copysign(t)
 }
 
 #[cfg(test)]
