@@ -1,6 +1,6 @@
 //! The player process refuses what it cannot play, naming it. (Being an
 //! integration test, this also makes `cargo test --workspace` build the
-//! `exo-player` binary that `exo run` starts and `tests/tests/recordings.rs`
+//! `exo-player` binary that `exo run` starts and `tests/tests/it/recordings.rs`
 //! plays a recording through.)
 
 use std::process::Command;

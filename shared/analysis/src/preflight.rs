@@ -21,7 +21,7 @@ pub struct Margins {
 /// controller; between it and 0° it warns. The model (complex stiffness
 /// with a constant loss factor, the SEA, rigid cuff) is conservative: the
 /// paper's own tuned design for subject B (k_p = 3.2, f = 0.60, Table IV),
-/// stable on the rig and in the simulator (`tests/tests/amplification.rs`),
+/// stable on the rig and in the simulator (`tests/tests/it/amplification.rs`),
 /// has −10.8° at the lower stiffness bound and −5.1° at the stiffness B
 /// holds in experiment 4; a design clearly past the edge (f = 0.9 for B:
 /// −30° and −33°) is far below.

@@ -1,7 +1,7 @@
 //! `exo tune SUBJECT`: the paper's tuning experiment (section "Loop Shaping
 //! Experiments"), automated on the simulated subject: each trial steps the
 //! run's nodes in one process (`exo-sim`), which records what the five
-//! processes would (tests/tests/determinism.rs).
+//! processes would (tests/tests/it/determinism.rs).
 //!
 //! [`exo_experiments::tune`] runs it (its documentation says how); this command checks the arguments
 //! and prints the outcome.

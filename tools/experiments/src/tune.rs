@@ -1,7 +1,7 @@
 //! The paper's tuning experiment (`exo tune SUBJECT`) (section "Loop Shaping
 //! Experiments"), automated on the simulated subject: each trial steps the
 //! run's nodes in one process (`exo-sim`), which records what the five
-//! processes would (tests/tests/determinism.rs).
+//! processes would (tests/tests/it/determinism.rs).
 //!
 //! For the subject's low stiffness (Table I experiment 1: 10 kg grip, 0 Nm
 //! bias) and high stiffness (experiment 7: 27 kg, 8 Nm), the fractional

@@ -191,7 +191,7 @@ fn exo_run_identifies_the_simulated_human_behind_the_emulated_drive() {
     );
     eprintln!("fitted K = {k:.2}, H = {h:.2} Nm/rad; simulated K = {k0}, H = {h0}");
     // Within 5 %, as the same fit of a run on the simulated bus
-    // (tests/tests/recordings.rs).
+    // (tests/tests/it/recordings.rs).
     assert!(
         (k / k0 - 1.0).abs() < 0.05 && (h / h0 - 1.0).abs() < 0.05,
         "fitted K = {k}, H = {h}; the simulated subject has K = {k0}, H = {h0}\n{v:#}"

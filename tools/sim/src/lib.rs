@@ -7,7 +7,7 @@
 //! them in lockstep, with no shared memory and no waiting. Every message a
 //! process would publish goes to a sink ([`Record`], the recorder's own
 //! record type), e.g. a contract MCAP ([`FileSink`]), so `exo sim` writes
-//! what `exo run` records, bit for bit (`tests/tests/determinism.rs`).
+//! what `exo run` records, bit for bit (`tests/tests/it/determinism.rs`).
 //!
 //! One tick, as the processes do it in lockstep:
 //!

@@ -1,6 +1,6 @@
 //! The in-process composition on its own: the order of the messages of a
 //! tick, who answers what, and how a run ends. (That the messages equal
-//! the processes' is `tests/tests/determinism.rs`.)
+//! the processes' is `tests/tests/it/determinism.rs`.)
 
 use exo_config::RunConfig;
 use exo_plant_sim::PlantModel;

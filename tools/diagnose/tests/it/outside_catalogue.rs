@@ -7,7 +7,7 @@
 //! must be discovered with its parameter near the simulator's or the
 //! misfit left unexplained; no catalogue term may be named as the answer.
 //! The independent generator's cases are in
-//! `tests/tests/diagnose_outside_catalogue.rs`.
+//! `tests/tests/it/diagnose_outside_catalogue.rs`.
 
 use crate::common;
 use common::default_plant;
