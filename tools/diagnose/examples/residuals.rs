@@ -1,9 +1,12 @@
 //! Prints every observation's residual after the nominal refit, against the
 //! measured noise alone (no accuracy floor): `experiment period tf ω
 //! |data/model|−1 (%) arg(data/model) (°) z_re z_im model−data θ₀ A σ |data|
-//! free_z_re free_z_im` (z: the line's residual over its σ, as judged;
+//! free_z_re free_z_im noise_share share_dof accuracy` (z: the line's residual over its σ, as judged;
 //! free_z: the same of the transient-free value over its own σ,
-//! `Observation::transient_free`, NaN where the window allows none). The
+//! `Observation::transient_free`, NaN where the window allows none;
+//! noise_share: the noise beside the line over its white σ,
+//! `TransientFree::local_noise`, with its degrees of freedom; accuracy: the
+//! fraction of `|value|` the refit holds it to, `fit::model_accuracy`). The
 //! raw material for calibrating the noise model and for locating a
 //! generator's systematic (docs/diagnose.md, "The noise model").
 //!
@@ -36,7 +39,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let d = reduce(&recs, &Reduction::default());
     let r = diagnose(&d, &model, &Settings::default())?;
     let phys = &r.refit_physics;
-    println!("experiment\tperiod\ttf\tomega\tmag_pct\tphase_deg\tz_re\tz_im\tres_re\tres_im\ttheta0\ttheta_amp\tsigma_re\tsigma_im\tabs_value\tfree_z_re\tfree_z_im");
+    println!("experiment\tperiod\ttf\tomega\tmag_pct\tphase_deg\tz_re\tz_im\tres_re\tres_im\ttheta0\ttheta_amp\tsigma_re\tsigma_im\tabs_value\tfree_z_re\tfree_z_im\tnoise_share\tshare_dof\taccuracy");
     for o in &d.observations {
         let c = &d.conditions[o.window];
         let m = phys.predict(o, c);
@@ -48,8 +51,12 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 let r = f.value - m;
                 num_complex::Complex64::new(r.re / f.sigma[0], r.im / f.sigma[1])
             });
+        let share = o
+            .transient_free
+            .and_then(|t| t.local_noise)
+            .map_or((f64::NAN, 0), |l| (l.ratio, l.dof));
         println!(
-            "{}\t{}\t{}\t{:.3}\t{:+.3}\t{:+.3}\t{:+.2}\t{:+.2}\t{:+.4}\t{:+.4}\t{:.4}\t{:.4}\t{:.3e}\t{:.3e}\t{:.4e}\t{:+.2}\t{:+.2}",
+            "{}\t{}\t{}\t{:.3}\t{:+.3}\t{:+.3}\t{:+.2}\t{:+.2}\t{:+.4}\t{:+.4}\t{:.4}\t{:.4}\t{:.3e}\t{:.3e}\t{:.4e}\t{:+.2}\t{:+.2}\t{:.3}\t{}\t{:.2e}",
             c.experiment,
             c.period,
             o.tf.name(),
@@ -67,6 +74,9 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             o.value.norm(),
             free.re,
             free.im,
+            share.0,
+            share.1,
+            exo_diagnose::fit::model_accuracy(phys, o),
         );
     }
     Ok(())

@@ -294,7 +294,7 @@ pub struct Observation {
     /// (`exo_impedance::frf::local_polynomial_ratio`; three cycles or more,
     /// neighbours that hold a smooth transient), with the white σ times
     /// √leverage; a static balance with the mean's noise measured at zero
-    /// frequency (`exo_impedance::frf::mean_standard_error`). Reported
+    /// frequency (`exo_impedance::frf::mean_standard_error_beside`). Reported
     /// ([`crate::fit::noise_only_chi2`], the `residuals` example), not
     /// judged by: judged in place of the lines (stop 33) it cleared every
     /// null but lost two strongly nonlinear cases, whose response its
@@ -318,7 +318,8 @@ pub struct Observation {
     /// Degrees of freedom of [`Self::sigma`] where it was estimated from so
     /// few values that a residual over it is Student-t distributed rather
     /// than normal: the static balance's mean noise, two per DFT bin it was
-    /// measured at (`exo_impedance::frf::mean_standard_error`, 4–8). The
+    /// measured at less the posture's slope fitted there
+    /// (`exo_impedance::frf::mean_standard_error_beside`, 3–7). The
     /// lack-of-fit χ² takes such a residual at its normal equivalent
     /// ([`crate::fit::lack_of_fit_chi2`]). `None` where σ is known well
     /// enough to be taken as exact.
@@ -748,6 +749,13 @@ const MIN_NOISE_SHARE: f64 = 0.5;
 /// more than the others of its experiment).
 const OWN_TRANSIENT_CHI2: f64 = 6.635;
 
+/// Whether a line's component keeps its own transient `d² − v` (its
+/// squared leak `d2` beyond [`OWN_TRANSIENT_CHI2`] times the estimate's
+/// own noise `v`) rather than its experiment's pooled one.
+fn keeps_own_transient(d2: f64, v: f64) -> bool {
+    d2 > OWN_TRANSIENT_CHI2 * v
+}
+
 /// Each single-sine line's σ (per component) with its window's transient
 /// added as a variance (issue 30 item 3, stop 35). The transient at a line
 /// is `d`, the line less its transient-free value (the local polynomials'
@@ -758,7 +766,10 @@ const OWN_TRANSIENT_CHI2: f64 = 6.635;
 /// line-by-line clip (stop 34) is biased up: under pure noise
 /// `E[max(d² − v, 0)] ≈ 0.48 v`, which left the nulls' χ²/dof at 0.65–0.79.
 /// A line whose own `d²` exceeds [`OWN_TRANSIENT_CHI2`]·`v` keeps its own
-/// `d² − v` when that is larger. The line stays the value (a nonlinear
+/// `d² − v` when that is larger, and is left out of the pool (stop 37:
+/// counted in both, one ringing window raised every quiet line's σ of its
+/// experiment, and the nulls' χ²/dof sat at 0.6 where a few windows rang,
+/// the rig's `S_h-e` at 1 kHz most). The line stays the value (a nonlinear
 /// form's describing function); the transient is its uncertainty.
 fn pool_transients(d: &mut Dataset) {
     // The white σ's share that is noise, pooled per experiment and
@@ -803,7 +814,12 @@ fn pool_transients(d: &mut Dataset) {
             continue;
         };
         let g = pooled.entry((e, o.tf)).or_default();
-        for (s2, v, d2) in ps.into_iter().filter(|p| p.0 > 0.0) {
+        // A component that keeps its own transient is not pooled: counted
+        // in both, its ring would be charged again to every quiet line.
+        for (s2, v, d2) in ps
+            .into_iter()
+            .filter(|&(s2, v, d2)| s2 > 0.0 && !keeps_own_transient(d2, v))
+        {
             g.0 += (d2 - v) / s2;
             g.1 += 1;
         }
@@ -821,7 +837,7 @@ fn pool_transients(d: &mut Dataset) {
             0.0
         };
         let sigma = ps.map(|(s2, v, d2)| {
-            let own = if d2 > OWN_TRANSIENT_CHI2 * v {
+            let own = if keeps_own_transient(d2, v) {
                 d2 - v
             } else {
                 0.0
@@ -986,7 +1002,8 @@ fn single_sine(
 
 /// The static balance over the window's whole cycles. Where the window
 /// allows the noise of its mean to be measured near zero frequency
-/// (`exo_impedance::frf::mean_standard_error`: two cycles or more) every
+/// (`exo_impedance::frf::mean_standard_error_beside`: two cycles or more,
+/// less what follows sin θ at those bins) every
 /// mean of the balance is the Hann-tapered one
 /// (`exo_impedance::frf::hann_mean`: the line and a ringing mode's
 /// boundary term `M_e Δθ̇/T` left out), judged by that noise times the
@@ -1002,7 +1019,7 @@ fn balance(
     cond: &mut Condition,
     d: &mut Dataset,
 ) {
-    use exo_impedance::frf::{hann_mean, mean_standard_error, HANN_MEAN_NOISE_GAIN};
+    use exo_impedance::frf::{hann_mean, mean_standard_error_beside, HANN_MEAN_NOISE_GAIN};
     let w = sig.omega_rad_s;
     let Some(n) = exo_impedance::frf::whole_cycles(&sig.t_s, w) else {
         d.notes
@@ -1021,7 +1038,10 @@ fn balance(
         cond.sin_theta_mean = plain(&sin_theta);
         return;
     };
-    let measured = mean_standard_error(t_s, &y, w).filter(|(se, _)| *se > 0.0);
+    // Its noise less what follows the posture at those bins: the model
+    // takes gravity's moment at the window's own mean sin θ, so a slow
+    // wander of the angle is no noise of the residual (stop 37).
+    let measured = mean_standard_error_beside(t_s, &y, &sin_theta, w).filter(|(se, _)| *se > 0.0);
     let mean: &dyn Fn(&[f64]) -> f64 = if measured.is_some() {
         &hann_mean
     } else {
@@ -1031,7 +1051,7 @@ fn balance(
     cond.sin_theta_mean = mean(&sin_theta);
     let statics = [mean(&tau_g[..n]), mean(tau_c)];
     let (se, sigma_dof) = match measured {
-        Some((se, bins)) => (se * HANN_MEAN_NOISE_GAIN, Some(2.0 * bins as f64)),
+        Some((se, dof)) => (se * HANN_MEAN_NOISE_GAIN, Some(dof)),
         None => (
             (a.residual_var.max(0.0) / a.cycles.max(1) as f64).sqrt(),
             None,
@@ -1202,7 +1222,7 @@ mod tests {
     /// is averaged over an experiment's lines of one transfer function
     /// (both components), clipped at zero, and added as `r σ²`; a line
     /// whose own `d²` exceeds 6.635 times its estimate's noise keeps its
-    /// own excess when larger; other experiments and transfer functions
+    /// own excess when larger and is not pooled; other experiments and transfer functions
     /// are pooled apart, and a line without a transient-free value is
     /// left alone.
     #[test]
@@ -1221,12 +1241,14 @@ mod tests {
         d.observations.push(line(Tf::She, 0, 2.0, c(0.0, 0.0), 3.0));
         d.observations.push(line(Tf::She, 0, 2.0, c(2.0, 0.0), 3.0));
         // Experiment 2, S_h: one line's real part rang clearly, d² = 25 >
-        // 6.635·1: its own excess 24 kept; the pool is (25 − 1) − 13 over
-        // 14 components.
+        // 6.635·1: its own excess 24 kept, and that component left out of
+        // the pool; two lines at d² = 4 in both parts (below 6.635: pooled,
+        // +3 each) and nine quiet components (−1 each): the pool is
+        // 12 − 9 = 3 over 13 components.
         d.observations.push(line(Tf::Sh, 1, 1.0, c(0.0, 0.0), 2.0));
         d.observations.push(line(Tf::Sh, 1, 1.0, c(5.0, 0.0), 2.0));
-        d.observations.push(line(Tf::Sh, 1, 1.0, c(0.0, 0.0), 2.0));
-        d.observations.push(line(Tf::Sh, 1, 1.0, c(0.0, 0.0), 2.0));
+        d.observations.push(line(Tf::Sh, 1, 1.0, c(2.0, 2.0), 2.0));
+        d.observations.push(line(Tf::Sh, 1, 1.0, c(2.0, 2.0), 2.0));
         d.observations.push(line(Tf::Sh, 1, 1.0, c(0.0, 0.0), 2.0));
         d.observations.push(line(Tf::Sh, 1, 1.0, c(0.0, 0.0), 2.0));
         d.observations.push(line(Tf::Sh, 1, 1.0, c(0.0, 0.0), 2.0));
@@ -1252,9 +1274,11 @@ mod tests {
         assert!(close(s(1), [7f64.sqrt(); 2]), "{:?}", s(1));
         assert!(close(s(2), [2.0; 2]), "{:?}", s(2));
         assert!(close(s(3), [2.0; 2]), "{:?}", s(3));
-        let r: f64 = 11.0 / 14.0; // (25 − 1) − 13 over 14 components
+        let r: f64 = 3.0 / 13.0; // 12 − 9 over 13 components
         assert!(close(s(4), [(1.0 + r).sqrt(); 2]), "{:?}", s(4));
         assert!(close(s(5), [25f64.sqrt(), (1.0 + r).sqrt()]), "{:?}", s(5));
+        assert!(close(s(6), [(1.0 + r).sqrt(); 2]), "{:?}", s(6));
+        assert!(close(s(7), [(1.0 + r).sqrt(); 2]), "{:?}", s(7));
         assert_eq!(s(11), [3.0, 3.0], "no transient-free value: untouched");
         assert_eq!(s(12), [0.0, 0.0]);
         for i in 13..17 {

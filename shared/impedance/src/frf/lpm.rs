@@ -81,19 +81,69 @@ fn dft_at(t_s: &[f64], v: &[f64], omega_rad_s: f64) -> Complex64 {
 /// leak into the bins. `None` with fewer than two such bins (one cycle:
 /// the bins are harmonics).
 pub fn mean_standard_error(t_s: &[f64], y: &[f64], omega_rad_s: f64) -> Option<(f64, usize)> {
+    low_bin_noise(t_s, y, None, omega_rad_s).map(|(se, dof)| (se, (dof / 2.0) as usize))
+}
+
+/// [`mean_standard_error`] of `y` with what is linear in `x` at those
+/// bins taken out first: `Y_k − g X_k`, one real `g` fitted over the bins'
+/// real and imaginary parts (least squares). Where `y` responds to a slow
+/// wander of `x` that the mean's model accounts for by `x`'s own mean (a
+/// torque balance whose posture moved: gravity's moment follows the
+/// angle), that response is no noise of the balance's residual. Returns
+/// the standard error and its real degrees of freedom (two per bin less
+/// the one fitted); `None` with fewer than two bins or an `x` with no
+/// content there.
+pub fn mean_standard_error_beside(
+    t_s: &[f64],
+    y: &[f64],
+    x: &[f64],
+    omega_rad_s: f64,
+) -> Option<(f64, f64)> {
+    low_bin_noise(t_s, y, Some(x), omega_rad_s)
+}
+
+/// The noise of the mean of `y` from its lowest bins, less what is linear
+/// in `x` there when given: the standard error and its real degrees of
+/// freedom ([`mean_standard_error`], [`mean_standard_error_beside`]).
+fn low_bin_noise(
+    t_s: &[f64],
+    y: &[f64],
+    x: Option<&[f64]>,
+    omega_rad_s: f64,
+) -> Option<(f64, f64)> {
     let n = t_s.len();
-    if n < 16 || y.len() != n || !omega_rad_s.is_finite() || omega_rad_s <= 0.0 {
+    if n < 16
+        || y.len() != n
+        || x.is_some_and(|x| x.len() != n)
+        || !omega_rad_s.is_finite()
+        || omega_rad_s <= 0.0
+    {
         return None;
     }
     let c = cycles_in(t_s, omega_rad_s)?;
-    let [yd] = without_mean_and_trend(t_s, omega_rad_s, [y], false)?;
-    let (mut sum, mut bins) = (0.0, 0usize);
+    let [yd, xd] = without_mean_and_trend(t_s, omega_rad_s, [y, x.unwrap_or(y)], false)?;
+    let mut bins = Vec::with_capacity(4);
     for k in (1..=4i64).filter(|k| k % c != 0) {
         let wk = omega_rad_s * k as f64 / c as f64;
-        sum += dft_at(t_s, &yd, wk).norm_sqr();
-        bins += 1;
+        let xk = if x.is_some() {
+            dft_at(t_s, &xd, wk)
+        } else {
+            Complex64::new(0.0, 0.0)
+        };
+        bins.push((dft_at(t_s, &yd, wk), xk));
     }
-    (bins >= 2).then(|| ((sum / bins as f64 / 4.0).sqrt(), bins))
+    if bins.len() < 2 {
+        return None;
+    }
+    let xx: f64 = bins.iter().map(|(_, xk)| xk.norm_sqr()).sum();
+    let xy: f64 = bins.iter().map(|(yk, xk)| (xk.conj() * yk).re).sum();
+    let fitted = xx > 0.0;
+    let g = if fitted { xy / xx } else { 0.0 };
+    let ss: f64 = bins.iter().map(|(yk, xk)| (yk - xk * g).norm_sqr()).sum();
+    let dof = 2.0 * bins.len() as f64 - if fitted { 1.0 } else { 0.0 };
+    // For white noise of variance s² each real component of a bin holds
+    // 2 s²/n, and the mean's variance is s²/n.
+    Some(((ss / dof / 2.0).sqrt(), dof))
 }
 
 /// The mean of `v` weighted by the periodic Hann taper

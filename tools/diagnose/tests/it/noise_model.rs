@@ -3,7 +3,8 @@
 //! polynomial method (`exo_impedance::frf::local_polynomial_ratio`) and its
 //! standard error (the white σ times √leverage), and the standard error of
 //! a window's mean from the noise near zero frequency
-//! (`exo_impedance::frf::mean_standard_error`). The signals are built here
+//! (`exo_impedance::frf::mean_standard_error`, and `_beside` with the
+//! posture's slope taken out). The signals are built here
 //! from closed forms, not by any code under test.
 
 use crate::common;
@@ -11,8 +12,8 @@ use crate::common;
 use exo_diagnose::data::Tf;
 use exo_diagnose::fit::MODEL_ACCURACY;
 use exo_impedance::frf::{
-    hann_mean, local_polynomial_ratio, mean_standard_error, sine_amplitude, sine_ratio,
-    whole_cycles, HANN_MEAN_NOISE_GAIN,
+    hann_mean, local_polynomial_ratio, mean_standard_error, mean_standard_error_beside,
+    sine_amplitude, sine_ratio, whole_cycles, HANN_MEAN_NOISE_GAIN,
 };
 use num_complex::Complex64;
 
@@ -232,6 +233,59 @@ fn the_mean_s_standard_error_is_the_noise_near_zero_frequency() {
             assert!(var_true.sqrt() > 5.0 * white);
         }
     }
+}
+
+/// A balance whose posture wanders (stop 37): `y = 1.5 + 4 x + e`, the
+/// angle `x` a 0.1 rad swing at 6 rad/s on a slow first-order wander
+/// (0.5 s correlation, 0.02 rad), `e` white (σ = 0.05 Nm), over six
+/// cycles at 1 kHz. A model that takes the moment at the window's own mean
+/// angle leaves `mean(y) − 4 mean(x) − 1.5 = mean(e)`: its scatter is the
+/// white noise's `σ/√n`. By Monte Carlo over 300 windows the estimate with
+/// the slope fitted at the lowest bins follows that scatter, with seven
+/// degrees of freedom (four bins, one slope); the estimate from `y` alone
+/// counts the wander's response as noise, several times too large.
+#[test]
+fn the_balance_s_noise_leaves_out_what_follows_the_posture() {
+    let w = 6.0_f64;
+    let t = six_cycles(w);
+    let n = t.len();
+    let phi = (-1e-3_f64 / 0.5).exp();
+    let (mut resid, mut beside, mut alone) = (Vec::new(), 0.0, 0.0);
+    for s in 0..300u64 {
+        let e = common::normals((901 + s).wrapping_mul(0x9E37_79B9_7F4A_7C15), n);
+        let u = common::normals((5077 + s).wrapping_mul(0x9E37_79B9_7F4A_7C15), n);
+        let mut wander = 0.02 * u[0];
+        let x: Vec<f64> = t
+            .iter()
+            .zip(&u)
+            .map(|(t, u)| {
+                wander = phi * wander + (1.0 - phi * phi).sqrt() * 0.02 * u;
+                0.1 * (w * t).sin() + wander
+            })
+            .collect();
+        let y: Vec<f64> = x
+            .iter()
+            .zip(&e)
+            .map(|(x, e)| 1.5 + 4.0 * x + 0.05 * e)
+            .collect();
+        let mean = |v: &[f64]| v.iter().sum::<f64>() / n as f64;
+        resid.push(mean(&y) - 4.0 * mean(&x) - 1.5);
+        let (se, dof) = mean_standard_error_beside(&t, &y, &x, w).expect("bins");
+        assert_eq!(dof, 7.0);
+        beside += se * se;
+        alone += mean_standard_error(&t, &y, w).expect("bins").0.powi(2);
+    }
+    let k = resid.len() as f64;
+    let true_sd = (resid.iter().map(|r| r * r).sum::<f64>() / k).sqrt();
+    let white = 0.05 / (n as f64).sqrt();
+    let (beside, alone) = ((beside / k).sqrt() / true_sd, (alone / k).sqrt() / true_sd);
+    eprintln!("residual mean's scatter {true_sd:.3e} (white {white:.3e}); estimated over true: beside {beside:.2}, from y alone {alone:.2}");
+    assert!(
+        (true_sd / white - 1.0).abs() < 0.15,
+        "{true_sd} against {white}"
+    );
+    assert!((0.85..1.15).contains(&beside), "beside {beside}");
+    assert!(alone > 3.0, "alone {alone}");
 }
 
 /// The static balance's mean (`data::balance`) over six whole cycles of
@@ -488,8 +542,9 @@ fn the_reduction_gives_each_line_its_transient_free_value_with_sqrt_leverage() {
 /// Every static balance of a synthesized recording, recomputed here from
 /// its window's signals: over two cycles or more the Hann-tapered mean
 /// (the taper written out here) of `τ_s_net − τ_c`, of `τ_gravity`, `τ_c`
-/// and `sin θ`, its σ the mean's noise near zero frequency times √(3/2)
-/// with two degrees of freedom per bin; over one cycle the plain means and
+/// and `sin θ`, its σ the mean's noise near zero frequency less what
+/// follows sin θ there, times √(3/2), with two degrees of freedom per bin
+/// less the slope; over one cycle the plain means and
 /// the residual's per-cycle standard error, no degrees of freedom; the
 /// SEA's mean torque the plain mean in both.
 #[test]
@@ -527,15 +582,15 @@ fn the_reduction_gives_each_balance_its_tapered_mean_its_noise_and_dof() {
             flat(&sig.tau_s_nm[..n]),
             "the SEA's mean torque",
         );
-        match mean_standard_error(t, &y, w) {
-            Some((se, bins)) => {
+        match mean_standard_error_beside(t, &y, &sin_theta, w) {
+            Some((se, dof)) => {
                 tapered += 1;
                 close(o.value.re, taper(&y), "tapered balance");
                 close(o.statics[0], taper(&tau_g), "tapered τ_gravity");
                 close(o.statics[1], taper(&sig.tau_c_nm[..n]), "tapered τ_c");
                 close(c.sin_theta_mean, taper(&sin_theta), "tapered sin θ");
                 close(o.sigma[0], se * 1.5f64.sqrt(), "σ");
-                assert_eq!(o.sigma_dof, Some(2.0 * bins as f64));
+                assert_eq!(o.sigma_dof, Some(dof));
             }
             None => {
                 plain += 1;
