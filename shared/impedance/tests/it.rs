@@ -19,6 +19,8 @@ mod ftest_inputs;
 mod ftest_scipy;
 #[path = "it/lag_filter_closed_form.rs"]
 mod lag_filter_closed_form;
+#[path = "it/low_bin_noise.rs"]
+mod low_bin_noise;
 #[path = "it/paper.rs"]
 mod paper;
 #[path = "it/power_law_numpy.rs"]

@@ -3,8 +3,9 @@
 //! polynomial method (`exo_impedance::frf::local_polynomial_ratio`) and its
 //! standard error (the white σ times √leverage), and the standard error of
 //! a window's mean from the noise near zero frequency
-//! (`exo_impedance::frf::mean_standard_error`, and `_beside` with the
-//! posture's slope taken out). The signals are built here
+//! (`exo_impedance::frf::mean_standard_error`; the form beside the
+//! posture, `_beside`, by Monte Carlo in exo-impedance's `low_bin_noise`).
+//! The signals are built here
 //! from closed forms, not by any code under test.
 
 use crate::common;
@@ -233,59 +234,6 @@ fn the_mean_s_standard_error_is_the_noise_near_zero_frequency() {
             assert!(var_true.sqrt() > 5.0 * white);
         }
     }
-}
-
-/// A balance whose posture wanders (stop 37): `y = 1.5 + 4 x + e`, the
-/// angle `x` a 0.1 rad swing at 6 rad/s on a slow first-order wander
-/// (0.5 s correlation, 0.02 rad), `e` white (σ = 0.05 Nm), over six
-/// cycles at 1 kHz. A model that takes the moment at the window's own mean
-/// angle leaves `mean(y) − 4 mean(x) − 1.5 = mean(e)`: its scatter is the
-/// white noise's `σ/√n`. By Monte Carlo over 300 windows the estimate with
-/// the slope fitted at the lowest bins follows that scatter, with seven
-/// degrees of freedom (four bins, one slope); the estimate from `y` alone
-/// counts the wander's response as noise, several times too large.
-#[test]
-fn the_balance_s_noise_leaves_out_what_follows_the_posture() {
-    let w = 6.0_f64;
-    let t = six_cycles(w);
-    let n = t.len();
-    let phi = (-1e-3_f64 / 0.5).exp();
-    let (mut resid, mut beside, mut alone) = (Vec::new(), 0.0, 0.0);
-    for s in 0..300u64 {
-        let e = common::normals((901 + s).wrapping_mul(0x9E37_79B9_7F4A_7C15), n);
-        let u = common::normals((5077 + s).wrapping_mul(0x9E37_79B9_7F4A_7C15), n);
-        let mut wander = 0.02 * u[0];
-        let x: Vec<f64> = t
-            .iter()
-            .zip(&u)
-            .map(|(t, u)| {
-                wander = phi * wander + (1.0 - phi * phi).sqrt() * 0.02 * u;
-                0.1 * (w * t).sin() + wander
-            })
-            .collect();
-        let y: Vec<f64> = x
-            .iter()
-            .zip(&e)
-            .map(|(x, e)| 1.5 + 4.0 * x + 0.05 * e)
-            .collect();
-        let mean = |v: &[f64]| v.iter().sum::<f64>() / n as f64;
-        resid.push(mean(&y) - 4.0 * mean(&x) - 1.5);
-        let (se, dof) = mean_standard_error_beside(&t, &y, &x, w).expect("bins");
-        assert_eq!(dof, 7.0);
-        beside += se * se;
-        alone += mean_standard_error(&t, &y, w).expect("bins").0.powi(2);
-    }
-    let k = resid.len() as f64;
-    let true_sd = (resid.iter().map(|r| r * r).sum::<f64>() / k).sqrt();
-    let white = 0.05 / (n as f64).sqrt();
-    let (beside, alone) = ((beside / k).sqrt() / true_sd, (alone / k).sqrt() / true_sd);
-    eprintln!("residual mean's scatter {true_sd:.3e} (white {white:.3e}); estimated over true: beside {beside:.2}, from y alone {alone:.2}");
-    assert!(
-        (true_sd / white - 1.0).abs() < 0.15,
-        "{true_sd} against {white}"
-    );
-    assert!((0.85..1.15).contains(&beside), "beside {beside}");
-    assert!(alone > 3.0, "alone {alone}");
 }
 
 /// The static balance's mean (`data::balance`) over six whole cycles of
