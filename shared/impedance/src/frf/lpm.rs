@@ -114,14 +114,10 @@ fn low_bin_noise(
     omega_rad_s: f64,
 ) -> Option<(f64, f64, usize)> {
     let n = t_s.len();
-    if n < 16
-        || y.len() != n
-        || x.is_some_and(|x| x.len() != n)
-        || !omega_rad_s.is_finite()
-        || omega_rad_s <= 0.0
-    {
+    if n < 16 || y.len() != n || x.is_some_and(|x| x.len() != n) || !omega_rad_s.is_finite() {
         return None;
     }
+    // (An ω ≤ 0 has no whole cycle.)
     let c = cycles_in(t_s, omega_rad_s)?;
     let [yd, xd] = without_mean_and_trend(t_s, omega_rad_s, [y, x.unwrap_or(y)], false)?;
     // The trend taken out with the mean and the line: its share of the
@@ -152,10 +148,8 @@ fn low_bin_noise(
     let xy: f64 = bins.iter().map(|(yk, xk)| (xk.conj() * yk).re).sum();
     // An `x` with nothing at the bins but rounding (a pure line, taken
     // out with the line) fits no slope.
-    let x_power = x.map_or(0.0, |x| {
-        x.iter().map(|v| v * v).sum::<f64>() * 4.0 / n as f64
-    });
-    let fitted = xx > 1e-12 * x_power;
+    let x_power: f64 = x.map_or(0.0, |x| x.iter().map(|v| v * v).sum());
+    let fitted = xx > 1e-15 * x_power;
     let g = if fitted { xy / xx } else { 0.0 };
     let ss: f64 = bins.iter().map(|(yk, xk)| (yk - xk * g).norm_sqr()).sum();
     let dof = 2.0 * bins.len() as f64 - if fitted { 1.0 } else { 0.0 } - trend_dof;

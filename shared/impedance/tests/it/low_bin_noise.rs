@@ -114,7 +114,7 @@ fn the_mean_s_noise_is_the_scatter_of_the_mean_with_the_posture_taken_out() {
 /// slope: the eight degrees of freedom of four bins (less the trend's
 /// share) and the same value as
 /// `mean_standard_error`; one cycle (every other bin a harmonic), mismatched
-/// lengths, too few samples and an unusable ω give none.
+/// lengths, fewer than sixteen samples and an unusable ω give none.
 #[test]
 fn the_noise_beside_a_signal_at_its_edges() {
     let t = six_cycles();
@@ -144,6 +144,15 @@ fn the_noise_beside_a_signal_at_its_edges() {
     assert!(mean_standard_error_beside(&t, &noisy, &line[..n - 1], W).is_none());
     assert!(mean_standard_error_beside(&t[..n - 1], &noisy, &line, W).is_none());
     assert!(mean_standard_error_beside(&t[..15], &noisy[..15], &line[..15], W).is_none());
+    assert!(mean_standard_error_beside(&t, &noisy[..n - 1], &line, W).is_none());
+    // Sixteen samples are enough, fifteen are not, whatever the cycles:
+    // two cycles at 10 Hz sampling either way.
+    let w2 = std::f64::consts::TAU * 2.0 / 1.6;
+    let t16: Vec<f64> = (0..16).map(|k| f64::from(k) * 0.1).collect();
+    let y16: Vec<f64> = (0..16).map(|_| rng.gaussian()).collect();
+    let x16: Vec<f64> = (0..16).map(|_| rng.gaussian()).collect();
+    assert!(mean_standard_error_beside(&t16, &y16, &x16, w2).is_some());
+    assert!(mean_standard_error_beside(&t16[..15], &y16[..15], &x16[..15], w2).is_none());
     for w in [0.0, -W, f64::NAN, f64::INFINITY] {
         assert!(
             mean_standard_error_beside(&t, &noisy, &line, w).is_none(),
