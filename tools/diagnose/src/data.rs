@@ -1286,6 +1286,15 @@ mod tests {
         }
     }
 
+    /// "Beyond" is strict: a leak exactly at 6.635 times its estimate's
+    /// noise stays in the pool.
+    #[test]
+    fn a_leak_keeps_its_own_transient_only_beyond_the_threshold() {
+        assert!(!keeps_own_transient(6.635 * 4.0, 4.0));
+        assert!(keeps_own_transient(6.635 * 4.0 + 1e-9, 4.0));
+        assert!(!keeps_own_transient(1.0, 4.0));
+    }
+
     /// By hand: the white σ's share that is noise is the local noise ratio
     /// pooled over an experiment's lines of one transfer function, weighted
     /// by degrees of freedom ((4·0.5 + 6·0.8)/10 = 0.68), within [0.5, 1]; it

@@ -279,31 +279,25 @@ pub fn lack_of_fit(d: &Dataset, phys: &Physics, p: usize, level: f64) -> LackOfF
 
 /// The size of `phys`'s misfit on transfer function `tf` beyond what the
 /// σ's of the lack-of-fit χ² account for, relative to the values: `√(max(Σ
-/// (|r|² − σ_re² − σ_im²) − z s, 0) / Σ |value|²)`, less `z` times the
-/// sampling spread `s = √(Σ 2σ⁴)` that sum has where the residuals are
-/// noise alone (`z` = [`EXCESS_SPREAD_Z`]: one value of
-/// large σ, a high-frequency line's, would otherwise make a null's excess
-/// look material by itself, stop 37); for the static balance, whose values
-/// are differences near zero, relative to the SEA's mean torque in each
-/// window (what the balance's terms are fractions of: the gravity moment,
-/// the bias), or to the value where that was not measured. A misfit the
-/// noise cannot explain but smaller than the forward model's accuracy
-/// ([`MODEL_ACCURACY`]) is no missing physics.
+/// (|r|² − σ_re² − σ_im²), 0) / Σ |value|²)`; for the static balance,
+/// whose values are differences near zero, relative to the SEA's mean
+/// torque in each window (what the balance's terms are fractions of: the
+/// gravity moment, the bias), or to the value where that was not measured.
+/// A misfit the noise cannot explain but smaller than the forward model's
+/// accuracy ([`MODEL_ACCURACY`]) is no missing physics.
 pub fn excess_relative(d: &Dataset, phys: &Physics, tf: crate::data::Tf) -> f64 {
-    let z = EXCESS_SPREAD_Z;
-    let (mut excess, mut spread, mut scale) = (0.0, 0.0, 0.0);
+    let (mut excess, mut scale) = (0.0, 0.0);
     for o in d.observations.iter().filter(|o| o.tf == tf) {
         let acc = model_accuracy(phys, o) * o.value.norm();
         let r = phys.predict(o, &d.conditions[o.window]) - o.value;
         let fl = absolute_floor(o.tf);
-        let s_re = o.sigma[0].hypot(acc).max(fl).powi(2);
-        let s_im = if tf.is_dynamic() {
-            o.sigma[1].hypot(acc).max(fl).powi(2)
-        } else {
-            0.0
-        };
-        excess += r.norm_sqr() - s_re - s_im;
-        spread += 2.0 * (s_re * s_re + s_im * s_im);
+        excess += r.norm_sqr()
+            - o.sigma[0].hypot(acc).max(fl).powi(2)
+            - if tf.is_dynamic() {
+                o.sigma[1].hypot(acc).max(fl).powi(2)
+            } else {
+                0.0
+            };
         let tau_s = d.conditions[o.window].tau_s_mean_nm;
         scale += if tf == crate::data::Tf::Balance && tau_s.is_finite() {
             tau_s * tau_s
@@ -312,16 +306,11 @@ pub fn excess_relative(d: &Dataset, phys: &Physics, tf: crate::data::Tf) -> f64 
         };
     }
     if scale > 0.0 {
-        ((excess - z * spread.sqrt()).max(0.0) / scale).sqrt()
+        (excess.max(0.0) / scale).sqrt()
     } else {
         0.0
     }
 }
-
-/// The one-sided 95 % normal quantile: a misfit's excess over the noise is
-/// taken as material only when it stays beyond the accuracy after this many
-/// of its own sampling spreads ([`excess_relative`]).
-pub const EXCESS_SPREAD_Z: f64 = 1.644_853_626_951_472_2;
 
 /// Whitened residuals of `phys` on the observations selected by `use_obs`.
 pub fn residuals(
@@ -612,10 +601,7 @@ mod tests {
             let d = data(bias);
             let v = d.observations[0].value.norm();
             let sigma = 1e-4 * p.norm();
-            // Forty values: the excess less 1.645 of its spread
-            // √(40·2·2σ⁴) under noise alone.
-            let sum = 40.0 * ((bias * p.norm()).powi(2) - 2.0 * sigma * sigma);
-            let want = ((sum - EXCESS_SPREAD_Z * 160f64.sqrt() * sigma.powi(2)) / 40.0).sqrt() / v;
+            let want = ((bias * p.norm()).powi(2) - 2.0 * sigma * sigma).sqrt() / v;
             let got = excess_relative(&d, &phys, Tf::Sh);
             assert!(
                 (got - want).abs() < 1e-9,
@@ -629,48 +615,6 @@ mod tests {
             } else {
                 assert_eq!((l.p_value, l.beyond_noise), (1.0, 0.0), "{l:?}");
             }
-        }
-    }
-
-    /// One value of large σ is no material excess by its noise alone
-    /// (stop 37): three values with σ 1e-4 of the value, each off by its σ
-    /// in both parts (no excess), and one with σ 1 % of the value, off by
-    /// 1.3 σ in both: its point excess `2(1.69 − 1)σ²` is 0.59 % of the
-    /// four values' size, over the 0.5 % accuracy, but within 1.645 of its
-    /// spread `√(2·2σ⁴)` (3.29 σ²): not material. At 3 σ off (16 σ² of
-    /// excess; 1.78 % beyond the spread) it is.
-    #[test]
-    fn one_noisy_value_is_not_a_material_excess() {
-        let phys = default_physics();
-        let c = window();
-        let p = phys.predict(&observation(Tf::Sh, 0.0, 1.0, 0.0), &c);
-        let at = |sigma: f64, k: f64| {
-            let mut o = observation(Tf::Sh, 0.0, sigma, 0.0);
-            o.value = p + Complex64::new(k * sigma, k * sigma);
-            o
-        };
-        for (k, material) in [(1.3, false), (3.0, true)] {
-            let mut obs = vec![at(1e-4 * p.norm(), 1.0); 3];
-            obs.push(at(1e-2 * p.norm(), k));
-            let d = Dataset {
-                conditions: vec![c.clone()],
-                observations: obs,
-                supported: vec![Tf::Sh],
-                ..Dataset::default()
-            };
-            let big = (1e-2 * p.norm()).powi(2);
-            let small = (1e-4 * p.norm()).powi(2);
-            let point = 2.0 * (k * k - 1.0) * big;
-            let spread = (2.0 * 2.0 * big * big + 3.0 * 2.0 * 2.0 * small * small).sqrt();
-            let scale: f64 = d.observations.iter().map(|o| o.value.norm_sqr()).sum();
-            let want = ((point - EXCESS_SPREAD_Z * spread).max(0.0) / scale).sqrt();
-            let got = excess_relative(&d, &phys, Tf::Sh);
-            assert!((got - want).abs() < 1e-12, "{k}: {got} against {want}");
-            assert!(
-                (point / scale).sqrt() > MODEL_ACCURACY,
-                "{k}: the point excess alone is over"
-            );
-            assert_eq!(got > MODEL_ACCURACY, material, "{k}: {got}");
         }
     }
 
@@ -694,8 +638,7 @@ mod tests {
                 supported: vec![Tf::Balance],
                 ..Dataset::default()
             };
-            let sum = 30.0 * (off * off - 1e-6);
-            let want = ((sum - EXCESS_SPREAD_Z * 60f64.sqrt() * 1e-6) / 30.0).sqrt() / 16.0;
+            let want = (off * off - 1e-6).sqrt() / 16.0;
             let got = excess_relative(&d, &phys, Tf::Balance);
             assert!((got - want).abs() < 1e-9, "off {off}: {got} against {want}");
             let l = lack_of_fit(&d, &phys, 0, 0.05);
@@ -718,8 +661,7 @@ mod tests {
             supported: vec![Tf::Balance],
             ..Dataset::default()
         };
-        let want =
-            (0.03f64.powi(2) - 1e-6 - EXCESS_SPREAD_Z * 2f64.sqrt() * 1e-6).sqrt() / o.value.norm();
+        let want = (0.03f64.powi(2) - 1e-6).sqrt() / o.value.norm();
         assert!((excess_relative(&d, &phys, Tf::Balance) - want).abs() < 1e-9);
     }
 
