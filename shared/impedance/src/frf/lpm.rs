@@ -77,9 +77,9 @@ fn dft_at(t_s: &[f64], v: &[f64], omega_rad_s: f64) -> Complex64 {
 /// not the residual's variance spread over the band. For white noise of
 /// variance `s²` each bin holds `E|Y_k|² = 4 s²/n`, so the mean's variance
 /// `s²/n` is `E|Y_k|²/4`, less the share of the bins the trend took out
-/// (stop 37: unaccounted, it left the estimate 6 % low). The line is taken out too: a block of samples
-/// is whole cycles only to a sample, and the rest of a large line would
-/// leak into the bins. `None` with fewer than two such bins (one cycle:
+/// (stop 37: unaccounted, it left the estimate 6 % low). The line is
+/// taken out too: a block of samples is whole cycles only to a sample,
+/// and the rest of a large line would leak into the bins. `None` with fewer than two such bins (one cycle:
 /// the bins are harmonics).
 pub fn mean_standard_error(t_s: &[f64], y: &[f64], omega_rad_s: f64) -> Option<(f64, usize)> {
     low_bin_noise(t_s, y, None, omega_rad_s).map(|(se, _, bins)| (se, bins))

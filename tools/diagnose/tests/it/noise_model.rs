@@ -492,7 +492,7 @@ fn the_reduction_gives_each_line_its_transient_free_value_with_sqrt_leverage() {
 /// (the taper written out here) of `τ_s_net − τ_c`, of `τ_gravity`, `τ_c`
 /// and `sin θ`, its σ the mean's noise near zero frequency less what
 /// follows sin θ there, times √(3/2), with two degrees of freedom per bin
-/// less the slope; over one cycle the plain means and
+/// less the slope and the trend's share; over one cycle the plain means and
 /// the residual's per-cycle standard error, no degrees of freedom; the
 /// SEA's mean torque the plain mean in both.
 #[test]
