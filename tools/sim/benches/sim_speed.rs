@@ -230,7 +230,11 @@ fn main() {
     );
 
     // Baseline: the default run through the five processes in lockstep.
-    let exo = root().join("target/release/exo");
+    // The build's own target directory (`CARGO_TARGET_DIR`, else the
+    // workspace's `target/`).
+    let target =
+        std::env::var_os("CARGO_TARGET_DIR").map_or_else(|| root().join("target"), PathBuf::from);
+    let exo = target.join("release/exo");
     if exo.exists() {
         let started = Instant::now();
         let out = Command::new(&exo)
@@ -250,7 +254,10 @@ fn main() {
             sim_s / wall
         );
     } else {
-        println!("\nbaseline skipped: build target/release/exo first (cargo build --release --workspace --bins)");
+        println!(
+            "\nbaseline skipped: build {} first (cargo build --release)",
+            exo.display()
+        );
     }
     let _ = std::fs::remove_dir_all(&dir);
 }
