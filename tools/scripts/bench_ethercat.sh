@@ -9,6 +9,14 @@
 # Usage: tools/scripts/bench_ethercat.sh [SECONDS=20]   (from the workspace root)
 #   WARMUP=s   round trips left out at the start (default 0.5)
 #   RATE=Hz    the cycle (default 1000; an integer)
+#   SPIN_US=us the last part of each wait for the cycle spent polling the
+#              clock (`bus.ethercat.wake_spin_us`; default 0: asleep to the
+#              deadline)
+#   FULL=1     the rows run the paper's whole protocol (experiments 1-9,
+#              periods 1-10, about 33 min) instead of the run files' short
+#              ones, so that a long row (600 s) ends by the bench's stop,
+#              not by the protocol's end (after which the controller exits
+#              and the driver latches `CommandDeadlineMissed`)
 #   CAPTURE=file.pcap  capture the master's interface during the first row
 #              with tcpdump (not installed by this script), for
 #              tools/scripts/ethercat_capture.py
@@ -46,6 +54,9 @@ trap 'rm -rf "$out"' EXIT
 # A shipped run file with its paths absolute, at $rate Hz: the deadlines
 # kept in periods as the files give them at 1 kHz (command 1, sample and
 # bus 5, the drive's watchdog 10).
+full=()
+[ "${FULL:-0}" = 1 ] && full=(-e 's|^experiments = \[.*\]|experiments = [1, 2, 3, 4, 5, 6, 7, 8, 9]|'
+                            -e 's|^periods = \[.*\]|periods = [1, 2, 3, 4, 5, 6, 7, 8, 9, 10]|')
 absolute() {
   local ms; ms=$(awk "BEGIN { print 1000 / $rate }")
   sed -e "s|plant_model = \"|plant_model = \"$root/configs/|" \
@@ -57,6 +68,8 @@ absolute() {
       -e "s|^sample_deadline_ms = 5.0|sample_deadline_ms = $(awk "BEGIN { print 5 * $ms }")|" \
       -e "s|^bus_deadline_ms = 5.0|bus_deadline_ms = $(awk "BEGIN { print 5 * $ms }")|" \
       -e "s|^drive_watchdog_ms = 10.0|drive_watchdog_ms = $(awk "BEGIN { print 10 * $ms }")|" \
+      -e "s|^\[bus.ethercat\]\$|[bus.ethercat]\nwake_spin_us = ${SPIN_US:-0}.0|" \
+      "${full[@]}" \
       "configs/$1"
 }
 absolute ethercat-kickcat.toml > "$out/ecat.toml"
@@ -99,7 +112,7 @@ PY
 }
 
 export -f run 2>/dev/null || true
-echo "machine: $(nproc) CPUs, $(uname -r), load $(cut -d' ' -f1-3 /proc/loadavg); $secs s per row, $rate Hz, $profile build, warm-up $warmup s"
+echo "machine: $(nproc) CPUs, $(uname -r), load $(cut -d' ' -f1-3 /proc/loadavg); $secs s per row, $rate Hz, $profile build, warm-up $warmup s, wake-up spin ${SPIN_US:-0} µs"
 echo "namespace: $ns; scheduling of the namespace: ${fifo:-normal}"
 $fifo $ns bash -c "
   set -e

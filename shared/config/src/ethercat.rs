@@ -73,6 +73,15 @@ pub struct EthercatSettings {
     /// starts with it off) ([`EthercatSettings::drive_watchdog_cycles`]).
     #[serde(default)]
     pub drive_watchdog_cycles: Option<u32>,
+    /// The last part (µs) of each wait for the cycle's deadline that the
+    /// master spends polling the clock instead of asleep in the kernel
+    /// (`exo_service_kit::sleep_then_spin_until_ns`): the kernel's wake-up
+    /// latency then falls before the deadline, at the cost of that much of
+    /// one core per cycle. 0 sleeps to the deadline. Range [0, 1000], and
+    /// less than one control period. Default 0 (docs/hardware.md, "Less
+    /// lateness", gives the measurements).
+    #[serde(default)]
+    pub wake_spin_us: f64,
     /// Write the PDO mapping below into the drive in PRE-OP (CiA 301:
     /// 0x1C1x:0 = 0, the PDO's entries and count, 0x1C1x:1, 0x1C1x:0 = 1).
     /// `false`: the drive's own mapping is used and only its size is
@@ -291,6 +300,16 @@ impl EthercatSettings {
             }
         }
         c.key("bus.ethercat.quick_stop_ms", self.quick_stop_ms);
+        let period_us = 1e6 / rate_hz;
+        if c.key("bus.ethercat.wake_spin_us", self.wake_spin_us) && self.wake_spin_us >= period_us {
+            c.note(
+                "bus.ethercat.wake_spin_us",
+                format!(
+                    "{} µs is not less than one control period ({period_us} µs): the master would never sleep",
+                    self.wake_spin_us
+                ),
+            );
+        }
         if let Some(n) = self.drive_watchdog_cycles {
             let span_ms = f64::from(n) * 1000.0 / rate_hz;
             let missed = self.max_missed_cycles(rate_hz);
@@ -496,6 +515,11 @@ mod tests {
         assert_eq!(s.max_missed_cycles(1000.0), 50);
         assert_eq!(s.max_missed_cycles(100.0), 5);
         assert_eq!(s.max_missed_cycles(10.0), 1);
+        // The wake-up spin: off by default; just under a period is allowed.
+        assert_eq!(s.wake_spin_us, 0.0);
+        let mut spin = settings();
+        spin.wake_spin_us = 999.0;
+        assert_eq!(errors(&spin), "");
         let mut edge = settings();
         edge.max_missed_cycles = Some(100); // 100 ms at 1 kHz: the limit itself
         assert_eq!(errors(&edge), "");
@@ -516,7 +540,7 @@ mod tests {
     #[test]
     fn each_bad_mapping_is_refused_naming_its_key() {
         type Spoil = fn(&mut EthercatSettings);
-        let cases: [(&str, Spoil); 15] = [
+        let cases: [(&str, Spoil); 18] = [
             ("bus.ethercat.rx_pdo.entries[1].scale", |s| {
                 s.rx_pdo.entries[1].scale = None
             }),
@@ -543,6 +567,10 @@ mod tests {
                 s.pdu_timeout_ms = Some(2.0)
             }),
             ("bus.ethercat.interface", |s| s.interface.clear()),
+            ("bus.ethercat.wake_spin_us", |s| s.wake_spin_us = f64::NAN),
+            ("bus.ethercat.wake_spin_us", |s| s.wake_spin_us = -1.0),
+            // One period at 1 kHz: never asleep.
+            ("bus.ethercat.wake_spin_us", |s| s.wake_spin_us = 1000.0),
             ("bus.ethercat.max_missed_cycles", |s| {
                 s.max_missed_cycles = Some(0)
             }),

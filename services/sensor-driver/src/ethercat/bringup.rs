@@ -169,10 +169,11 @@ impl EthercatBus {
         let mut cia = Cia402::new(quick_stop_cycles);
         cia.enable(false);
         info!(
-            "sensor-driver: EtherCAT drive in OP, {} input and {} output bytes, expected working counter {expected_wkc}, cycle {:.3} ms, PDU time-out {:?}, latching after {} missed cycles in a row",
+            "sensor-driver: EtherCAT drive in OP, {} input and {} output bytes, expected working counter {expected_wkc}, cycle {:.3} ms (the last {} µs of each wait spun), PDU time-out {:?}, latching after {} missed cycles in a row",
             map.in_bytes,
             map.out_bytes,
             1000.0 / rate_hz,
+            s.wake_spin_us,
             pdu_timeout,
             s.max_missed_cycles(rate_hz)
         );
@@ -186,6 +187,7 @@ impl EthercatBus {
             cia,
             torque_scale,
             period_ns: (1e9 / rate_hz).round() as u64,
+            wake_spin_ns: (s.wake_spin_us * 1e3).round() as u64,
             pdu_timeout,
             max_missed_cycles: u64::from(s.max_missed_cycles(rate_hz)),
             watchdog: s.drive_watchdog_registers(rate_hz),

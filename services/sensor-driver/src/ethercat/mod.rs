@@ -66,7 +66,7 @@ use std::time::{Duration, Instant};
 use ethercrab::subdevice_group::Op;
 use ethercrab::{MainDevice, PduStorage, SubDeviceGroup, SubDeviceState};
 use exo_messages::bus_status;
-use exo_service_kit::{monotonic_ns, sleep_until_ns};
+use exo_service_kit::{monotonic_ns, sleep_then_spin_until_ns};
 use tracing::{error, info, warn};
 
 pub use error::EthercatError;
@@ -147,6 +147,9 @@ pub struct EthercatBus {
     cia: Cia402,
     torque_scale: f64,
     period_ns: u64,
+    /// The end of each wait for the deadline spent polling the clock
+    /// (`bus.ethercat.wake_spin_us`), ns.
+    wake_spin_ns: u64,
     pdu_timeout: Duration,
     max_missed_cycles: u64,
     /// The drive's sync-manager watchdog: (divider, time) for ESC
@@ -417,7 +420,7 @@ impl HardwareBus for EthercatBus {
                 t.start_warmup_at(now);
             }
         } else if now < self.next_ns {
-            sleep_until_ns(self.next_ns);
+            sleep_then_spin_until_ns(self.next_ns, self.wake_spin_ns);
         }
         let start = monotonic_ns();
         let late_ns = start.saturating_sub(self.next_ns);

@@ -91,6 +91,7 @@ pub const RUN_RANGES: Ranges = &[
     ("bus.ethercat.position", Range::closed(0.0, 255.0)),
     ("bus.ethercat.pdu_timeout_ms", Range::above(0.0, 1000.0)),
     ("bus.ethercat.quick_stop_ms", Range::closed(0.0, 1000.0)),
+    ("bus.ethercat.wake_spin_us", Range::closed(0.0, 1000.0)),
     ("bus.ethercat.max_missed_cycles", Range::closed(1.0, 1000.0)),
     (
         "bus.ethercat.drive_watchdog_cycles",
