@@ -105,3 +105,76 @@ fn no_crate_imports_from_a_layer_above_and_no_service_imports_another() {
     }
     assert!(wrong.is_empty(), "{wrong:#?}");
 }
+
+/// `test = false` (issue 31 item 2: no test binary for a target without
+/// tests; each costs a link and 20–45 MB) must never hide a test: every
+/// library so marked holds no `#[test]` or `#[cfg(test)]` anywhere under
+/// its `src/`, and every binary so marked is one file (no `mod`) without
+/// them. A test added there later fails this one instead of never running.
+#[test]
+fn no_target_left_out_of_cargo_test_holds_a_test() {
+    let root = workspace_root();
+    let manifest: toml::Table = std::fs::read_to_string(root.join("Cargo.toml"))
+        .unwrap()
+        .parse()
+        .unwrap();
+    let has_test = |text: &str| text.contains("#[test]") || text.contains("#[cfg(test)]");
+    fn rs_files(dir: &std::path::Path, out: &mut Vec<std::path::PathBuf>) {
+        for e in std::fs::read_dir(dir).into_iter().flatten().flatten() {
+            let p = e.path();
+            if p.is_dir() {
+                rs_files(&p, out);
+            } else if p.extension().is_some_and(|x| x == "rs") {
+                out.push(p);
+            }
+        }
+    }
+    let mut hidden = Vec::new();
+    let mut left_out = 0;
+    for m in manifest["workspace"]["members"].as_array().unwrap() {
+        let dir = root.join(m.as_str().unwrap());
+        let t: toml::Table = std::fs::read_to_string(dir.join("Cargo.toml"))
+            .unwrap()
+            .parse()
+            .unwrap();
+        let off =
+            |target: &toml::Value| target.get("test").and_then(toml::Value::as_bool) == Some(false);
+        if t.get("lib").is_some_and(off) {
+            left_out += 1;
+            let mut files = Vec::new();
+            rs_files(&dir.join("src"), &mut files);
+            for f in files {
+                if has_test(&std::fs::read_to_string(&f).unwrap()) {
+                    hidden.push(f.display().to_string());
+                }
+            }
+        }
+        for bin in t
+            .get("bin")
+            .and_then(toml::Value::as_array)
+            .into_iter()
+            .flatten()
+        {
+            if off(bin) {
+                left_out += 1;
+                let f = dir.join(
+                    bin["path"]
+                        .as_str()
+                        .expect("a [[bin]] with test = false names its path"),
+                );
+                let text = std::fs::read_to_string(&f).unwrap();
+                if has_test(&text) || text.lines().any(|l| l.trim_start().starts_with("mod ")) {
+                    hidden.push(f.display().to_string());
+                }
+            }
+        }
+    }
+    assert!(
+        left_out > 0,
+        "no target has test = false: this test checks nothing"
+    );
+    assert!(
+        hidden.is_empty(),
+        "targets with test = false that hold tests (cargo test would never run them): {hidden:?}"
+    );
+}
