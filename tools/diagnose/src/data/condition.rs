@@ -198,3 +198,65 @@ impl CommandPeaks {
         one + (cut_up + cut_low) / self.fundamental
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A torque limit's gain from a window's command samples
+    /// ([`crate::data::CommandPeaks::clip_gain`]) against the describing
+    /// function of a clipped sine `b + A sin φ`, written out here as the
+    /// independent truth: each side clips where `sin φ` passes `u = (L −
+    /// b)/A` or `v = (L + b)/A` and removes `f(u) = (π/2 − asin u − u √(1 −
+    /// u²))/π` of the fundamental (the textbook `(2/π)(asin u + u √(1 −
+    /// u²))` without a mean), at limits above, at and below the peaks, with
+    /// and without a mean, and a whole cycle beyond the limit.
+    #[test]
+    fn the_torque_limits_gain_is_the_clipped_sines_fundamental() {
+        let f = |u: f64| {
+            let u = u.clamp(-1.0, 1.0);
+            (std::f64::consts::FRAC_PI_2 - u.asin() - u * (1.0 - u * u).sqrt())
+                / std::f64::consts::PI
+        };
+        let describing = |l: f64, b: f64, a: f64| (1.0 - f((l - b) / a) - f((l + b) / a)).max(0.0);
+        let w = 5.0;
+        for (l, b, a) in [
+            (30.0, 0.0, 2.0),
+            (1.5, 0.0, 2.0),
+            (26.0, 24.0, 3.2),
+            (22.0, 24.0, 3.2),
+            (20.0, 24.0, 3.2),
+            (5.0, -4.0, 2.0),
+            (3.0, -4.0, 8.0),
+            (0.5, 0.0, 4.0),
+        ] {
+            // Four whole cycles, 20 000 samples, at a phase of 0.3 rad.
+            let n = 20_000;
+            let t: Vec<f64> = (0..n)
+                .map(|k| 4.0 * std::f64::consts::TAU / w * k as f64 / n as f64)
+                .collect();
+            let x: Vec<f64> = t.iter().map(|t| b + a * (w * t + 0.3).sin()).collect();
+            let cmd = crate::data::CommandPeaks::new(&t, &x, w).unwrap();
+            let got = cmd.clip_gain(l);
+            let want = describing(l, b, a);
+            assert!(
+                (got - want).norm() < 2e-4,
+                "L {l}, b {b}, A {a}: {got} against {want}"
+            );
+            assert!((cmd.peak_nm() - (b.abs() + a)).abs() < 1e-6);
+        }
+        // A clip at the mean keeps half the fundamental.
+        let t: Vec<f64> = (0..1000).map(|k| k as f64 * 1e-3).collect();
+        let x: Vec<f64> = t
+            .iter()
+            .map(|t| 24.0 + 3.0 * (std::f64::consts::TAU * t).cos())
+            .collect();
+        let cmd = crate::data::CommandPeaks::new(&t, &x, std::f64::consts::TAU).unwrap();
+        assert!((cmd.clip_gain(24.0) - 0.5).norm() < 1e-3);
+        // No limit, or a limit beyond the peaks: no effect.
+        assert_eq!(cmd.clip_gain(f64::INFINITY), Complex64::new(1.0, 0.0));
+        assert!((cmd.clip_gain(27.5) - 1.0).norm() < 1e-12);
+        // A command that is not finite is no command.
+        assert!(crate::data::CommandPeaks::new(&t, &[f64::NAN; 1000], 1.0).is_none());
+    }
+}
