@@ -36,7 +36,7 @@
 //! `transient`, `dataset`, `condition`; `sine` → `balance`, `transient`,
 //! `dataset`, `condition`; `balance` and `broadband` → `dataset`,
 //! `condition`; `transient` → `dataset`; `dataset` → `condition`;
-//! `condition` imports no other file of it. All of them take [`Tf`] and
+//! `condition` imports no other file of it. They take [`Tf`] and
 //! [`Reduction`] from this file, which holds no logic.
 
 mod balance;
