@@ -19,6 +19,8 @@ mod diagnose;
 mod diagnose_outside_catalogue;
 #[path = "it/import.rs"]
 mod import;
+#[path = "it/import_csv.rs"]
+mod import_csv;
 #[path = "it/independent.rs"]
 mod independent;
 #[path = "it/operator.rs"]

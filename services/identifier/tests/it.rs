@@ -13,3 +13,5 @@ static GLOBAL: exo_test_support::CountingAllocator = exo_test_support::CountingA
 mod alloc;
 #[path = "it/identifier.rs"]
 mod identifier;
+#[path = "it/identifier_inputs.rs"]
+mod identifier_inputs;

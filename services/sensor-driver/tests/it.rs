@@ -14,3 +14,7 @@ static GLOBAL: exo_test_support::CountingAllocator = exo_test_support::CountingA
 mod alloc;
 #[path = "it/ethercat.rs"]
 mod ethercat;
+#[path = "it/ethercat_faults.rs"]
+mod ethercat_faults;
+#[path = "it/ethercat_refusal.rs"]
+mod ethercat_refusal;

@@ -3,6 +3,11 @@
 //! 5 s settling, 5 s analysis, 5 s ramp-out, rest): FRF points, M1–M3
 //! refits, F-tests, the power law and eq. f's recommendation; faults,
 //! missing commands, late protocol states and broadband windows.
+//!
+//! This file holds the synthetic stream and the fits (sine periods, three
+//! experiments, a broadband window); what the identifier discards, warns
+//! about or refuses (faults, missing commands, late protocol states, bad
+//! settings) is `identifier_inputs.rs`'s, on the same stream.
 
 use std::collections::VecDeque;
 
@@ -13,12 +18,12 @@ use exo_impedance::{
     f_critical, fractional_order, Complex64, DynamicStiffness, PowerLaw, StiffnessRange,
 };
 use exo_messages::{
-    status, ActuatorCommand, ControlMode, FrfPoint, ImpedanceEstimate, ProtocolPhase,
-    ProtocolState, SensorSample,
+    ActuatorCommand, ControlMode, FrfPoint, ImpedanceEstimate, ProtocolPhase, ProtocolState,
+    SensorSample,
 };
 
 /// `M_e` of the default settings with the 4.5 kg load: 0.1 + 4.5 · 0.45² kg·m².
-const M_E: f64 = 0.1 + 4.5 * 0.45 * 0.45;
+pub(crate) const M_E: f64 = 0.1 + 4.5 * 0.45 * 0.45;
 const LOAD_KG: f64 = 4.5;
 const RATE: f64 = 1000.0;
 /// Excitation amplitude of θ_e (rad).
@@ -26,10 +31,10 @@ const AMP_RAD: f64 = 0.02;
 /// Gravity of arm and load about the joint, `τ_g = 20 sin θ` (Nm): its
 /// slope at the posture, 20 cos 0.8 ≈ 13.9 Nm/rad, is what S_h-e/α would
 /// gain if gravity stayed in τ_s.
-const GRAVITY_NM: f64 = 20.0;
-const POSTURE_RAD: f64 = 0.8;
+pub(crate) const GRAVITY_NM: f64 = 20.0;
+pub(crate) const POSTURE_RAD: f64 = 0.8;
 /// The paper's frequencies, 2 · 10^(0.1 k) rad/s, k = 0…9.
-fn paper_omega(period: u32) -> f64 {
+pub(crate) fn paper_omega(period: u32) -> f64 {
     2.0 * 10f64.powf(0.1 * (period - 1) as f64)
 }
 
@@ -40,7 +45,7 @@ fn sea(omega: f64) -> Complex64 {
 
 /// How a sink receives protocol states.
 #[derive(Clone, Copy, PartialEq)]
-enum Delivery {
+pub(crate) enum Delivery {
     /// Every tick, before the tick's sample (as the brief's controller).
     EveryTick,
     /// Only when (experiment, period, phase) changes, `delay` ticks after
@@ -48,7 +53,7 @@ enum Delivery {
     OnChange { delay: u64 },
 }
 
-struct Sink {
+pub(crate) struct Sink {
     id: Identifier,
     events: Vec<Event>,
     delivery: Delivery,
@@ -58,7 +63,7 @@ struct Sink {
 }
 
 impl Sink {
-    fn frf(&self) -> Vec<FrfPoint> {
+    pub(crate) fn frf(&self) -> Vec<FrfPoint> {
         self.events
             .iter()
             .filter_map(|e| match e {
@@ -67,7 +72,7 @@ impl Sink {
             })
             .collect()
     }
-    fn estimates(&self) -> Vec<ImpedanceEstimate> {
+    pub(crate) fn estimates(&self) -> Vec<ImpedanceEstimate> {
         self.events
             .iter()
             .filter_map(|e| match e {
@@ -76,7 +81,7 @@ impl Sink {
             })
             .collect()
     }
-    fn warnings(&self) -> Vec<&str> {
+    pub(crate) fn warnings(&self) -> Vec<&str> {
         self.events
             .iter()
             .filter_map(|e| match e {
@@ -96,25 +101,25 @@ impl Sink {
 }
 
 /// A synthetic run fed to several identifiers at once.
-struct Stream {
-    sinks: Vec<Sink>,
+pub(crate) struct Stream {
+    pub(crate) sinks: Vec<Sink>,
     tick: u64,
     noise: u64,
 }
 
 /// What a period's analysis window gets wrong on purpose.
 #[derive(Clone, Copy, Default)]
-struct Faults {
+pub(crate) struct Faults {
     /// `(phase, tick within the phase, status bits)` of one sample.
-    status: Option<(ProtocolPhase, usize, u32)>,
+    pub(crate) status: Option<(ProtocolPhase, usize, u32)>,
     /// Tick within the analysis phase whose τ_c is NaN.
-    nan_at: Option<usize>,
+    pub(crate) nan_at: Option<usize>,
     /// `(phase, tick within the phase, mode)` of one command.
-    mode: Option<(ProtocolPhase, usize, ControlMode)>,
+    pub(crate) mode: Option<(ProtocolPhase, usize, ControlMode)>,
 }
 
 impl Stream {
-    fn new() -> Self {
+    pub(crate) fn new() -> Self {
         Stream {
             sinks: Vec::new(),
             tick: 0,
@@ -122,7 +127,12 @@ impl Stream {
         }
     }
 
-    fn with(mut self, s: IdentifierSettings, delivery: Delivery, commands: bool) -> Self {
+    pub(crate) fn with(
+        mut self,
+        s: IdentifierSettings,
+        delivery: Delivery,
+        commands: bool,
+    ) -> Self {
         self.sinks.push(Sink {
             id: Identifier::try_new(s).unwrap(),
             events: Vec::new(),
@@ -195,7 +205,7 @@ impl Stream {
 
     /// One protocol period of a human `s_h(ω)` seen through `M_e/α`.
     #[allow(clippy::too_many_arguments)]
-    fn period(
+    pub(crate) fn period(
         &mut self,
         experiment: u32,
         n: u32,
@@ -312,7 +322,7 @@ impl Stream {
     }
 }
 
-fn brief_human() -> DynamicStiffness {
+pub(crate) fn brief_human() -> DynamicStiffness {
     DynamicStiffness::from_array([0.11, 0.0, 40.0, 10.0])
 }
 
@@ -520,223 +530,6 @@ fn three_experiments_give_the_power_law_and_eq_f() {
     let f_b = fractional_order(law_b, StiffnessRange::new(k_lo, k_hi).unwrap(), 10.8).unwrap();
     assert!(f_b > 0.2, "unclamped f {f_b} should exceed the bound");
     assert_eq!(b.recommended_f, 0.2);
-}
-
-#[test]
-fn a_faulted_or_safe_state_sample_or_command_discards_only_its_window() {
-    let human = brief_human();
-    let mut st = Stream::new().with(IdentifierSettings::default(), Delivery::EveryTick, true);
-    let fault = |phase, k, bits| Faults {
-        status: Some((phase, k, bits)),
-        ..Default::default()
-    };
-    let mode = |phase, k, m| Faults {
-        mode: Some((phase, k, m)),
-        ..Default::default()
-    };
-    let plan = [
-        Faults::default(),
-        fault(ProtocolPhase::Analysis, 1234, status::FT_FAULT),
-        // A fault while settling is outside the analysis window.
-        fault(ProtocolPhase::Settling, 100, status::ENCODER_FAULT),
-        fault(ProtocolPhase::Analysis, 0, status::SAFE_STATE),
-        // STALE and SATURATED are not rejections.
-        fault(ProtocolPhase::Analysis, 10, status::STALE),
-        Faults {
-            nan_at: Some(2500),
-            ..Default::default()
-        },
-        // The controller's latched safe state, seen only in its command.
-        mode(ProtocolPhase::Analysis, 700, ControlMode::SafeGravityOnly),
-        // Outside the window, or in normal operation: no rejection.
-        mode(ProtocolPhase::Settling, 700, ControlMode::FaultLatched),
-        mode(ProtocolPhase::Analysis, 700, ControlMode::Run),
-    ];
-    for (i, f) in plan.into_iter().enumerate() {
-        let n = i as u32 + 1;
-        let omega = paper_omega(n);
-        st.period(1, n, omega, human.response(omega), 1.0, 0.0, f);
-    }
-    let sink = &st.sinks[0];
-    let periods: Vec<u32> = sink.frf().iter().map(|p| p.period).collect();
-    assert_eq!(periods, vec![1, 3, 5, 8, 9]);
-    let w = sink.warnings();
-    assert!(
-        w.iter()
-            .any(|w| w.contains("period 2") && w.contains("0x2") && w.contains("discarded")),
-        "{w:?}"
-    );
-    assert!(
-        w.iter()
-            .any(|w| w.contains("period 4") && w.contains("0x10") && w.contains("discarded")),
-        "{w:?}"
-    );
-    assert!(
-        w.iter()
-            .any(|w| w.contains("period 6") && w.contains("tau_c") && w.contains("no FRF point")),
-        "{w:?}"
-    );
-    assert!(
-        w.iter().any(|w| w.contains("period 7")
-            && w.contains("latched safe state")
-            && w.contains("discarded")),
-        "{w:?}"
-    );
-    // Points keep consecutive sequence numbers.
-    let seqs: Vec<u64> = sink.frf().iter().map(|p| p.seq).collect();
-    assert_eq!(seqs, vec![0, 1, 2, 3, 4]);
-}
-
-#[test]
-fn without_commands_gravity_stays_in_tau_s_and_a_warning_says_so() {
-    let human = brief_human();
-    let settings = IdentifierSettings {
-        fit_source: FitSource::ActuatorTorque,
-        ..IdentifierSettings::default()
-    };
-    let mut st = Stream::new()
-        .with(settings, Delivery::EveryTick, false)
-        .with(IdentifierSettings::default(), Delivery::EveryTick, false);
-    let omega = 5.0;
-    st.period(
-        1,
-        1,
-        omega,
-        human.response(omega),
-        1.0,
-        0.0,
-        Faults::default(),
-    );
-    let sink = &st.sinks[0];
-    let p = sink.frf()[0];
-    assert!(sink.warnings().iter().any(|w| w.contains("no command")));
-    // No command answers a sample: τ_s/τ_d is left unestimated (0), not
-    // tried on commands that answer nothing, and not warned about twice.
-    assert!(
-        sink.warnings().iter().all(|w| !w.contains("τ_s/τ_d")),
-        "{:?}",
-        sink.warnings()
-    );
-    // Fitting the cuff's S_h needs no command: nothing to warn about.
-    let w = st.sinks[1].warnings();
-    assert!(
-        w.iter()
-            .all(|w| !w.contains("command") && !w.contains("gravity")),
-        "{w:?}"
-    );
-    assert_eq!((p.sea_re, p.sea_im), (0.0, 0.0));
-    // τ_s keeps 20 sin θ: S_h-e/α gains its slope about the posture,
-    // 20 cos(0.85) (posture + the ramped 0.05 rad), to first order in the
-    // 0.02 rad excitation (the cubic term of sin changes it by A²/8 = 5e-5).
-    let truth_hea = human.response(omega) - M_E * omega * omega;
-    let gain = Complex64::new(p.s_he_re, p.s_he_im) - truth_hea;
-    let slope = GRAVITY_NM * (POSTURE_RAD + 0.05).cos();
-    assert!((gain - slope).norm() < 1e-3 * slope, "{gain} vs {slope}");
-}
-
-#[test]
-fn protocol_states_on_change_only_and_late_give_the_same_points() {
-    let human = brief_human();
-    let mut st = Stream::new()
-        .with(IdentifierSettings::default(), Delivery::EveryTick, true)
-        .with(
-            IdentifierSettings::default(),
-            Delivery::OnChange { delay: 0 },
-            true,
-        )
-        .with(
-            IdentifierSettings::default(),
-            Delivery::OnChange { delay: 7 },
-            true,
-        );
-    for n in 1..=3 {
-        let omega = paper_omega(n);
-        st.period(
-            2,
-            n,
-            omega,
-            human.response(omega),
-            1.0,
-            0.01,
-            Faults::default(),
-        );
-    }
-    let reference = st.sinks[0].frf();
-    assert_eq!(reference.len(), 3);
-    for sink in &st.sinks[1..] {
-        assert_eq!(sink.frf(), reference);
-        assert_eq!(sink.estimates(), st.sinks[0].estimates());
-    }
-}
-
-#[test]
-fn bad_settings_are_refused_naming_the_field() {
-    let bad = [
-        (
-            "rate_hz",
-            IdentifierSettings {
-                rate_hz: f64::NAN,
-                ..Default::default()
-            },
-        ),
-        (
-            "f_bounds[1]",
-            IdentifierSettings {
-                f_bounds: [0.0, 1.0],
-                ..Default::default()
-            },
-        ),
-        (
-            "k_range_nm_per_rad[1]",
-            IdentifierSettings {
-                k_range_nm_per_rad: [50.0, 10.0],
-                ..Default::default()
-            },
-        ),
-        (
-            "welch_segment",
-            IdentifierSettings {
-                welch_segment: 1000,
-                ..Default::default()
-            },
-        ),
-        (
-            "phase_margin_deg",
-            IdentifierSettings {
-                phase_margin_deg: 95.0,
-                ..Default::default()
-            },
-        ),
-        (
-            "max_window_s",
-            IdentifierSettings {
-                max_window_s: 1e9,
-                ..Default::default()
-            },
-        ),
-        // The product rate · window (2e8 samples) is what is bounded, not
-        // either alone.
-        (
-            "max_window_s",
-            IdentifierSettings {
-                rate_hz: 2e4,
-                max_window_s: 1e4,
-                ..Default::default()
-            },
-        ),
-    ];
-    for (field, s) in bad {
-        let e = Identifier::try_new(s).unwrap_err();
-        assert_eq!(e.field, field, "{e}");
-        assert!(e.to_string().contains(field));
-    }
-    assert!(Identifier::try_new(IdentifierSettings::default()).is_ok());
-    assert!(Identifier::try_new(IdentifierSettings {
-        rate_hz: 1e3,
-        max_window_s: 9e4,
-        ..Default::default()
-    })
-    .is_ok());
 }
 
 #[test]

@@ -23,6 +23,11 @@
 //! run that meets such a latch where the test provoked none is run again,
 //! at most three times in all (each attempt is named on stderr); any other
 //! failure fails at once.
+//!
+//! The tests are in three modules by theme: this one holds the harness and
+//! brings the drive up and down (through the driver's own process too);
+//! `ethercat_faults.rs` misses cycles and takes the link down;
+//! `ethercat_refusal.rs` gives the bus run files it does not match.
 
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Stdio};
@@ -32,14 +37,14 @@ use exo_config::RunConfig;
 use exo_messages::{bus_status, status, ActuatorCommand, OperatorCommand, OperatorCommandKind};
 use exo_sensor_driver::cia402::{DriveState, Phase};
 use exo_sensor_driver::ethercat::{EthercatBus, EthercatError};
-use exo_sensor_driver::{BusFault, DriverNode, HardwareBus, SafetyEvent};
-use exo_tests::netns::{self, ip};
+use exo_sensor_driver::{BusFault, DriverNode, HardwareBus};
+use exo_tests::netns;
 use exo_tests::Scenario;
 
 const IN_NETNS: &str = "EXO_ETHERCAT_IN_NETNS";
-const RATE_HZ: f64 = 100.0;
+pub(crate) const RATE_HZ: f64 = 100.0;
 /// Marks a child that failed on a timing fault it did not provoke.
-const TIMING_FAULT: &str = "TIMING FAULT";
+pub(crate) const TIMING_FAULT: &str = "TIMING FAULT";
 /// Runs of a child that may end on such a fault before the test fails.
 const ATTEMPTS: usize = 3;
 
@@ -64,17 +69,18 @@ fn kickcat() -> PathBuf {
     out
 }
 
-/// In the parent: runs `name` again in a namespace of its own and checks
-/// it passed; `None`. In that child: the network with the simulator on it.
-fn netns(name: &str) -> Option<Network> {
+/// In the parent: runs `name`, a test of `module` (the caller's
+/// `module_path!()`), again in a namespace of its own and checks it
+/// passed; `None`. In that child: the network with the simulator on it.
+pub(crate) fn netns(module: &str, name: &str) -> Option<Network> {
     if std::env::var_os(IN_NETNS).is_none() {
         // One bus at a time: the cycle is real time on two shared CPUs.
         static ONE_AT_A_TIME: std::sync::Mutex<()> = std::sync::Mutex::new(());
         let _turn = ONE_AT_A_TIME.lock().unwrap_or_else(|e| e.into_inner());
         let dir = kickcat();
         // The harness names the test by its path in the binary, without
-        // the crate: `ethercat::name`.
-        let module = module_path!().split_once("::").map_or("", |(_, m)| m);
+        // the crate: `ethercat::name`, `ethercat_faults::name`, ….
+        let module = module.split_once("::").map_or("", |(_, m)| m);
         let test = format!("{module}::{name}");
         netns::rerun_inside(&test, IN_NETNS, dir.as_os_str(), TIMING_FAULT, ATTEMPTS);
         return None;
@@ -92,12 +98,12 @@ fn netns(name: &str) -> Option<Network> {
     Some(Network { sim })
 }
 
-struct Network {
-    sim: Child,
+pub(crate) struct Network {
+    pub(crate) sim: Child,
 }
 
 impl Network {
-    fn sim_alive(&mut self) -> bool {
+    pub(crate) fn sim_alive(&mut self) -> bool {
         matches!(self.sim.try_wait(), Ok(None))
     }
 }
@@ -110,7 +116,7 @@ impl Drop for Network {
 }
 
 /// The shipped run file for the emulated drive, at the tests' rate.
-fn config() -> RunConfig {
+pub(crate) fn config() -> RunConfig {
     let mut cfg =
         RunConfig::from_file(&exo_config::configs_dir().join("ethercat-kickcat.toml")).unwrap();
     cfg.run.rate_hz = RATE_HZ;
@@ -119,32 +125,32 @@ fn config() -> RunConfig {
 
 /// Opens the bus, retrying while the bridge's ports come up (the first
 /// frames of a fresh bridge can be dropped).
-fn open(cfg: &RunConfig) -> Result<EthercatBus, EthercatError> {
+pub(crate) fn open(cfg: &RunConfig) -> Result<EthercatBus, EthercatError> {
     EthercatBus::open(cfg.bus.ethercat.as_ref().unwrap(), cfg.run.rate_hz)
 }
 
 /// The driver and the bus, stepped like the process: read, the bus's own
 /// fault latched, the sample, the controller's answer, the write.
-struct Rig {
-    bus: EthercatBus,
-    node: DriverNode,
+pub(crate) struct Rig {
+    pub(crate) bus: EthercatBus,
+    pub(crate) node: DriverNode,
     cycle: u64,
     /// Whether the test is provoking faults now.
-    provoking: bool,
+    pub(crate) provoking: bool,
 }
 
 /// What one cycle showed.
 #[derive(Debug, Clone, Copy)]
-struct Seen {
-    seq: u64,
-    frame_status: u32,
-    sample_status: u32,
-    fault: Option<BusFault>,
-    tau_written_nm: f64,
+pub(crate) struct Seen {
+    pub(crate) seq: u64,
+    pub(crate) frame_status: u32,
+    pub(crate) sample_status: u32,
+    pub(crate) fault: Option<BusFault>,
+    pub(crate) tau_written_nm: f64,
 }
 
 impl Rig {
-    fn new(cfg: &RunConfig) -> Rig {
+    pub(crate) fn new(cfg: &RunConfig) -> Rig {
         // Let the bridge forward before the scan.
         std::thread::sleep(Duration::from_millis(300));
         let bus = open(cfg).expect("bring-up against the emulated drive");
@@ -156,7 +162,7 @@ impl Rig {
         }
     }
 
-    fn step(&mut self, tau_d_nm: f64) -> Seen {
+    pub(crate) fn step(&mut self, tau_d_nm: f64) -> Seen {
         let frame = self
             .bus
             .read(Duration::from_millis(100))
@@ -202,7 +208,7 @@ impl Rig {
     /// A cycle whose command does not come: the process's path at the
     /// deadline (the bus holds the last set-point, or the driver latches
     /// its safe state and writes it). Whether the bus held.
-    fn step_unanswered(&mut self) -> (Seen, bool) {
+    pub(crate) fn step_unanswered(&mut self) -> (Seen, bool) {
         let frame = self
             .bus
             .read(Duration::from_millis(100))
@@ -235,7 +241,7 @@ impl Rig {
     }
 
     /// Cycles at zero torque until the drive is in Operation Enabled.
-    fn enable(&mut self) -> u64 {
+    pub(crate) fn enable(&mut self) -> u64 {
         for k in 0..200 {
             let s = self.step(0.0);
             assert_eq!(s.fault, None, "cycle {k} while enabling");
@@ -249,7 +255,7 @@ impl Rig {
         );
     }
 
-    fn reset(&mut self, seq: u64) {
+    pub(crate) fn reset(&mut self, seq: u64) {
         self.node.on_operator(&OperatorCommand {
             seq,
             kind: OperatorCommandKind::ResetFault.as_u32(),
@@ -258,21 +264,22 @@ impl Rig {
     }
 }
 
-fn drive_state(bus: &EthercatBus) -> DriveState {
+pub(crate) fn drive_state(bus: &EthercatBus) -> DriveState {
     DriveState::from_statusword(bus.readings().statusword)
 }
 
 /// Torque set-point of cycle `k` (Nm): a slow sine, small enough that the
 /// emulated motor does not run away.
-fn tau_of(k: u64) -> f64 {
+pub(crate) fn tau_of(k: u64) -> f64 {
     0.02 * (k as f64 * 0.05).sin()
 }
 
 #[test]
 fn the_drive_comes_up_to_operation_enabled_and_follows_torque_set_points() {
-    let Some(mut net) =
-        netns("the_drive_comes_up_to_operation_enabled_and_follows_torque_set_points")
-    else {
+    let Some(mut net) = netns(
+        module_path!(),
+        "the_drive_comes_up_to_operation_enabled_and_follows_torque_set_points",
+    ) else {
         return;
     };
     let cfg = config();
@@ -425,503 +432,6 @@ fn the_drive_comes_up_to_operation_enabled_and_follows_torque_set_points() {
     assert!(net.sim_alive());
 }
 
-/// Missed cycles in a row that latch in the tests below.
-const MAX_MISSED: u32 = 5;
-
-/// The tests' run file with `MAX_MISSED` and a PDU time-out of 4 ms (of a
-/// 10 ms cycle): a lost reply then leaves the next cycle on time.
-fn tolerant_config() -> RunConfig {
-    let mut cfg = config();
-    let e = cfg.bus.ethercat.as_mut().unwrap();
-    e.max_missed_cycles = Some(MAX_MISSED);
-    e.pdu_timeout_ms = Some(4.0);
-    cfg
-}
-
-/// Sends `sig` to the simulator (SIGSTOP 19 pauses it: no reply comes
-/// back; SIGCONT 18 resumes it).
-fn signal(net: &Network, sig: i32) {
-    // SAFETY: signalling our own child.
-    let r = unsafe { libc_kill(net.sim.id() as i32, sig) };
-    assert_eq!(r, 0, "kill({sig}) of the simulator");
-}
-const SIGSTOP: i32 = 19;
-const SIGCONT: i32 = 18;
-
-/// Misses the test did not provoke: the machine added its own (the run of
-/// misses is longer than what was provoked), so what follows cannot be
-/// judged; the run is a timing fault, tried again.
-fn unprovoked(rig: &Rig, s: &Seen, provoked: u64) {
-    if rig.bus.misses_in_a_row() > provoked {
-        panic!(
-            "{TIMING_FAULT}: {} misses in a row after {provoked} provoked ({s:?})",
-            rig.bus.misses_in_a_row()
-        );
-    }
-}
-
-/// Whether the last cycle ended the run of misses exactly when it was on
-/// time with its reply back.
-fn run_ends_on_a_clean_cycle(rig: &Rig, s: &Seen) -> bool {
-    let clean = s.frame_status & (bus_status::LATE | bus_status::STALE) == 0;
-    (rig.bus.misses_in_a_row() == 0) == clean
-}
-
-#[test]
-fn late_wake_ups_ride_through_until_max_missed_cycles_in_a_row_latch() {
-    let Some(_net) = netns("late_wake_ups_ride_through_until_max_missed_cycles_in_a_row_latch")
-    else {
-        return;
-    };
-    let cfg = tolerant_config();
-    let mut rig = Rig::new(&cfg);
-    rig.enable();
-    for k in 0..50 {
-        rig.step(tau_of(k));
-    }
-    // The driver's thread stalls for three and a half periods after a
-    // cycle (which began at its deadline): the next cycle starts two and a
-    // half periods past its own deadline (two missed), is flagged LATE,
-    // and the drive holds its set-point: no latch, the command goes
-    // through.
-    rig.provoking = true;
-    std::thread::sleep(Duration::from_secs_f64(3.5 / RATE_HZ));
-    let s = rig.step(0.015);
-    unprovoked(&rig, &s, u64::from(MAX_MISSED) - 1);
-    assert_eq!(s.fault, None, "{s:?}");
-    assert_eq!(s.frame_status, bus_status::LATE, "{s:?}");
-    assert_eq!(s.sample_status, status::LATE, "{s:?}");
-    assert_eq!(s.tau_written_nm, 0.015);
-    assert_eq!(rig.bus.readings().target_torque_units, 15);
-    let c = rig.bus.counters();
-    assert_eq!(c.cycles_late, 1);
-    assert!(
-        (2..u64::from(MAX_MISSED)).contains(&c.cycles_missed),
-        "{c:?}"
-    );
-    // A cycle on time ends the run.
-    rig.provoking = false;
-    for _ in 0..3 {
-        let s = rig.step(0.01);
-        assert!(run_ends_on_a_clean_cycle(&rig, &s), "{s:?}");
-    }
-    rig.provoking = true;
-    // A stall that puts the next cycle `MAX_MISSED` periods and a half
-    // past its deadline: that many missed in a row, and the cycle that
-    // sees it latches and powers down.
-    std::thread::sleep(Duration::from_secs_f64(
-        (f64::from(MAX_MISSED) + 1.5) / RATE_HZ,
-    ));
-    let s = rig.step(0.01);
-    assert!(
-        matches!(
-            s.fault,
-            Some(BusFault::MissedCycles { in_a_row, reply_lost: false }) if in_a_row >= MAX_MISSED
-        ),
-        "{s:?}"
-    );
-    assert_ne!(s.frame_status & bus_status::FRAME_ERROR, 0);
-    assert_ne!(s.sample_status & status::SAFE_STATE, 0);
-    assert_eq!(rig.bus.readings().target_torque_units, 0);
-    for _ in 0..10 {
-        rig.step(0.01);
-    }
-    assert_eq!(
-        drive_state(&rig.bus),
-        DriveState::SwitchOnDisabled,
-        "powered down"
-    );
-    // Reset, up again.
-    rig.provoking = false;
-    rig.reset(1);
-    rig.enable();
-    for k in 0..50 {
-        assert_eq!(rig.step(tau_of(k)).fault, None);
-    }
-}
-
-#[test]
-fn late_commands_are_held_until_max_missed_cycles_in_a_row_latch() {
-    let Some(_net) = netns("late_commands_are_held_until_max_missed_cycles_in_a_row_latch") else {
-        return;
-    };
-    let cfg = tolerant_config();
-    let mut rig = Rig::new(&cfg);
-    rig.enable();
-    for k in 0..50 {
-        rig.step(tau_of(k));
-    }
-    rig.provoking = true;
-    rig.step(0.02);
-    // `MAX_MISSED − 1` cycles without the controller's command: the drive
-    // holds the set-point staged last, nothing latches.
-    for k in 1..u64::from(MAX_MISSED) {
-        let (s, held) = rig.step_unanswered();
-        unprovoked(&rig, &s, k);
-        assert!(held, "late command {k}: {s:?}");
-        assert_eq!(s.fault, None);
-        assert_eq!(rig.node.driver().latched(), None);
-        assert_eq!(rig.bus.readings().target_torque_units, 20);
-        assert_eq!(rig.bus.misses_in_a_row(), k);
-    }
-    // A command in time ends the run.
-    let s = rig.step(0.01);
-    unprovoked(&rig, &s, u64::from(MAX_MISSED) - 1);
-    assert!(run_ends_on_a_clean_cycle(&rig, &s), "{s:?}");
-    assert_eq!(
-        rig.bus.counters().commands_missed,
-        u64::from(MAX_MISSED) - 1
-    );
-    while rig.bus.misses_in_a_row() > 0 {
-        rig.step(0.01);
-    }
-    // `MAX_MISSED` in a row: the last is not held, the driver latches.
-    for k in 1..=u64::from(MAX_MISSED) {
-        let (s, held) = rig.step_unanswered();
-        unprovoked(&rig, &s, k);
-        assert_eq!(held, k < u64::from(MAX_MISSED), "late command {k}: {s:?}");
-    }
-    assert!(
-        matches!(
-            rig.node.driver().latched(),
-            Some(SafetyEvent::CommandDeadlineMissed { .. })
-        ),
-        "{:?}",
-        rig.node.driver().latched()
-    );
-    assert_eq!(rig.bus.readings().target_torque_units, 0);
-}
-
-#[test]
-fn lost_replies_ride_through_until_max_missed_cycles_in_a_row_latch_and_a_vanished_drive_latches() {
-    let Some(mut net) = netns(
-        "lost_replies_ride_through_until_max_missed_cycles_in_a_row_latch_and_a_vanished_drive_latches",
-    ) else {
-        return;
-    };
-    let cfg = tolerant_config();
-    let mut rig = Rig::new(&cfg);
-    rig.enable();
-    for k in 0..50 {
-        rig.step(tau_of(k));
-    }
-    // The drive pauses (SIGSTOP): no reply comes back. `MAX_MISSED − 1`
-    // cycles in a row ride through, each flagged STALE (the last values
-    // repeated), the set-point still staged.
-    rig.provoking = true;
-    let before = rig.bus.counters();
-    signal(&net, SIGSTOP);
-    let held = rig.bus.readings();
-    for k in 1..u64::from(MAX_MISSED) {
-        let s = rig.step(0.012);
-        unprovoked(&rig, &s, k);
-        assert_eq!(s.fault, None, "lost reply {k}: {s:?}");
-        assert_ne!(
-            s.frame_status & bus_status::STALE,
-            0,
-            "lost reply {k}: {s:?}"
-        );
-        assert_ne!(s.sample_status & status::STALE, 0);
-        assert_eq!(s.sample_status & status::SAFE_STATE, 0);
-        assert_eq!(s.tau_written_nm, 0.012);
-        assert_eq!(rig.bus.readings().statusword, held.statusword);
-        assert_eq!(rig.bus.misses_in_a_row(), k);
-    }
-    signal(&net, SIGCONT);
-    // The drive answers again: the run ends, nothing latched.
-    let mut answered = false;
-    for _ in 0..3 {
-        let s = rig.step(0.01);
-        unprovoked(&rig, &s, u64::from(MAX_MISSED) - 1);
-        assert_eq!(s.fault, None, "{s:?}");
-        if s.frame_status == 0 {
-            answered = true;
-            break;
-        }
-    }
-    assert!(answered, "no reply after the drive resumed");
-    assert_eq!(rig.bus.misses_in_a_row(), 0);
-    assert_eq!(drive_state(&rig.bus), DriveState::OperationEnabled);
-    let c = rig.bus.counters();
-    assert!(c.frames_lost - before.frames_lost >= u64::from(MAX_MISSED) - 1);
-    assert!(c.longest_miss_run < u64::from(MAX_MISSED), "{c:?}");
-    rig.provoking = false;
-    for k in 0..20 {
-        let s = rig.step(tau_of(k));
-        assert!(run_ends_on_a_clean_cycle(&rig, &s), "{s:?}");
-    }
-    while rig.bus.misses_in_a_row() > 0 {
-        rig.step(0.01);
-    }
-    rig.provoking = true;
-    // One more: `MAX_MISSED` lost replies in a row latch in the cycle of
-    // the last, which powers the drive down.
-    signal(&net, SIGSTOP);
-    for k in 1..=u64::from(MAX_MISSED) {
-        let s = rig.step(0.012);
-        unprovoked(&rig, &s, k);
-        if k < u64::from(MAX_MISSED) {
-            assert_eq!(s.fault, None, "lost reply {k}: {s:?}");
-            continue;
-        }
-        assert_eq!(
-            s.fault,
-            Some(BusFault::MissedCycles {
-                in_a_row: MAX_MISSED,
-                reply_lost: true
-            }),
-            "{s:?}"
-        );
-        assert_ne!(s.frame_status & bus_status::FRAME_ERROR, 0);
-        assert_ne!(s.sample_status & status::SAFE_STATE, 0);
-        assert_eq!(s.tau_written_nm, 0.0, "zero_torque safe state");
-        assert_eq!(rig.bus.readings().target_torque_units, 0);
-    }
-    signal(&net, SIGCONT);
-    for _ in 0..10 {
-        let s = rig.step(0.01);
-        assert_eq!(s.tau_written_nm, 0.0);
-    }
-    assert_eq!(drive_state(&rig.bus), DriveState::SwitchOnDisabled);
-    rig.provoking = false;
-    rig.reset(1);
-    rig.enable();
-    for k in 0..50 {
-        assert_eq!(rig.step(tau_of(k)).fault, None);
-    }
-    // The drive vanishes (its process killed: no reply any more): it is
-    // latched within `MAX_MISSED` cycles, every cycle bounded.
-    rig.provoking = true;
-    net.sim.kill().unwrap();
-    net.sim.wait().unwrap();
-    let mut latched_at = None;
-    for k in 1..=u64::from(MAX_MISSED) + 2 {
-        let s = rig.step(0.01);
-        if let Some(f) = s.fault {
-            assert!(
-                matches!(
-                    f,
-                    BusFault::MissedCycles {
-                        reply_lost: true,
-                        ..
-                    }
-                ),
-                "{f:?}"
-            );
-            assert_ne!(s.sample_status & status::SAFE_STATE, 0);
-            latched_at = Some(k);
-            break;
-        }
-    }
-    let k = latched_at.expect("a vanished drive latched");
-    assert!(k <= u64::from(MAX_MISSED), "latched at cycle {k}");
-    for _ in 0..20 {
-        let s = rig.step(0.01);
-        assert_ne!(s.frame_status & bus_status::DRIVE_FAULT, 0);
-        assert_eq!(s.tau_written_nm, 0.0);
-    }
-}
-
-#[test]
-fn a_link_taken_down_latches_within_the_cycle_and_the_drive_restarts_cleanly() {
-    let Some(mut net) =
-        netns("a_link_taken_down_latches_within_the_cycle_and_the_drive_restarts_cleanly")
-    else {
-        return;
-    };
-    let cfg = config();
-    let mut rig = Rig::new(&cfg);
-    rig.enable();
-    for k in 0..100 {
-        assert_eq!(rig.step(tau_of(k)).fault, None);
-    }
-    // The link goes down while the cycle runs on (from another thread,
-    // as a cable would: the cycle does not wait for it).
-    rig.provoking = true;
-    let cutter = std::thread::spawn(|| ip("link set ecm0 down"));
-    let mut first = None;
-    for k in 0..400 {
-        let s = rig.step(tau_of(k));
-        // A reply lost in flight as the link went (STALE) is a missed
-        // cycle, not yet the fault.
-        if s.fault.is_some() || s.frame_status & !bus_status::STALE != 0 {
-            first = Some((k, s));
-            break;
-        }
-        assert_eq!(s.sample_status & status::SAFE_STATE, 0);
-    }
-    cutter.join().unwrap();
-    let (k, s) = first.expect("no fault seen with the link down");
-    // The very frame the loss is seen in is flagged, names the fault, and
-    // its sample already carries the safe state.
-    let fault = s.fault.expect("the fault is named in the cycle it is seen");
-    assert!(
-        matches!(fault, BusFault::FrameLost { .. }),
-        "cycle {k}: {fault:?}"
-    );
-    assert_ne!(s.frame_status & bus_status::FRAME_ERROR, 0);
-    assert_ne!(s.sample_status & status::SAFE_STATE, 0);
-    assert_ne!(s.sample_status & status::BUS_FAULT, 0);
-    assert_eq!(
-        rig.node.driver().latched(),
-        Some(SafetyEvent::Bus {
-            frame_seq: s.seq,
-            fault
-        })
-    );
-    // Powering down began in that cycle: quick stop, no torque.
-    assert_eq!(rig.bus.readings().controlword, 0x0002);
-    assert_eq!(rig.bus.readings().target_torque_units, 0);
-    // Down for a while: every cycle still returns (bounded), flagged, latched.
-    for _ in 0..40 {
-        let s = rig.step(0.01);
-        assert_ne!(s.frame_status & bus_status::DRIVE_FAULT, 0);
-        assert_ne!(s.sample_status & status::SAFE_STATE, 0);
-        assert_eq!(s.tau_written_nm, 0.0, "zero_torque safe state");
-    }
-    assert_eq!(
-        rig.bus.phase(),
-        Phase::Off,
-        "disable voltage after the quick stop"
-    );
-    assert!(rig.bus.counters().frames_lost >= 40);
-    // The link returns: frames flow again, the drive has been disabled by
-    // the master and stays so, the latch holds until the operator resets.
-    ip("link set ecm0 up");
-    let mut back = None;
-    for k in 0..400 {
-        let s = rig.step(0.0);
-        if s.frame_status & bus_status::FRAME_ERROR == 0
-            && drive_state(&rig.bus) == DriveState::SwitchOnDisabled
-        {
-            back = Some(k);
-            break;
-        }
-    }
-    back.expect("frames did not come back, or the drive was not disabled");
-    assert!(net.sim_alive(), "the simulator survived the break");
-    for _ in 0..20 {
-        let s = rig.step(0.01);
-        assert_eq!(
-            s.frame_status,
-            bus_status::DRIVE_FAULT,
-            "latched, no new fault"
-        );
-        assert_ne!(s.sample_status & status::SAFE_STATE, 0);
-        assert_eq!(drive_state(&rig.bus), DriveState::SwitchOnDisabled);
-    }
-    // The operator's reset: the driver's latch clears, the drive is walked
-    // up again and follows set-points as before.
-    rig.provoking = false;
-    rig.reset(1);
-    let took = rig.enable();
-    assert!(took < 50);
-    for k in 0..200 {
-        let s = rig.step(tau_of(k));
-        assert_eq!((s.fault, s.frame_status), (None, 0), "cycle {k}");
-        assert_eq!(s.sample_status & status::SAFE_STATE, 0);
-    }
-    assert_ne!(rig.bus.readings().target_torque_units, 0);
-}
-
-/// A run file spoiled by `spoil` is refused at bring-up with an error
-/// naming `key`, before the drive is ever enabled.
-fn refused(name: &str, key: &str, spoil: fn(&mut RunConfig)) {
-    let Some(_net) = netns(name) else {
-        return;
-    };
-    let mut cfg = config();
-    spoil(&mut cfg);
-    std::thread::sleep(Duration::from_millis(300));
-    let started = Instant::now();
-    match open(&cfg) {
-        Ok(_) => panic!("{name}: accepted"),
-        Err(e) => {
-            let text = format!("{e:#}");
-            assert!(text.contains(key), "{name}: {text}");
-            eprintln!("{name}: refused in {:?}: {text}", started.elapsed());
-        }
-    }
-}
-
-#[test]
-fn a_device_with_another_vendor_is_refused() {
-    refused(
-        "a_device_with_another_vendor_is_refused",
-        "bus.ethercat.vendor_id",
-        |c| c.bus.ethercat.as_mut().unwrap().vendor_id = 0x2,
-    );
-}
-
-#[test]
-fn a_device_with_another_product_code_is_refused() {
-    // 0x32 is what the drive's object 0x1018 says; the check is on the SII.
-    refused(
-        "a_device_with_another_product_code_is_refused",
-        "bus.ethercat.product_code",
-        |c| c.bus.ethercat.as_mut().unwrap().product_code = 0x32,
-    );
-}
-
-#[test]
-fn a_position_the_bus_does_not_have_is_refused() {
-    refused(
-        "a_position_the_bus_does_not_have_is_refused",
-        "bus.ethercat.position",
-        |c| c.bus.ethercat.as_mut().unwrap().position = 1,
-    );
-}
-
-#[test]
-fn a_mapping_of_an_object_the_drive_lacks_is_refused() {
-    refused(
-        "a_mapping_of_an_object_the_drive_lacks_is_refused",
-        "bus.ethercat.tx_pdo.entries[5]",
-        |c| {
-            let e = c.bus.ethercat.as_mut().unwrap();
-            e.tx_pdo.entries.push(exo_config::PdoEntry {
-                index: 0x2FFF,
-                subindex: 7,
-                bits: 32,
-                role: exo_config::PdoRole::SeaDeflection,
-                scale: None,
-            });
-        },
-    );
-}
-
-#[test]
-fn a_mapping_that_does_not_match_the_drives_image_is_refused() {
-    // The drive's own mapping is kept (no write): its default TxPDO is
-    // 6041, 6064, 606C, 6061 (11 bytes), not the run file's 13.
-    refused(
-        "a_mapping_that_does_not_match_the_drives_image_is_refused",
-        "bus.ethercat.tx_pdo.entries",
-        |c| c.bus.ethercat.as_mut().unwrap().write_mapping = false,
-    );
-}
-
-#[test]
-fn an_interface_that_does_not_exist_is_refused() {
-    refused(
-        "an_interface_that_does_not_exist_is_refused",
-        "bus.ethercat.interface",
-        |c| c.bus.ethercat.as_mut().unwrap().interface = "ecm9".into(),
-    );
-}
-
-#[test]
-fn an_interface_that_is_down_is_refused() {
-    let Some(_net) = netns("an_interface_that_is_down_is_refused") else {
-        return;
-    };
-    ip("link set ecm0 down");
-    let cfg = config();
-    let e = open(&cfg).err().expect("accepted a downed interface");
-    let text = format!("{e:#}");
-    assert!(text.contains("bus.ethercat.interface"), "{text}");
-}
-
 /// The shipped run file with its relative paths made absolute, `edit`ed,
 /// written to a scratch directory (removed with the returned scenario).
 fn run_file(tag: &str, replacements: &[(&str, &str)]) -> Scenario {
@@ -930,9 +440,10 @@ fn run_file(tag: &str, replacements: &[(&str, &str)]) -> Scenario {
 
 #[test]
 fn the_driver_process_refuses_another_drive_and_brings_this_one_up_and_down() {
-    let Some(_net) =
-        netns("the_driver_process_refuses_another_drive_and_brings_this_one_up_and_down")
-    else {
+    let Some(_net) = netns(
+        module_path!(),
+        "the_driver_process_refuses_another_drive_and_brings_this_one_up_and_down",
+    ) else {
         return;
     };
     std::thread::sleep(Duration::from_millis(300));
@@ -1033,5 +544,5 @@ fn the_driver_process_refuses_another_drive_and_brings_this_one_up_and_down() {
 
 extern "C" {
     #[link_name = "kill"]
-    fn libc_kill(pid: i32, sig: i32) -> i32;
+    pub(crate) fn libc_kill(pid: i32, sig: i32) -> i32;
 }

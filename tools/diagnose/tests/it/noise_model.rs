@@ -482,7 +482,7 @@ fn the_reduction_gives_each_line_its_transient_free_value_with_sqrt_leverage() {
             );
         }
     }
-    // (`data::tests` pools a transient and the noise's share by hand.)
+    // (`data::transient::tests` pools a transient and the noise's share by hand.)
     eprintln!("the white σ's share that is noise {q:.3}, pooled transient {pooled:.3}");
     assert!(with >= 5, "{with} windows with a transient-free value");
 }
