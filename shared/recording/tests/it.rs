@@ -12,5 +12,9 @@ mod cdr;
 mod common;
 #[path = "it/files.rs"]
 mod files;
+#[path = "it/inplace.rs"]
+mod inplace;
+#[path = "it/killed.rs"]
+mod killed;
 #[path = "it/python.rs"]
 mod python;
