@@ -196,14 +196,30 @@ fn write_until_killed() -> bool {
     };
     let mut w = RecordingWriter::create(Path::new(&path)).unwrap();
     w.register_contract().unwrap();
+    let t0 = Instant::now();
     for k in 0.. {
         w.write(&sample(k)).unwrap();
         w.write(&command(k)).unwrap();
         if k % 20 == 0 {
             std::thread::sleep(Duration::from_micros(200));
+            // Never outlives a test that failed without killing it.
+            if t0.elapsed() > Duration::from_secs(120) {
+                std::process::abort();
+            }
         }
     }
     true
+}
+
+/// Kills (SIGKILL) the writer process when dropped, whether or not the
+/// test got there.
+struct Writer(std::process::Child);
+
+impl Drop for Writer {
+    fn drop(&mut self) {
+        let _ = self.0.kill();
+        let _ = self.0.wait();
+    }
 }
 
 /// `kill -9`: a writer process killed with SIGKILL once its partial file
@@ -224,13 +240,15 @@ fn a_writer_killed_with_sigkill_leaves_a_file_completed_into_one_pythons_indexed
     for (i, kill_at_bytes) in [50_000u64, 250_000, 700_000].into_iter().enumerate() {
         let dest = dir.join(&format!("run{i}.mcap"));
         let partial = segments::partial_path(&dest);
-        let mut child = Command::new(std::env::current_exe().unwrap())
-            .args(["--exact", name, "--nocapture", "--test-threads=1"])
-            .env(WRITER_ENV, &dest)
-            .stdout(Stdio::null())
-            .stderr(Stdio::null())
-            .spawn()
-            .unwrap();
+        let mut writer = Writer(
+            Command::new(std::env::current_exe().unwrap())
+                .args(["--exact", name, "--nocapture", "--test-threads=1"])
+                .env(WRITER_ENV, &dest)
+                .stdout(Stdio::null())
+                .stderr(Stdio::null())
+                .spawn()
+                .unwrap(),
+        );
         let t0 = Instant::now();
         while std::fs::metadata(&partial).map_or(0, |m| m.len()) < kill_at_bytes {
             assert!(
@@ -238,11 +256,10 @@ fn a_writer_killed_with_sigkill_leaves_a_file_completed_into_one_pythons_indexed
                 "the writer wrote {:?} in 60 s",
                 std::fs::metadata(&partial).map(|m| m.len())
             );
-            assert!(child.try_wait().unwrap().is_none(), "the writer stopped");
+            assert!(writer.0.try_wait().unwrap().is_none(), "the writer stopped");
             std::thread::sleep(Duration::from_millis(1));
         }
-        child.kill().unwrap(); // SIGKILL
-        child.wait().unwrap();
+        drop(writer); // SIGKILL, then waited for
         assert!(!dest.exists(), "the killed writer finished its file");
         let raw = dir.join(&format!("killed{i}.bin"));
         std::fs::copy(&partial, &raw).unwrap();
