@@ -12,8 +12,8 @@ use std::process::Command;
 
 use crate::common::*;
 use crate::inplace::{
-    data_end, full, mcap_indexed_messages, messages_in_whole_chunks, python_has_what_was_kept,
-    python_indexed, python_read, Full,
+    assert_crcs, data_end, full, mcap_indexed_messages, messages_in_whole_chunks,
+    python_has_what_was_kept, python_indexed, python_read, Full,
 };
 use exo_recording::*;
 
@@ -206,6 +206,7 @@ fn on_a_full_disk_finish_orphans_completes_the_file_in_place() {
     assert_eq!(left_on_disk(&out), [SEGMENT]);
     let seg = out.join("disk").join(SEGMENT);
     let after = std::fs::read(&seg).unwrap();
+    assert_crcs(&after, "full disk");
     assert_eq!(after[..start], bytes[..start]);
     assert_eq!(after[start], mcap::records::op::DATA_END);
     let n = before.message_count();
@@ -262,6 +263,7 @@ fn where_not_even_the_summary_fits_the_newest_chunks_make_room() {
     );
     assert_eq!(left_on_disk(&out), [SEGMENT]);
     let after = std::fs::read(out.join("disk").join(SEGMENT)).unwrap();
+    assert_crcs(&after, "chunks given up");
     let s = mcap::Summary::read(&after).unwrap().unwrap();
     let kept = s.chunk_indexes.len();
     println!("{kept} of the {cut_chunk} complete chunks kept");

@@ -133,6 +133,23 @@ pub(crate) fn mcap_indexed_messages(bytes: &[u8]) -> usize {
     n
 }
 
+/// A complete file's CRCs are right (MCAP spec): the Data End record's,
+/// of every byte before it; the footer's, of the summary section, the
+/// summary offsets and the footer up to its CRC.
+pub(crate) fn assert_crcs(bytes: &[u8], what: &str) {
+    let footer = mcap::read::footer(bytes).unwrap();
+    let data_end = footer.summary_start as usize - DATA_END_BYTES;
+    assert_eq!(bytes[data_end], mcap::records::op::DATA_END, "{what}");
+    let crc = u32::from_le_bytes(bytes[data_end + 9..data_end + 13].try_into().unwrap());
+    assert_eq!(crc, crc32fast::hash(&bytes[..data_end]), "{what}: data CRC");
+    let summary = &bytes[footer.summary_start as usize..bytes.len() - 8 - 4];
+    assert_eq!(
+        footer.summary_crc,
+        crc32fast::hash(summary),
+        "{what}: summary CRC"
+    );
+}
+
 /// The messages of the finished file's chunks that a cut at `cut` leaves
 /// whole, counted by the `mcap` crate (no code of exo's reading).
 pub(crate) fn messages_in_whole_chunks(bytes: &[u8], summary: &mcap::Summary, cut: usize) -> usize {
@@ -189,6 +206,7 @@ fn a_dead_writers_file_completed_in_place_is_one_pythons_indexed_reader_opens() 
         let done = segments::complete_in_place(&partial, &dest).unwrap();
         assert!(dest.exists() && !partial.exists(), "{name}");
         let after = std::fs::read(&dest).unwrap();
+        assert_crcs(&after, name);
         // In place: the bytes before the cut record are untouched, and the
         // data end record follows the records kept (after the indexes
         // written again, equal to the writer's).
@@ -380,6 +398,7 @@ fn a_writers_own_indexes_and_records_are_kept_as_written() {
         let before = read_recording_bytes(name, &partial_bytes).unwrap();
         segments::complete_in_place(&partial, &dest).unwrap();
         let after = std::fs::read(&dest).unwrap();
+        assert_crcs(&after, name);
         assert_eq!(after[..kept], partial_bytes[..kept], "{name}");
         assert_eq!(after[kept], mcap::records::op::DATA_END, "{name}");
         assert_eq!(mcap_indexed_messages(&after), before.message_count());

@@ -16,6 +16,7 @@ use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
 use crate::common::*;
+use crate::inplace::assert_crcs;
 use exo_recording::*;
 use serde_json::Value;
 
@@ -164,6 +165,9 @@ fn files_cut_at_random_points_are_completed_into_ones_pythons_indexed_reader_rea
         std::fs::write(&partial, &bytes[..cut]).unwrap();
         let done = segments::complete_in_place(&partial, &in_place).unwrap();
         assert_eq!((done.messages, done.given_up), (n, 0), "cut at {cut}");
+        for p in [&copied, &in_place] {
+            assert_crcs(&std::fs::read(p).unwrap(), &format!("cut at {cut}"));
+        }
         reads.extend([
             Read::Stream(raw),
             Read::Indexed(copied),
