@@ -220,15 +220,22 @@ fn on_a_full_disk_finish_orphans_completes_the_file_in_place() {
     assert_eq!(p["messages"], n, "{p}");
 }
 
-/// Where not even the summary fits (the disk full to the last page, the
-/// cut record 100 bytes): the copy fails (no space), and completing in
-/// place gives up the newest complete chunks, as few as make room: the
-/// file keeps its bytes up to the start of the first chunk given up, its
-/// summary indexes every chunk before it (the finished file's own
-/// indexes), keeping one chunk more would not fit, nothing else is left
-/// on the disk, and Python's indexed reader reads every message of the
-/// chunks kept, counted by the `mcap` crate on the finished file, as the
-/// messages given up are those of the chunks given up.
+/// The fewest bytes a Chunk Index record of a zstd chunk with messages
+/// takes (MCAP spec, "Chunk Index"): opcode and length (9), four times and
+/// offsets (32), the map's length (4) and one channel's offset (10), the
+/// message index length (8), "zstd" with its length (8), two sizes (16).
+const ZSTD_CHUNK_INDEX_MIN_BYTES: u64 = 9 + 32 + 4 + 10 + 8 + 8 + 16;
+
+/// Where not even the summary fits (the cut record 100 bytes; the disk
+/// full to the last page, or with room for all but two pages of the
+/// summary): the copy fails (no space), and completing in place gives up
+/// the newest complete chunks, as few as make room: the file keeps its
+/// bytes up to the start of the first chunk given up, its summary indexes
+/// every chunk before it (the finished file's own indexes), keeping one
+/// chunk more would not fit (its bytes and one more chunk index), nothing
+/// else is left on the disk, and Python's indexed reader reads every
+/// message of the chunks kept, counted by the `mcap` crate on the finished
+/// file, as the messages given up are those of the chunks given up.
 #[test]
 fn where_not_even_the_summary_fits_the_newest_chunks_make_room() {
     if on_tmpfs(&["complete", "in_place"]) {
@@ -245,52 +252,64 @@ fn where_not_even_the_summary_fits_the_newest_chunks_make_room() {
     // summary.
     let summary_bytes = (bytes.len() - data_end(&bytes)) as u64;
     assert!(pages(cut as u64) - start as u64 + 1024 < summary_bytes);
-    let (disk, out) = (dir.join("disk"), dir.join("out"));
-    let disk_bytes = pages(cut as u64);
-    if !rerun_on_tmpfs(
-        "where_not_even_the_summary_fits_the_newest_chunks_make_room",
-        &disk,
-        disk_bytes,
-        &src,
-        &out,
-    ) {
-        return;
-    }
-    let copy_failed = step(&out, "complete");
-    assert!(
-        copy_failed.contains("No space left on device"),
-        "{copy_failed}"
-    );
-    assert_eq!(left_on_disk(&out), [SEGMENT]);
-    let after = std::fs::read(out.join("disk").join(SEGMENT)).unwrap();
-    assert_crcs(&after, "chunks given up");
-    let s = mcap::Summary::read(&after).unwrap().unwrap();
-    let kept = s.chunk_indexes.len();
-    println!("{kept} of the {cut_chunk} complete chunks kept");
-    assert!(kept > 0 && kept < cut_chunk, "{kept} of {cut_chunk} chunks");
-    assert_eq!(s.chunk_indexes[..], summary.chunk_indexes[..kept]);
-    let kept_to = summary.chunk_indexes[kept].chunk_start_offset as usize;
-    assert_eq!(after[..kept_to], bytes[..kept_to]);
-    assert_eq!(after[kept_to], mcap::records::op::DATA_END);
-    // One chunk more (its bytes, and a summary no smaller) would not fit.
-    let next_to = summary.chunk_indexes[kept + 1].chunk_start_offset;
-    assert!(pages(next_to + (after.len() - kept_to) as u64) > disk_bytes);
     let in_chunks = |r: std::ops::Range<usize>| -> usize {
         summary.chunk_indexes[r]
             .iter()
             .map(|i| summary.stream_chunk(&bytes, i).unwrap().count())
             .sum()
     };
-    let n = in_chunks(0..kept);
-    assert_eq!(
-        step(&out, "in_place"),
-        format!("ok, {} messages given up", in_chunks(kept..cut_chunk))
-    );
-    assert_eq!(mcap_indexed_messages(&after), n);
-    let p = python_indexed(&out.join("disk").join(SEGMENT));
-    assert_eq!(p["statistics"], n, "{p}");
-    assert_eq!(p["messages"], n, "{p}");
-    assert_eq!(p["chunks"], kept, "{p}");
+    let short = pages(summary_bytes) - 2 * PAGE_BYTES;
+    for (case, free_bytes) in [(0, 0), (1, short)] {
+        let (disk, out) = (
+            dir.join(&format!("disk{case}")),
+            dir.join(&format!("out{case}")),
+        );
+        let disk_bytes = pages(cut as u64) + free_bytes;
+        if !rerun_on_tmpfs(
+            "where_not_even_the_summary_fits_the_newest_chunks_make_room",
+            &disk,
+            disk_bytes,
+            &src,
+            &out,
+        ) {
+            return;
+        }
+        let copy_failed = step(&out, "complete");
+        assert!(
+            copy_failed.contains("No space left on device"),
+            "{copy_failed}"
+        );
+        assert_eq!(left_on_disk(&out), [SEGMENT]);
+        let after = std::fs::read(out.join("disk").join(SEGMENT)).unwrap();
+        assert_crcs(&after, "chunks given up");
+        let s = mcap::Summary::read(&after).unwrap().unwrap();
+        let kept = s.chunk_indexes.len();
+        println!("{free_bytes} B free: {kept} of the {cut_chunk} complete chunks kept");
+        assert!(kept > 0 && kept < cut_chunk, "{kept} of {cut_chunk} chunks");
+        assert_eq!(s.chunk_indexes[..], summary.chunk_indexes[..kept]);
+        let kept_to = summary.chunk_indexes[kept].chunk_start_offset as usize;
+        assert_eq!(after[..kept_to], bytes[..kept_to]);
+        assert_eq!(after[kept_to], mcap::records::op::DATA_END);
+        // One chunk more (its bytes, its index and a summary otherwise no
+        // smaller) would not fit.
+        let next_to = summary.chunk_indexes[kept + 1].chunk_start_offset;
+        let tail_bytes = (after.len() - kept_to) as u64;
+        assert!(
+            pages(next_to + tail_bytes + ZSTD_CHUNK_INDEX_MIN_BYTES) > disk_bytes,
+            "{disk_bytes} B disk: {kept} chunks kept, to byte {kept_to}, and a \
+             completion of {tail_bytes} B; one chunk more would keep the bytes to {next_to}"
+        );
+        let n = in_chunks(0..kept);
+        assert_eq!(
+            step(&out, "in_place"),
+            format!("ok, {} messages given up", in_chunks(kept..cut_chunk))
+        );
+        assert_eq!(mcap_indexed_messages(&after), n);
+        let p = python_indexed(&out.join("disk").join(SEGMENT));
+        assert_eq!(p["statistics"], n, "{p}");
+        assert_eq!(p["messages"], n, "{p}");
+        assert_eq!(p["chunks"], kept, "{p}");
+    }
 }
 
 /// Where nothing can be given up (no chunk, the disk full to the byte):
