@@ -25,6 +25,8 @@
 pub mod cdr;
 pub mod drops;
 pub mod files;
+mod framing;
+mod in_place;
 pub mod reader;
 pub mod record;
 pub mod ros2msg;

@@ -17,17 +17,21 @@
 //! the end of a run) completes it ([`complete`]: what its complete chunks
 //! and loose records hold, rewritten with indexes, summary and footer, as
 //! `mcap recover` does) under its own name, so that a file at a segment's
-//! own name is a complete MCAP any reader opens (on a full disk, where
-//! the completed copy does not fit, the partial file is renamed as it is);
-//! and the readers
-//! read an orphan (or a partial file still being written) in place of a
-//! missing segment.
+//! own name is a complete MCAP any reader opens. On a full disk, where the
+//! completed copy does not fit, the partial file is completed in place
+//! ([`complete_in_place`]: cut after its last complete record, given the
+//! summary and footer, renamed; the newest chunks given up where not even
+//! the summary fits). A file that cannot be completed keeps its partial
+//! name; the readers read an orphan (or a partial file still being
+//! written) in place of a missing segment.
 
 use std::fs::{File, TryLockError};
 use std::io;
 use std::path::{Path, PathBuf};
 
 use crate::{RecordingError, RecordingWriter, DEFAULT_CHUNK_BYTES};
+
+pub use crate::in_place::complete_in_place;
 
 /// What a segment's name gets while its writer writes it.
 pub const PARTIAL_SUFFIX: &str = ".partial";
@@ -64,9 +68,13 @@ fn held(path: &Path) -> io::Result<bool> {
 /// Completes every orphaned partial file of `first`'s segments (one no
 /// live writer holds, whose segment has no finished file) under its
 /// segment's own name ([`complete`]), and returns the segments so
-/// finished. Where completing fails (no room for the completed copy on a
-/// full disk), the partial file is renamed as it is. A partial file a
-/// writer still holds is left alone. Errors name the file.
+/// finished. Where the completed copy does not fit (a full disk), the
+/// partial file is completed in place ([`complete_in_place`], which gives
+/// up the newest chunks where not even the summary fits). A file at a
+/// segment's own name is thus always a complete MCAP: where neither can be
+/// done, the partial file keeps its partial name (exo's readers read it)
+/// and the error names it and both failures. A partial file a writer
+/// still holds is left alone. Errors name the file.
 pub fn finish_orphans(first: &Path) -> io::Result<Vec<PathBuf>> {
     let named = |p: &Path, e: io::Error| io::Error::new(e.kind(), format!("{}: {e}", p.display()));
     let mut finished = Vec::new();
@@ -82,18 +90,21 @@ pub fn finish_orphans(first: &Path) -> io::Result<Vec<PathBuf>> {
         if held(&partial).map_err(|e| named(&partial, e))? {
             continue;
         }
-        if complete(&partial, &seg).is_err() {
-            // No room for the completed copy (a full disk): the partial
-            // file takes the name as it is, which exo's readers read (its
-            // complete chunks) and an indexed reader may not.
-            std::fs::rename(&partial, &seg).map_err(|e| named(&partial, e))?;
+        if let Err(copy) = complete(&partial, &seg) {
+            if let Err(in_place) = complete_in_place(&partial, &seg) {
+                return Err(io::Error::other(format!(
+                    "{}: not completed, left under its partial name (copying: {copy}; in place: {in_place})",
+                    seg.display()
+                )));
+            }
         }
         finished.push(seg);
     }
     Ok(finished)
 }
 
-/// What [`complete`] copied from a dead writer's file.
+/// What [`complete`] copied, or [`complete_in_place`] kept, from a dead
+/// writer's file.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub struct Completed {
     /// Messages (those of its complete chunks and loose message records).
@@ -102,6 +113,9 @@ pub struct Completed {
     pub metadata: usize,
     /// Attachments.
     pub attachments: usize,
+    /// Messages of complete chunks given up to make room for the summary
+    /// on a full disk ([`complete_in_place`]; 0 otherwise).
+    pub given_up: usize,
 }
 
 /// Rewrites the MCAP file `partial` that its writer never finished (no

@@ -12,5 +12,11 @@ mod cdr;
 mod common;
 #[path = "it/files.rs"]
 mod files;
+#[path = "it/full_disk.rs"]
+mod full_disk;
+#[path = "it/inplace.rs"]
+mod inplace;
+#[path = "it/killed.rs"]
+mod killed;
 #[path = "it/python.rs"]
 mod python;

@@ -19,7 +19,7 @@ fn py_float(v: &Value) -> f64 {
 }
 
 /// Every field of every message of one topic, compared exactly.
-fn compare_topic<T: Recordable>(topics: &Value, ours: &[T]) {
+pub(crate) fn compare_topic<T: Recordable>(topics: &Value, ours: &[T]) {
     let t = &topics[T::TOPIC];
     assert_eq!(t["schema"], T::SCHEMA_NAME);
     assert_eq!(t["count"], ours.len(), "{}", T::TOPIC);
