@@ -299,8 +299,9 @@ impl Process for RecorderProcess {
             .with_context(|| format!("finishing the segments of {}", first.display()))?
         {
             warn!(
-                "recorder: {} was left unfinished by a recorder that died: kept, with what its complete chunks hold",
-                done.display()
+                "recorder: {} was left unfinished by a recorder that died: kept, with what its complete chunks hold{}",
+                done.0.display(),
+                exo_recording::segments::given_up_note(&done.1)
             );
         }
         let (segment, path) = exo_recording::segments::next_free_segment(&first);

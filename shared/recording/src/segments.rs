@@ -68,14 +68,14 @@ fn held(path: &Path) -> io::Result<bool> {
 /// Completes every orphaned partial file of `first`'s segments (one no
 /// live writer holds, whose segment has no finished file) under its
 /// segment's own name ([`complete`]), and returns the segments so
-/// finished. Where the completed copy does not fit (a full disk), the
+/// finished, each with what it kept ([`Completed`]). Where the completed copy does not fit (a full disk), the
 /// partial file is completed in place ([`complete_in_place`], which gives
 /// up the newest chunks where not even the summary fits). A file at a
 /// segment's own name is thus always a complete MCAP: where neither can be
 /// done, the partial file keeps its partial name (exo's readers read it)
 /// and the error names it and both failures. A partial file a writer
 /// still holds is left alone. Errors name the file.
-pub fn finish_orphans(first: &Path) -> io::Result<Vec<PathBuf>> {
+pub fn finish_orphans(first: &Path) -> io::Result<Vec<(PathBuf, Completed)>> {
     let named = |p: &Path, e: io::Error| io::Error::new(e.kind(), format!("{}: {e}", p.display()));
     let mut finished = Vec::new();
     for part in 1.. {
@@ -90,15 +90,16 @@ pub fn finish_orphans(first: &Path) -> io::Result<Vec<PathBuf>> {
         if held(&partial).map_err(|e| named(&partial, e))? {
             continue;
         }
-        if let Err(copy) = complete(&partial, &seg) {
-            if let Err(in_place) = complete_in_place(&partial, &seg) {
-                return Err(io::Error::other(format!(
+        let done = match complete(&partial, &seg) {
+            Ok(done) => done,
+            Err(copy) => complete_in_place(&partial, &seg).map_err(|in_place| {
+                io::Error::other(format!(
                     "{}: not completed, left under its partial name (copying: {copy}; in place: {in_place})",
                     seg.display()
-                )));
-            }
-        }
-        finished.push(seg);
+                ))
+            })?,
+        };
+        finished.push((seg, done));
     }
     Ok(finished)
 }
@@ -116,6 +117,16 @@ pub struct Completed {
     /// Messages of complete chunks given up to make room for the summary
     /// on a full disk ([`complete_in_place`]; 0 otherwise).
     pub given_up: usize,
+}
+
+/// The clause a message about a completed file adds when chunks were
+/// given up to make room for its summary (`"; 12 messages of its newest
+/// chunks given up: no room for the summary"`), empty when none were.
+pub fn given_up_note(done: &Completed) -> String {
+    match done.given_up {
+        0 => String::new(),
+        n => format!("; {n} messages of its newest chunks given up: no room for the summary"),
+    }
 }
 
 /// Rewrites the MCAP file `partial` that its writer never finished (no
@@ -241,6 +252,24 @@ pub fn first_segment_of(path: &Path) -> Option<PathBuf> {
 mod tests {
     use super::*;
 
+    fn paths(finished: Vec<(PathBuf, Completed)>) -> Vec<PathBuf> {
+        finished.into_iter().map(|(p, _)| p).collect()
+    }
+
+    #[test]
+    fn the_messages_given_up_are_named_only_when_there_are_some() {
+        assert_eq!(given_up_note(&Completed::default()), "");
+        let done = Completed {
+            messages: 900,
+            given_up: 12,
+            ..Completed::default()
+        };
+        assert_eq!(
+            given_up_note(&done),
+            "; 12 messages of its newest chunks given up: no room for the summary"
+        );
+    }
+
     #[test]
     fn segments_are_numbered_beside_the_first_and_found_in_order() {
         let dir = std::env::temp_dir().join(format!("exo-seg-{}", std::process::id()));
@@ -293,7 +322,10 @@ mod tests {
         assert_eq!(segments(&first), [p1.clone(), p2.clone()]);
         assert_eq!(next_free_segment(&first).0, 3);
         // The live writer's file is left alone; the orphan gets its name.
-        assert_eq!(finish_orphans(&first).unwrap(), std::slice::from_ref(&s2));
+        assert_eq!(
+            paths(finish_orphans(&first).unwrap()),
+            std::slice::from_ref(&s2)
+        );
         assert!(p1.exists() && s2.exists() && !p2.exists());
         assert_eq!(segments(&first), [p1.clone(), s2.clone()]);
         // A live writer's file is not removed as a failed one's would be.
@@ -302,15 +334,21 @@ mod tests {
         // Once its writer is gone, it is an orphan too.
         drop(live);
         assert_eq!(
-            finish_orphans(&first).unwrap(),
+            paths(finish_orphans(&first).unwrap()),
             std::slice::from_ref(&first)
         );
         assert_eq!(segments(&first), [first.clone(), s2.clone()]);
-        assert_eq!(finish_orphans(&first).unwrap(), Vec::<PathBuf>::new());
+        assert_eq!(
+            paths(finish_orphans(&first).unwrap()),
+            Vec::<PathBuf>::new()
+        );
         // A partial file beside a finished segment (a failed rewrite) is
         // never renamed over it; a failed one-shot writer's is discarded.
         std::fs::write(&p1, b"half").unwrap();
-        assert_eq!(finish_orphans(&first).unwrap(), Vec::<PathBuf>::new());
+        assert_eq!(
+            paths(finish_orphans(&first).unwrap()),
+            Vec::<PathBuf>::new()
+        );
         assert_eq!(on_disk(&first), Some(first.clone()));
         discard_partial(&first);
         assert!(!p1.exists());

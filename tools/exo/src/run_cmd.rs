@@ -143,8 +143,9 @@ pub fn run_config(config: &std::path::Path, logs: Logs) -> Result<Finished> {
             .with_context(|| format!("finishing the segments of {}", r.display()))?
         {
             faults.push(format!(
-                "the recorder did not finish {}: kept with what its complete chunks hold (the end of the run may be missing)",
-                done.display()
+                "the recorder did not finish {}: kept with what its complete chunks hold (the end of the run may be missing){}",
+                done.0.display(),
+                exo_recording::segments::given_up_note(&done.1)
             ));
         }
         let segments = exo_recording::segments::segments(r);

@@ -154,7 +154,11 @@ fn files_cut_at_random_points_are_completed_into_ones_pythons_indexed_reader_rea
         let copied = dir.join(&format!("copied{k}.mcap"));
         std::fs::write(segments::partial_path(&copied), &bytes[..cut]).unwrap();
         assert_eq!(
-            segments::finish_orphans(&copied).unwrap(),
+            segments::finish_orphans(&copied)
+                .unwrap()
+                .into_iter()
+                .map(|(p, _)| p)
+                .collect::<Vec<_>>(),
             std::slice::from_ref(&copied),
             "cut at {cut}"
         );
@@ -271,7 +275,11 @@ fn a_writer_killed_with_sigkill_leaves_a_file_completed_into_one_pythons_indexed
         std::fs::copy(&partial, segments::partial_path(&in_place)).unwrap();
         segments::complete_in_place(&segments::partial_path(&in_place), &in_place).unwrap();
         assert_eq!(
-            segments::finish_orphans(&dest).unwrap(),
+            segments::finish_orphans(&dest)
+                .unwrap()
+                .into_iter()
+                .map(|(p, _)| p)
+                .collect::<Vec<_>>(),
             std::slice::from_ref(&dest)
         );
         assert!(!partial.exists());
