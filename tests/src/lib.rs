@@ -501,13 +501,23 @@ pub mod netns {
                 .expect("unshare");
             let text = format!("{}\n{}", crate::stdout(&out), crate::stderr(&out));
             if out.status.success() && text.contains("1 passed") {
+                // Shown with `--nocapture`: what the run inside measured.
+                eprintln!("{name} in its network namespace (attempt {attempt}):\n{text}");
                 return;
             }
             assert!(
                 text.contains(timing_fault) && attempt < attempts,
                 "{name} in its network namespace (attempt {attempt}):\n{text}"
             );
-            eprintln!("{name}: attempt {attempt} met a timing fault it did not provoke; again");
+            let fault: Vec<&str> = text
+                .lines()
+                .filter(|l| l.contains("exo: fault") || l.contains("latched"))
+                .take(3)
+                .collect();
+            eprintln!(
+                "{name}: attempt {attempt} met a timing fault it did not provoke; again ({})",
+                fault.join(" | ")
+            );
         }
     }
 

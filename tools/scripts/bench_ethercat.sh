@@ -52,8 +52,8 @@ JSON
 out=$(mktemp -d)
 trap 'rm -rf "$out"' EXIT
 # A shipped run file with its paths absolute, at $rate Hz: the deadlines
-# kept in periods as the files give them at 1 kHz (command 1, sample and
-# bus 5, the drive's watchdog 10).
+# kept in periods as the files give them at 1 kHz (command 1, bus 5, the
+# drive's watchdog 10; the controller's sample deadline stays 50 ms).
 full=()
 [ "${FULL:-0}" = 1 ] && full=(-e 's|^experiments = \[.*\]|experiments = [1, 2, 3, 4, 5, 6, 7, 8, 9]|'
                             -e 's|^periods = \[.*\]|periods = [1, 2, 3, 4, 5, 6, 7, 8, 9, 10]|')
@@ -65,7 +65,6 @@ absolute() {
       -e "s|output_dir = \"out/runs\"|output_dir = \"$out/runs\"|" \
       -e "s|^rate_hz = 1000.0|rate_hz = $rate.0|" \
       -e "s|^command_deadline_ms = 1.0|command_deadline_ms = $ms|" \
-      -e "s|^sample_deadline_ms = 5.0|sample_deadline_ms = $(awk "BEGIN { print 5 * $ms }")|" \
       -e "s|^bus_deadline_ms = 5.0|bus_deadline_ms = $(awk "BEGIN { print 5 * $ms }")|" \
       -e "s|^drive_watchdog_ms = 10.0|drive_watchdog_ms = $(awk "BEGIN { print 10 * $ms }")|" \
       -e "s|^\[bus.ethercat\]\$|[bus.ethercat]\nwake_spin_us = ${SPIN_US:-0}.0|" \

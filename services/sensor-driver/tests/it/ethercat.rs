@@ -472,7 +472,6 @@ fn the_driver_process_refuses_another_drive_and_brings_this_one_up_and_down() {
         &[
             ("rate_hz = 1000.0", &rate),
             ("command_deadline_ms = 1.0", "command_deadline_ms = 10.0"),
-            ("sample_deadline_ms = 5.0", "sample_deadline_ms = 10.0"),
             ("bus_deadline_ms = 5.0", "bus_deadline_ms = 10.0"),
             ("drive_watchdog_ms = 10.0", "drive_watchdog_ms = 20.0"),
             ("velocity_cutoff_hz = 50.0", "velocity_cutoff_hz = 20.0"),

@@ -237,6 +237,22 @@ impl RunConfig {
                 }
                 if rate_ok {
                     e.check(c, self.run.rate_hz);
+                    // The controller must not latch on a stall the bus
+                    // rides through (docs/hardware.md, "Late and lost
+                    // cycles"): its sample deadline spans the missed
+                    // cycles the driver tolerates.
+                    let missed = e.max_missed_cycles(self.run.rate_hz);
+                    let ride_ms = f64::from(missed) * 1000.0 / self.run.rate_hz;
+                    let deadline_ms = self.safety.sample_deadline_ms;
+                    if deadline_ms.is_finite() && deadline_ms < ride_ms {
+                        c.note(
+                            "safety.sample_deadline_ms",
+                            format!(
+                                "{deadline_ms} ms is shorter than the {ride_ms} ms of missed cycles the EtherCAT bus rides through (bus.ethercat.max_missed_cycles = {missed} at {} Hz): the controller would latch its safe state on a stall the driver holds through",
+                                self.run.rate_hz
+                            ),
+                        );
+                    }
                 }
             }
             (BusBackend::Simulator, _) => {}

@@ -122,12 +122,10 @@ fn bus_defaults() {
     );
 }
 
-/// `[bus.ethercat]` written with only its required keys (interface,
-/// identity and the four entries a CST drive needs): the rest take their
-/// defaults.
-#[test]
-fn bus_ethercat_defaults() {
-    let minimal = "[bus]
+/// The `[bus.ethercat]` table with only its required keys (interface,
+/// identity and the four entries a CST drive needs), inserted before
+/// `[safety]`.
+const MINIMAL_ETHERCAT: &str = "[bus]
 backend = \"ethercat\"
 
 [bus.ethercat]
@@ -151,12 +149,21 @@ entries = [
 
 [safety]
 ";
+
+/// `[bus.ethercat]` written with only its required keys (interface,
+/// identity and the four entries a CST drive needs): the rest take their
+/// defaults.
+#[test]
+fn bus_ethercat_defaults() {
+    let minimal = MINIMAL_ETHERCAT;
     let c = accepted(
         "ecat-min",
         &[
             // EtherCAT runs on the wall clock only.
             ("timing = \"lockstep\"", "timing = \"realtime\""),
             ("[safety]\n", minimal),
+            // At least the 50 ms of missed cycles the bus rides through.
+            ("sample_deadline_ms = 5.0", "sample_deadline_ms = 50.0"),
         ],
     );
     assert_eq!(c.bus.backend, BusBackend::Ethercat);
@@ -183,6 +190,10 @@ entries = [
     // keep write_mapping = true" (the emulated drive's hold no 0x6071 or
     // 0x6077: configs/ethercat-kickcat.toml).
     assert!(e.write_mapping);
+    // docs/hardware.md ("Less lateness"): spinning before the deadline took
+    // the typical wake-up latency but not the millisecond tail that late
+    // cycles come from, at up to that much of a core: off unless asked.
+    assert_eq!(e.wake_spin_us, 0.0);
     // CiA 301: a VAR object's value sits at sub-index 0, and every CiA 402
     // object mapped here (0x6040, 0x6071, 0x6041, 0x6064) is a VAR.
     for entry in e.rx_pdo.entries.iter().chain(&e.tx_pdo.entries) {
@@ -202,4 +213,35 @@ entries = [
         };
         assert_eq!(pdo.find(role).map(|(_, p)| p.scale), Some(None), "{role:?}");
     }
+}
+
+/// The controller's sample deadline spans the missed cycles the EtherCAT
+/// bus rides through (`bus.ethercat.max_missed_cycles`, 50 at 1 kHz by
+/// default): a shorter one would latch the controller on a stall the
+/// driver holds through, so it is refused naming the key; the span itself
+/// is accepted, and a shorter span lets a shorter deadline through.
+#[test]
+fn an_ethercat_sample_deadline_within_the_buses_ride_through_is_refused() {
+    let ecat = [
+        ("timing = \"lockstep\"", "timing = \"realtime\""),
+        ("[safety]\n", MINIMAL_ETHERCAT),
+    ];
+    let with = |deadline: &'static str| {
+        let mut e = ecat.to_vec();
+        e.push(("sample_deadline_ms = 5.0", deadline));
+        e
+    };
+    refused_naming(
+        "ecat-smp-49",
+        &with("sample_deadline_ms = 49.0"),
+        "safety.sample_deadline_ms",
+    );
+    refused_naming("ecat-smp-5", &ecat, "safety.sample_deadline_ms");
+    accepted("ecat-smp-50", &with("sample_deadline_ms = 50.0"));
+    let mut five = ecat.to_vec();
+    five.push((
+        "interface = \"ecm0\"",
+        "interface = \"ecm0\"\nmax_missed_cycles = 5",
+    ));
+    accepted("ecat-smp-5-missed-5", &five);
 }
