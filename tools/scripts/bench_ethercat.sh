@@ -17,6 +17,8 @@
 #              ones, so that a long row (600 s) ends by the bench's stop,
 #              not by the protocol's end (after which the controller exits
 #              and the driver latches `CommandDeadlineMissed`)
+#   SKIP_KICKCAT=1  leave out the first row (KickCAT's own still motor):
+#              the two rows that run the protocol, for long rows
 #   CAPTURE=file.pcap  capture the master's interface during the first row
 #              with tcpdump (not installed by this script), for
 #              tools/scripts/ethercat_capture.py
@@ -123,7 +125,7 @@ $fifo $ns bash -c "
   $(declare -f run); out='$out' bin='$bin' secs='$secs' warmup='$warmup'
   cap='${CAPTURE:-}'; td=
   if [ -n \"\$cap\" ]; then tcpdump -i ecm0 -j adapter_unsynced --time-stamp-precision=nano -w \"\$cap\" 2>/dev/null & td=\$!; sleep 1; fi
-  run ethercat-kickcat '$out/ecat.toml' 0
+  [ '${SKIP_KICKCAT:-0}' = 1 ] || run ethercat-kickcat '$out/ecat.toml' 0
   if [ -n \"\$td\" ]; then kill \$td; sleep 0.5; fi
   kill \$sim; sleep 0.5
   '$pd/exo_plant_drive' -i ecs0 -s '$pd/slave_configs/exo-drive.json' -r '$out/plant.toml' >/dev/null 2>'$out/drive.log' & sim=\$!

@@ -25,6 +25,7 @@ inside the run, not by this script's timing.
 
 Usage, from the repository root after `cargo build --release --workspace`:
   target/py-venv/bin/python tools/scripts/bench_faults.py [RUNS]
+(PROFILE=dev: the dev build's binaries, after `cargo build --workspace`)
 (`tools/python/ensure_venv.sh` makes the venv: mcap, mcap-ros2-support.)
 """
 import os
@@ -84,12 +85,20 @@ def topics(path):
     return out
 
 
+def exo_bin():
+    """`exo` of the build the bench measures: the release build, or with
+    PROFILE=dev the dev profile's (optimised, with line tables); under
+    CARGO_TARGET_DIR if set."""
+    target = os.environ.get("CARGO_TARGET_DIR", "target")
+    return os.path.join(target, "debug" if os.environ.get("PROFILE") == "dev" else "release", "exo")
+
+
 def start_run(d, instance):
     """Starts `exo run` of a real-time run file in `d` (instance `instance`),
     waits for its five services and 2 s more; returns the `exo run` process
     and its services' pids by name."""
     cfg = run_file(d, instance)
-    p = subprocess.Popen(["target/release/exo", "run", cfg, "--no-report"],
+    p = subprocess.Popen([exo_bin(), "run", cfg, "--no-report"],
                          stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True,
                          env=dict(os.environ, RUST_LOG="warn"))
     t0 = time.time()

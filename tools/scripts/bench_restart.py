@@ -13,6 +13,7 @@ figures on a shared machine; they go in BENCHMARKS.md ("Restarts").
 
 Usage, from the repository root after `cargo build --release --workspace`:
   target/py-venv/bin/python tools/scripts/bench_restart.py [RUNS]
+(PROFILE=dev: the dev build's binaries, after `cargo build --workspace`)
 (the venv of `tools/python/ensure_venv.sh`: it shares bench_faults.py's helpers)
 """
 import os

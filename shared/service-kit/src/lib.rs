@@ -149,7 +149,8 @@ pub fn sleep_then_spin_until_ns(deadline_ns: u64, spin_ns: u64) {
 pub struct RealtimeRequest {
     /// `SCHED_FIFO` at this priority (1–99), if set.
     pub sched_fifo_priority: Option<i32>,
-    /// `mlockall(MCL_CURRENT | MCL_FUTURE)`.
+    /// `mlockall(MCL_CURRENT)`, then `mlockall(MCL_FUTURE | MCL_ONFAULT)`:
+    /// what is mapped later is locked as it is touched, not populated whole.
     pub lock_memory: bool,
     /// Pin the calling thread to this CPU, if set.
     pub cpu: Option<usize>,
@@ -219,8 +220,21 @@ pub fn request_realtime(who: &str, req: RealtimeRequest) -> RealtimeGrant {
         }
     }
     if req.lock_memory {
-        // SAFETY: plain system call with valid flags.
-        if unsafe { libc::mlockall(libc::MCL_CURRENT | libc::MCL_FUTURE) } == 0 {
+        // Everything mapped now is faulted in and locked at once. What is
+        // mapped later (the shared-memory segment of a process that starts
+        // or restarts, opened by iceoryx2 inside a tick) is locked page by
+        // page as it is touched (MCL_ONFAULT), not populated whole at mmap
+        // time: with plain MCL_FUTURE an identifier's restart cost the
+        // plant a median of 18 missed 1 ms deadlines, with MCL_ONFAULT none
+        // (BENCHMARKS.md, "Restarts off the control path"). A kernel
+        // without MCL_ONFAULT (before 4.4) gets plain MCL_FUTURE.
+        // SAFETY: plain system calls with valid flags.
+        let locked = unsafe {
+            libc::mlockall(libc::MCL_CURRENT) == 0
+                && (libc::mlockall(libc::MCL_FUTURE | libc::MCL_ONFAULT) == 0
+                    || libc::mlockall(libc::MCL_FUTURE) == 0)
+        };
+        if locked {
             g.memory_locked = true;
         } else {
             g.refusals.push(format!(
