@@ -333,20 +333,16 @@ impl EthercatBus {
             Ok::<_, ethercrab::error::Error>((d, t))
         };
         let deadline = Instant::now() + 4 * self.pdu_timeout;
-        match pump.drive(arm, deadline) {
-            Ok(Ok(back)) if back == self.watchdog => {
-                info!(
-                    "sensor-driver: EtherCAT drive's sync-manager watchdog armed: {time} × {:.1} µs (read back)",
-                    f64::from(divider + 2) * 0.04
-                );
-                Ok(())
-            }
-            Ok(Ok((divider, time))) => Err(BusFault::WatchdogRefused { divider, time }),
-            _ => Err(BusFault::WatchdogRefused {
-                divider: 0,
-                time: 0,
-            }),
-        }
+        let back = match pump.drive(arm, deadline) {
+            Ok(Ok(back)) => Some(back),
+            _ => None,
+        };
+        watchdog_verdict(self.watchdog, back)?;
+        info!(
+            "sensor-driver: EtherCAT drive's sync-manager watchdog armed: {time} × {:.1} µs (read back)",
+            f64::from(divider + 2) * 0.04
+        );
+        Ok(())
     }
 
     /// The drive's sync-manager watchdog registers as it reports them now
@@ -626,5 +622,57 @@ impl HardwareBus for EthercatBus {
             }
         }
         f
+    }
+}
+
+/// Whether the drive took its sync-manager watchdog: the registers read
+/// back after the write (`back`, divider 0x0400 and time 0x0420; `None`
+/// when the exchange failed) must be those written (`set`). Anything else
+/// is [`BusFault::WatchdogRefused`] with what was read (0, 0 when nothing
+/// was), before the drive is enabled.
+fn watchdog_verdict(set: (u16, u16), back: Option<(u16, u16)>) -> Result<(), BusFault> {
+    match back {
+        Some(b) if b == set => Ok(()),
+        Some((divider, time)) => Err(BusFault::WatchdogRefused { divider, time }),
+        None => Err(BusFault::WatchdogRefused {
+            divider: 0,
+            time: 0,
+        }),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// KickCAT's emulated ESC always takes the registers, so the refusal
+    /// is tested here on its verdict: a drive that keeps its own divider or
+    /// time (an ESC whose watchdog is fixed in its EEPROM), or that does
+    /// not answer the read-back, is refused with what it reported.
+    #[test]
+    fn a_watchdog_read_back_other_than_written_is_refused_with_what_was_read() {
+        let set = (2498, 100);
+        assert_eq!(watchdog_verdict(set, Some(set)), Ok(()));
+        assert_eq!(
+            watchdog_verdict(set, Some((2498, 1000))),
+            Err(BusFault::WatchdogRefused {
+                divider: 2498,
+                time: 1000
+            })
+        );
+        assert_eq!(
+            watchdog_verdict(set, Some((0, 100))),
+            Err(BusFault::WatchdogRefused {
+                divider: 0,
+                time: 100
+            })
+        );
+        assert_eq!(
+            watchdog_verdict(set, None),
+            Err(BusFault::WatchdogRefused {
+                divider: 0,
+                time: 0
+            })
+        );
     }
 }
