@@ -253,6 +253,12 @@ impl EthercatSettings {
         self.pdu_timeout_ms.unwrap_or(1000.0 / rate_hz)
     }
 
+    /// The last part of each wait spent polling the clock, in ns
+    /// (`wake_spin_us` × 1000, rounded).
+    pub fn wake_spin_ns(&self) -> u64 {
+        (self.wake_spin_us * 1e3).round() as u64
+    }
+
     /// Missed cycles in a row that latch at `rate_hz`: `max_missed_cycles`,
     /// or the cycles in [`DEFAULT_MISSED_SPAN_MS`] (at least 1).
     pub fn max_missed_cycles(&self, rate_hz: f64) -> u32 {
@@ -517,9 +523,13 @@ mod tests {
         assert_eq!(s.max_missed_cycles(10.0), 1);
         // The wake-up spin: off by default; just under a period is allowed.
         assert_eq!(s.wake_spin_us, 0.0);
+        assert_eq!(s.wake_spin_ns(), 0);
         let mut spin = settings();
         spin.wake_spin_us = 999.0;
         assert_eq!(errors(&spin), "");
+        assert_eq!(spin.wake_spin_ns(), 999_000);
+        spin.wake_spin_us = 150.0004; // rounded to the nanosecond
+        assert_eq!(spin.wake_spin_ns(), 150_000);
         let mut edge = settings();
         edge.max_missed_cycles = Some(100); // 100 ms at 1 kHz: the limit itself
         assert_eq!(errors(&edge), "");

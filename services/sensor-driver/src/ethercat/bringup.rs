@@ -187,7 +187,7 @@ impl EthercatBus {
             cia,
             torque_scale,
             period_ns: (1e9 / rate_hz).round() as u64,
-            wake_spin_ns: (s.wake_spin_us * 1e3).round() as u64,
+            wake_spin_ns: s.wake_spin_ns(),
             pdu_timeout,
             max_missed_cycles: u64::from(s.max_missed_cycles(rate_hz)),
             watchdog: s.drive_watchdog_registers(rate_hz),

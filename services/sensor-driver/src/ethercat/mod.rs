@@ -415,7 +415,8 @@ impl HardwareBus for EthercatBus {
             ] {
                 t.start_warmup_at(now);
             }
-        } else if now < self.next_ns {
+        } else {
+            // Returns at once when the deadline has already passed.
             sleep_then_spin_until_ns(self.next_ns, self.wake_spin_ns);
         }
         let start = monotonic_ns();
