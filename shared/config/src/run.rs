@@ -82,7 +82,10 @@ pub struct RealtimeSettings {
     /// Ask for `SCHED_FIFO` at this priority (1–99); none when absent.
     #[serde(default)]
     pub sched_fifo_priority: Option<i32>,
-    /// Lock all current and future memory (`mlockall`), so no page fault stalls a tick.
+    /// Lock memory (`mlockall`): what is mapped at start at once, what is
+    /// mapped later (a peer's shared memory) page by page as it is touched,
+    /// so no page of the loop is paged out and a peer's restart does not
+    /// populate its segments inside a tick (BENCHMARKS.md, "Restarts").
     #[serde(default)]
     pub lock_memory: bool,
     /// Pin the controller to this CPU (0–1023; a CPU the machine lacks is
