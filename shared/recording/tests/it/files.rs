@@ -584,9 +584,9 @@ fn foreign_topics_extra_fields_and_bad_messages_are_warnings() {
     );
 }
 
-#[test]
-fn recordings_of_other_writers_unchunked_uncompressed_or_lz4_are_read() {
-    for (name, opts) in [
+/// Other writers' options: unchunked, uncompressed chunks, lz4 chunks.
+pub fn other_writers() -> [(&'static str, mcap::WriteOptions); 3] {
+    [
         ("unchunked", mcap::WriteOptions::new().use_chunks(false)),
         (
             "uncompressed",
@@ -600,7 +600,12 @@ fn recordings_of_other_writers_unchunked_uncompressed_or_lz4_are_read() {
                 .compression(Some(mcap::Compression::Lz4))
                 .chunk_size(Some(5000)),
         ),
-    ] {
+    ]
+}
+
+#[test]
+fn recordings_of_other_writers_unchunked_uncompressed_or_lz4_are_read() {
+    for (name, opts) in other_writers() {
         let mut w = opts.create(Cursor::new(Vec::new())).unwrap();
         let schema = |w: &mut mcap::Writer<_>, n: &str, t: String| {
             w.add_schema(n, "ros2msg", t.as_bytes()).unwrap()

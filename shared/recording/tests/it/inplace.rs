@@ -288,21 +288,7 @@ fn a_dead_writers_file_completed_in_place_is_one_pythons_indexed_reader_opens() 
 fn other_writers_files_completed_in_place_are_the_files_they_wrote() {
     use exo_messages::SensorSample;
     let dir = TempDir::new("in-place-others");
-    for (name, opts) in [
-        ("unchunked", mcap::WriteOptions::new().use_chunks(false)),
-        (
-            "uncompressed",
-            mcap::WriteOptions::new()
-                .compression(None)
-                .chunk_size(Some(3000)),
-        ),
-        (
-            "lz4",
-            mcap::WriteOptions::new()
-                .compression(Some(mcap::Compression::Lz4))
-                .chunk_size(Some(5000)),
-        ),
-    ] {
+    for (name, opts) in crate::files::other_writers() {
         let mut w = opts.create(std::io::Cursor::new(Vec::new())).unwrap();
         let s = w
             .add_schema(
