@@ -31,13 +31,16 @@
 //!   taken ([`Candidate`], [`Step`], [`Found`], [`nominal_free`]);
 //! - `checks.rs`: the checks beyond the F-test ([`TfCheck`],
 //!   [`WindowCheck`], [`AmplitudeCheck`], a delay within one tick);
+//! - `timing.rs`: a delay within one tick taken into the nominal model
+//!   before the search, when only the noise, not the accuracy, sees it;
 //! - `score.rs`: a model's scores and held-out error ([`Score`], [`TfScore`]);
 //! - `locate.rs`: where the data and the nominal model differ ([`Location`],
 //!   [`Cell`], [`Scaling`], [`TimeRow`]);
 //! - `tests.rs`: the unit tests.
 //!
-//! Within the engine the files depend downwards only: `run` → `search`,
-//! `checks`, `score`, `locate`; `search` → `checks`, `score`; `checks`,
+//! Within the engine the files depend downwards only: `run` → `timing`,
+//! `search`, `checks`, `score`, `locate`; `timing` → `search`, `checks`,
+//! `score`; `search` → `checks`, `score`; `checks`,
 //! `score` and `locate` import no other file of the engine. This file
 //! holds the settings, the result and the constants they share, no logic.
 //!
@@ -59,6 +62,7 @@ mod score;
 mod search;
 #[cfg(test)]
 mod tests;
+mod timing;
 
 pub use checks::{AmplitudeCheck, TfCheck, WindowCheck};
 pub use locate::{Cell, Location, Scaling, TimeRow};

@@ -16,6 +16,7 @@ use super::checks::{amplitude_groups, plain_pm, within_a_tick};
 use super::locate::{cells, scaling, summary_of, time_rows};
 use super::score::score;
 use super::search::{found_entry, not_named, Evidence, StepContext};
+use super::timing::{implementation_timing, score_with};
 use super::{
     nominal_free, Candidate, DiagnoseError, Diagnosis, Found, Location, Settings, Step, MIN_WINDOWS,
 };
@@ -66,10 +67,37 @@ pub fn diagnose(
             }
         }
     }
-    let free0 = nominal_free(&p0, &experiments, &d.supported);
+    let mut free0 = nominal_free(&p0, &experiments, &d.supported);
     let nominal_score = score(d, &p0, &p0, &[]);
-    let base = fit(d, &p0, &free0, &|_, _| true);
-    let refit_score = score(d, &p0, &base.physics, &free0);
+    let mut base = fit(d, &p0, &free0, &|_, _| true);
+    let mut refit_score = score(d, &p0, &base.physics, &free0);
+    // One-sided critical value of the per-transfer-function checks,
+    // Bonferroni over the supported transfer functions.
+    let z_tf = normal_quantile(1.0 - s.level / d.supported.len().max(1) as f64);
+    let d_floor = d.held_to(crate::fit::MODEL_ACCURACY);
+    // The rig's timing within a tick, when only the noise sees it: part of
+    // the refitted nominal model ([`implementation_timing`]).
+    let timing = implementation_timing(
+        &StepContext {
+            d,
+            d_floor: &d_floor,
+            describing_in_model: false,
+            current: &base,
+            current_start: &p0,
+            current_ho: refit_score.heldout_rss,
+            experiments: &experiments,
+            z_tf,
+            amp_groups: None,
+            level: s.level,
+        },
+        &refit_score,
+        &s.candidates,
+    );
+    if let Some(t) = &timing {
+        refit_score = score_with(d, &p0, t);
+        base = t.fitted.clone();
+        free0 = base.free.clone();
+    }
 
     let mut changes = Vec::new();
     for (i, &q) in free0.iter().enumerate() {
@@ -89,7 +117,6 @@ pub fn diagnose(
     }
 
     let amp_groups = amplitude_groups(d);
-    let d_floor = d.held_to(crate::fit::MODEL_ACCURACY);
     // Stepwise search.
     let mut current: Fitted = base.clone();
     let mut current_start = p0.clone();
@@ -117,14 +144,12 @@ pub fn diagnose(
         .chain(Term::FORMS.iter())
         .copied()
         .filter(|t| t.in_nominal(&p0))
+        .chain(timing.as_ref().map(|t| t.term))
         .collect();
     let mut steps = Vec::new();
     let mut found: Vec<(Term, Candidate, bool)> = Vec::new();
     // Delays within a tick taken into the model ([`within_a_tick`]).
-    let mut within_tick: Vec<String> = Vec::new();
-    // One-sided critical value of the per-transfer-function checks,
-    // Bonferroni over the supported transfer functions.
-    let z_tf = normal_quantile(1.0 - s.level / d.supported.len().max(1) as f64);
+    let mut within_tick: Vec<String> = timing.iter().map(|t| t.words.clone()).collect();
     for step in 1..=s.max_terms {
         // Nothing left to explain: the model is within the measured noise
         // and its own accuracy.
