@@ -120,6 +120,13 @@ impl Term {
         )
     }
 
+    /// A delay of a sensor or of the motor command: every parameter of the
+    /// term is a delay ([`Param::is_delay`]).
+    pub fn is_delay(self) -> bool {
+        let params = self.params(&[]);
+        !params.is_empty() && params.iter().all(|q| q.is_delay())
+    }
+
     /// A generic form (not a named term of the catalogue).
     pub fn generic(self) -> bool {
         Term::FORMS.contains(&self) || Term::HARMONIC_FORMS.contains(&self)
@@ -588,6 +595,26 @@ mod tests {
             .chain(&Term::HARMONIC_FORMS)
         {
             assert_eq!(t.describing_function(), nonlinear.contains(t), "{t:?}");
+        }
+    }
+
+    /// The delays, by name: the encoder's, the cuff sensor's, the SEA
+    /// sensor's and the motor command's; not the stretch reflex (a delay
+    /// among its gain and corner) nor any other term.
+    #[test]
+    fn the_delays_are_the_four_timing_terms() {
+        let delays = [
+            Term::EncoderDelay,
+            Term::CuffSensorDelay,
+            Term::SeaSensorDelay,
+            Term::ActuatorDelay,
+        ];
+        for t in Term::ALL
+            .iter()
+            .chain(&Term::FORMS)
+            .chain(&Term::HARMONIC_FORMS)
+        {
+            assert_eq!(t.is_delay(), delays.contains(t), "{t:?}");
         }
     }
 }

@@ -275,6 +275,14 @@ pub(super) fn longest_sample_period_s(d: &Dataset) -> f64 {
         .fold(0.0, f64::max)
 }
 
+/// The one-sided critical value of the checks made per transfer function
+/// (a candidate's change on each, its window and harmonic signatures):
+/// the normal quantile at `level`, Bonferroni over the `supported`
+/// transfer functions (at least one).
+pub(super) fn per_tf_critical_z(level: f64, supported: usize) -> f64 {
+    crate::stats::normal_quantile(1.0 - level / supported.max(1) as f64)
+}
+
 /// Why a fitted delay is not named: shorter than one sample period, it
 /// cannot be told from how an implementation times a value within its tick
 /// (a set-point held over the tick lags by half of it, one ramped over the

@@ -12,7 +12,7 @@ use crate::model::{Param, Physics};
 use crate::stats::normal_quantile;
 use crate::terms::Term;
 
-use super::checks::{amplitude_groups, plain_pm, within_a_tick};
+use super::checks::{amplitude_groups, per_tf_critical_z, plain_pm, within_a_tick};
 use super::locate::{cells, scaling, summary_of, time_rows};
 use super::score::score;
 use super::search::{found_entry, not_named, Evidence, StepContext};
@@ -71,9 +71,7 @@ pub fn diagnose(
     let nominal_score = score(d, &p0, &p0, &[]);
     let mut base = fit(d, &p0, &free0, &|_, _| true);
     let mut refit_score = score(d, &p0, &base.physics, &free0);
-    // One-sided critical value of the per-transfer-function checks,
-    // Bonferroni over the supported transfer functions.
-    let z_tf = normal_quantile(1.0 - s.level / d.supported.len().max(1) as f64);
+    let z_tf = per_tf_critical_z(s.level, d.supported.len());
     let d_floor = d.held_to(crate::fit::MODEL_ACCURACY);
     // The rig's timing within a tick, when only the noise sees it: part of
     // the refitted nominal model ([`implementation_timing`]).

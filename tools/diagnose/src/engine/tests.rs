@@ -7,7 +7,7 @@ use crate::data::{Condition, Dataset};
 use crate::model::{Param, Physics};
 use crate::terms::Term;
 
-use super::checks::{longest_sample_period_s, within_a_tick};
+use super::checks::{longest_sample_period_s, per_tf_critical_z, within_a_tick};
 use super::search::not_named;
 use super::{Candidate, Score, Step, WindowCheck};
 
@@ -216,4 +216,16 @@ fn a_signatures_words_say_what_was_predicted_and_seen() {
     );
     assert!(w(0.73, 0.54).contains("too small to check in these recordings (untested)"));
     assert!(w(0.4, 0.05).contains("not confirmed at its predicted size: the data show 40 ± 5 %"));
+}
+
+/// The per-transfer-function checks' critical value, Bonferroni over the
+/// supported transfer functions: at level 0.01 over four, the normal
+/// quantile of 1 − 0.0025, 2.807 (scipy.stats.norm.ppf(0.9975) =
+/// 2.8070337683); over one, of 0.99, 2.326 (2.3263478740); none counts as
+/// one.
+#[test]
+fn the_per_tf_checks_are_bonferroni_over_the_supported_transfer_functions() {
+    assert!((per_tf_critical_z(0.01, 4) - 2.807_033_768_3).abs() < 1e-6);
+    assert!((per_tf_critical_z(0.01, 1) - 2.326_347_874_0).abs() < 1e-6);
+    assert_eq!(per_tf_critical_z(0.01, 0), per_tf_critical_z(0.01, 1));
 }

@@ -59,10 +59,7 @@ pub(super) fn implementation_timing(
     let tried: Vec<Term> = candidates
         .iter()
         .copied()
-        .filter(|t| {
-            let params = t.params(ctx.experiments);
-            !params.is_empty() && params.iter().all(|q| q.is_delay())
-        })
+        .filter(|t| t.is_delay())
         .filter(|t| t.shows_in().iter().any(|tf| d.supported.contains(tf)))
         .collect();
     if tried.is_empty() {

@@ -108,23 +108,29 @@ fn concealed_effects_are_named_and_a_null_case_names_nothing() {
 /// sees (the misfit within the forward model's accuracy, so the search
 /// does not run) is taken into the refitted nominal model as the rig's
 /// timing, and named as nothing (issue 30 item 3; `engine/timing.rs`).
-/// The data are a simulated null whose values are moved by exactly what a
-/// 0.2 ms encoder delay changes in the forward model (the truth, set here,
-/// not fitted); the same null unmoved takes no timing.
+/// The data are a simulated null whose values are moved by exactly what an
+/// encoder delay changes in the forward model (the truth, set here, not
+/// fitted): at 0.2 ms it is taken into the refit; the same null unmoved
+/// takes no timing, nor does one moved by 0.04 ms, within the noise; at 0.8 ms, still within the 1 ms tick, the misfit is
+/// beyond the accuracy and the delay is left to the search, which takes
+/// it as timing at its first step (the refit stays the nominal's).
 #[test]
 fn a_delay_within_a_tick_seen_only_by_the_noise_is_the_refits_timing() {
     let base = default_plant();
     let rec = synthesize(&base, &protocol(), &SynthSettings::default());
     let d0 = reduce(&[rec], &Reduction::default());
     let nominal = exo_diagnose::model::Physics::from_plant(&base, &d0.impedance_experiments());
-    let mut truth = nominal.clone();
-    truth.delay_s[0] = 2e-4;
-    let mut d = d0.clone();
-    for o in d.observations.iter_mut() {
-        let c = &d0.conditions[o.window];
-        o.value += truth.predict(o, c) - nominal.predict(o, c);
-    }
-    let r = diagnose(&d, &base, &Settings::default()).expect("diagnosis");
+    let moved = |delay_s: f64| {
+        let mut truth = nominal.clone();
+        truth.delay_s[0] = delay_s;
+        let mut d = d0.clone();
+        for o in d.observations.iter_mut() {
+            let c = &d0.conditions[o.window];
+            o.value += truth.predict(o, c) - nominal.predict(o, c);
+        }
+        diagnose(&d, &base, &Settings::default()).expect("diagnosis")
+    };
+    let r = moved(2e-4);
     let text = r.verdict.join("\n");
     assert!(r.found.is_empty(), "{text}");
     assert!(r.steps.is_empty(), "the search ran: {text}");
@@ -148,4 +154,19 @@ fn a_delay_within_a_tick_seen_only_by_the_noise_is_the_refits_timing() {
     let r0 = diagnose(&d0, &base, &Settings::default()).expect("diagnosis");
     assert!(r0.within_tick.is_empty(), "{:?}", r0.within_tick);
     assert_eq!(r0.refit_physics.delay_s, [0.0; 4]);
+    // A 0.04 ms delay the noise does not see (the refit within it): no
+    // timing taken, though an F-test on the delay alone would take it.
+    let r_small = moved(4e-5);
+    assert!(r_small.refit.noise_p >= Settings::default().level);
+    assert!(r_small.within_tick.is_empty(), "{:?}", r_small.within_tick);
+    assert_eq!(r_small.refit_physics.delay_s, [0.0; 4]);
+    // Beyond the accuracy: the search runs and takes it; the refit does not.
+    let r8 = moved(8e-4);
+    let text = r8.verdict.join("\n");
+    assert!(r8.found.is_empty(), "{text}");
+    assert!(!r8.steps.is_empty(), "{text}");
+    assert_eq!(r8.refit_physics.delay_s[0], 0.0, "{text}");
+    assert!(r8.refit.lack_of_fit_p < Settings::default().level, "{text}");
+    assert_eq!(r8.within_tick.len(), 1, "{text}");
+    assert!((r8.final_physics.delay_s[0] - 8e-4).abs() < 2e-4, "{text}");
 }
