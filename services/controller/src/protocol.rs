@@ -311,6 +311,22 @@ fn smooth_step(x: f64) -> f64 {
 mod tests {
     use super::*;
 
+    /// The raised-cosine step by hand: 0 before its start (and for NaN, a
+    /// zero-length ramp's 0/0), ½ − ½ cos(π x) within, 1 after.
+    #[test]
+    fn the_smooth_step_is_zero_before_a_raised_cosine_within_and_one_after() {
+        assert_eq!(smooth_step(-0.5), 0.0);
+        assert_eq!(smooth_step(-2.0), 0.0);
+        assert_eq!(smooth_step(0.0), 0.0);
+        assert_eq!(smooth_step(f64::NAN), 0.0);
+        assert!((smooth_step(0.5) - 0.5).abs() < 1e-15);
+        assert!(
+            (smooth_step(0.25) - (0.5 - 0.5 * (std::f64::consts::FRAC_PI_4).cos())).abs() < 1e-15
+        );
+        assert_eq!(smooth_step(1.0), 1.0);
+        assert_eq!(smooth_step(3.0), 1.0);
+    }
+
     fn table() -> ExperimentTable {
         ExperimentTable::from_file(&exo_config::configs_dir().join("experiments.toml")).unwrap()
     }

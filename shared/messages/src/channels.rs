@@ -289,9 +289,9 @@ pub const CHANNELS: [ChannelInfo; 11] = [
         ],
         has_event: false,
         max_publishers: 4,
-        max_buffer: DEEP,
+        max_buffer: SPARSE,
         recorded: true,
-        history: DEEP,
+        history: SPARSE,
         schema: "exo_msgs/msg/FrfPoint",
     },
     ChannelInfo {
@@ -307,9 +307,9 @@ pub const CHANNELS: [ChannelInfo; 11] = [
         ],
         has_event: false,
         max_publishers: 4,
-        max_buffer: DEEP,
+        max_buffer: SPARSE,
         recorded: true,
-        history: DEEP,
+        history: SPARSE,
         schema: "exo_msgs/msg/ImpedanceEstimate",
     },
     ChannelInfo {
@@ -396,8 +396,15 @@ const PROGRESS: usize = 16;
 /// before it reads.
 const REPLIES: usize = 16;
 
-/// The subscriber buffer bound of every channel today (8 s at 1 kHz).
+/// The subscriber buffer bound of the tick-rate channels (8 s at 1 kHz).
 const DEEP: usize = 8192;
+
+/// The buffer and history bound of the identifier's channels, which carry a
+/// few samples per analysis window (one estimate per model, the window's
+/// FRF points: one per sine, at most `broadband_points`, 20, per broadband
+/// window): 256 is minutes of windows. Kept small because every subscriber
+/// maps the publisher's data segment, sized by it (issue 32 item 4).
+const SPARSE: usize = 256;
 
 /// The default instance, whose channel names are the recording's topics.
 pub const DEFAULT_INSTANCE: &str = "exo";
