@@ -123,7 +123,7 @@ impl Process for ControllerProcess {
             if self.idle_since.elapsed() > Duration::from_secs(60) {
                 bail!("no sensor sample for 60 s: is the sensor driver running?");
             }
-            return Ok(Flow::Continue);
+            return Ok(Flow::Idle);
         };
         self.idle_since = Instant::now();
         if let Some(prev) = self.node.last_command() {

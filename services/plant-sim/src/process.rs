@@ -130,7 +130,7 @@ impl Process for PlantProcess {
         }
         let wall_start = *self.wall_start.get_or_insert_with(monotonic_ns);
         for w in &mut self.watches {
-            w.hold(self.node.tick(), stop)?;
+            w.hold(self.node.tick(), &self.bus_out, stop)?;
         }
         while let Some(p) = self.protocol_in.try_recv()? {
             self.node.on_protocol(&p);
@@ -239,8 +239,12 @@ impl Watch {
 
     /// Holds frame `next_frame` while the process is more than its margin
     /// behind: waits of [`HOLD_WAIT`] on its progress, at most
-    /// [`HOLD_PATIENCE`] in all, ended early by a stop request.
-    fn hold(&mut self, next_frame: u64, stop: &StopFlag) -> Result<()> {
+    /// [`HOLD_PATIENCE`] in all, ended early by a stop request. Between
+    /// waits `frames_out` is connected to peers that appeared meanwhile: a
+    /// restarted recorder is handed the frames' history only then (see
+    /// `exo_service_kit::Flow::Idle`; the driver and controller connect
+    /// theirs while they wait for the held frame).
+    fn hold(&mut self, next_frame: u64, frames_out: &dyn Connect, stop: &StopFlag) -> Result<()> {
         while let Some(p) = self.inbox.try_recv()? {
             self.pace.on_progress(&p);
         }
@@ -258,6 +262,7 @@ impl Watch {
         }
         let mut looked = Instant::now();
         while !stop.requested() {
+            frames_out.connect()?;
             if looked.elapsed() >= ALIVE_EVERY {
                 looked = Instant::now();
                 if let Some(pid) = self.pace.last().map(|p| p.pid) {

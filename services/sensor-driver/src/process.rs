@@ -307,7 +307,7 @@ impl Cycle<'_> {
                 )?;
                 self.timing.silence_flagged = true;
             }
-            return Ok(Flow::Continue);
+            return Ok(Flow::Idle);
         };
         self.timing.last_frame_at = Instant::now();
         self.timing.silence_flagged = false;

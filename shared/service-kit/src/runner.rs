@@ -29,6 +29,16 @@ use crate::{init_logging, request_realtime, RealtimeProcess, RealtimeRequest, St
 pub enum Flow {
     /// Step again.
     Continue,
+    /// Nothing came within the step's bounded wait: step again. In
+    /// lockstep the runner first connects the process's ports to peers that
+    /// appeared meanwhile. A restarted recorder is handed the channels'
+    /// history only when each publisher connects to it, which iceoryx2 does
+    /// on the publisher's next send; while simulated time is held for that
+    /// recorder nobody sends, so without this it waited for its history
+    /// until the plant's patience ran out (30 s of wall time, measured).
+    /// In real time nothing is done: control is never paused there, and a
+    /// connection is built on the next send as before.
+    Idle,
     /// The process's work is done: wind down and exit 0.
     Done,
 }
@@ -108,6 +118,11 @@ fn run<P: Process>(args: P::Args) -> Result<()> {
         }
         match process.step(&stop) {
             Ok(Flow::Continue) => {}
+            Ok(Flow::Idle) => {
+                if let Err(e) = on_idle(cfg.run.timing, &process.ports()) {
+                    break Err(e.into());
+                }
+            }
             Ok(Flow::Done) => break Ok(()),
             Err(e) => break Err(e),
         }
@@ -119,6 +134,16 @@ fn run<P: Process>(args: P::Args) -> Result<()> {
         tracing::error!("{}: winding down: {e:#}", P::NAME.name());
     }
     looped.and(finished)
+}
+
+/// What the runner does after a step that returned [`Flow::Idle`]: in
+/// lockstep, connects each of a process's `ports` to the peers that
+/// appeared since its last connection; in real time, nothing.
+pub fn on_idle(timing: TimingMode, ports: &[&dyn Connect]) -> Result<(), crate::ipc::IpcError> {
+    match timing {
+        TimingMode::Lockstep => ports.iter().try_for_each(|p| p.connect()),
+        TimingMode::Realtime => Ok(()),
+    }
 }
 
 impl AsRef<crate::ServiceArgs> for crate::ServiceArgs {

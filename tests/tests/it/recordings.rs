@@ -604,6 +604,12 @@ fn exo_run_restarts_a_killed_recorder_and_in_lockstep_loses_no_sample() {
         "{err}"
     );
     assert!(!err.contains("samples may be missing"), "{err}");
+    // The plant held simulated time until the new recorder had taken the
+    // channels' history: its publishers connect to it while they wait
+    // (`exo_service_kit::runner::Flow::Idle`). Before they did, nobody
+    // sent while time was held, the history never came, and the plant
+    // went on without the recorder after its 30 s patience, every time.
+    assert!(!err.contains("goes on without it"), "{err}");
     let rec = recording_in(&out);
     assert!(exo_recording::segments::segments(&rec).len() == 2, "{err}");
     let joined = exo_recording::read_recording(&rec).unwrap();

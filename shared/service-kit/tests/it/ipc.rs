@@ -74,3 +74,43 @@ fn probe_timed_wait_granularity() {
         eprintln!("wait({us} µs) took {:?} on average", t.elapsed() / 20);
     }
 }
+
+/// A subscriber that connects after samples were published (a restarted
+/// recorder) is handed the channel's history only when the publisher
+/// connects to it: iceoryx2 does that on the publisher's next send, and
+/// in lockstep, while simulated time is held for that subscriber, nobody
+/// sends. So a lockstep process whose step waited in vain (`Flow::Idle`)
+/// has its ports connected by the runner; in real time the runner leaves
+/// them (the next send connects them).
+#[test]
+fn an_idle_lockstep_step_hands_a_late_subscriber_the_history() {
+    use exo_config::TimingMode;
+    use exo_service_kit::channels::BUS_SENSOR;
+    use exo_service_kit::ipc::Connect;
+    use exo_service_kit::runner::on_idle;
+    let inst = instance("idle");
+    let a = Ipc::open("test_idle_pub", &inst, None).unwrap();
+    let b = Ipc::open("test_idle_sub", &inst, None).unwrap();
+    let outbox = a.outbox(BUS_SENSOR).unwrap();
+    let frame = |seq| exo_messages::BusSensorFrame {
+        seq,
+        ..Default::default()
+    };
+    for seq in 0..5 {
+        outbox.send(frame(seq)).unwrap();
+    }
+    let late = b.inbox_with_history(BUS_SENSOR, 64, 64).unwrap();
+    let ports: [&dyn Connect; 1] = [&outbox];
+    // Nobody sends: the history stays with the publisher.
+    on_idle(TimingMode::Realtime, &ports).unwrap();
+    late.connect().unwrap();
+    assert!(
+        late.try_recv().unwrap().is_none(),
+        "history before the publisher connected"
+    );
+    on_idle(TimingMode::Lockstep, &ports).unwrap();
+    let got: Vec<u64> = std::iter::from_fn(|| late.try_recv().unwrap())
+        .map(|f| f.seq)
+        .collect();
+    assert_eq!(got, [0, 1, 2, 3, 4]);
+}
