@@ -14,6 +14,7 @@
 //! | eqs. kp, kf, f; `P(s)`; crossovers and margins | [`loop_shaping`] |
 //! | lag-filter approximation of `F(s)` (eq. Fs) | [`lag_filter`] |
 //! | the whole recipe (what `exo design` prints) | [`design`] |
+//! | a designed multisine excitation (not the paper's: issue 34) | [`multisine`] |
 //!
 //! Units: inertia kg·m², stiffness and hysteretic damping Nm/rad, viscous
 //! damping Nm·s/rad, frequency rad/s unless a name says `_hz`, angles in
@@ -32,6 +33,7 @@ pub mod ftest;
 pub mod lag_filter;
 pub mod loop_shaping;
 pub mod models;
+pub mod multisine;
 pub mod plausibility;
 pub mod power_law;
 pub mod quantiser;

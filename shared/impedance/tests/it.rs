@@ -21,6 +21,8 @@ mod ftest_scipy;
 mod lag_filter_closed_form;
 #[path = "it/low_bin_noise.rs"]
 mod low_bin_noise;
+#[path = "it/multisine.rs"]
+mod multisine;
 #[path = "it/paper.rs"]
 mod paper;
 #[path = "it/power_law_numpy.rs"]

@@ -345,6 +345,15 @@ fn ten_periods_give_ten_points_and_the_m2_fit_recovers_k_and_h() {
     let coupled = &st.sinks[0];
     let frf = coupled.frf();
     assert_eq!(frf.len(), 10, "{:?}", coupled.warnings());
+    // What the identifier keeps is what it reported, under its experiment;
+    // and it runs on the settings it was given.
+    assert_eq!(coupled.id.points().len(), 1);
+    assert_eq!(coupled.id.points()[&1], frf);
+    assert_eq!(coupled.id.settings().fit_source, FitSource::CuffTorque);
+    assert_eq!(
+        st.sinks[1].id.settings().fit_source,
+        FitSource::ActuatorTorque
+    );
     for (i, p) in frf.iter().enumerate() {
         assert_eq!((p.experiment, p.period, p.seq), (1, i as u32 + 1, i as u64));
         assert!((p.omega - paper_omega(p.period)).abs() < 1e-12);
