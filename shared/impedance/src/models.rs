@@ -284,6 +284,37 @@ mod tests {
         assert_eq!(r.im, 2.0 * 4.0 + 7.0);
         // Conjugate symmetry for a real signal.
         assert_eq!(s.response(-4.0), r.conj());
+        // At ω = 0 the complex stiffness is K + jH (the paper's S(0)), and
+        // H's regressor is +1 there, as for every ω ≥ 0.
+        assert_eq!(s.response(0.0), Complex64::new(30.0, 7.0));
+        assert_eq!(Term::HystereticDamping.regressor(0.0), (0.0, 1.0));
+        assert_eq!(Term::HystereticDamping.regressor(-3.0), (0.0, -1.0));
+    }
+
+    /// The parameters in `Term::ALL` order (M, B, K, H), each term's own,
+    /// and eq. ch's loss factor `H/K`, written out.
+    #[test]
+    fn the_parameters_in_term_order_and_the_loss_factor() {
+        let s = DynamicStiffness {
+            m_kg_m2: 0.5,
+            b_nm_s_per_rad: 2.0,
+            k_nm_per_rad: 40.0,
+            h_nm_per_rad: 6.0,
+        };
+        assert_eq!(s.to_array(), [0.5, 2.0, 40.0, 6.0]);
+        assert_eq!(DynamicStiffness::from_array(s.to_array()), s);
+        assert_eq!(s.get(Term::Inertia), 0.5);
+        assert_eq!(s.get(Term::ViscousDamping), 2.0);
+        assert_eq!(s.get(Term::Stiffness), 40.0);
+        assert_eq!(s.get(Term::HystereticDamping), 6.0);
+        assert_eq!(s.loss_factor(), 0.15);
+    }
+
+    #[test]
+    fn each_model_is_named_as_in_the_paper() {
+        let names: Vec<String> = ImpedanceModel::ALL.iter().map(|m| m.to_string()).collect();
+        assert_eq!(names, ["M1", "M2", "M3"]);
+        assert_eq!(ImpedanceModel::M2.name(), "M2");
     }
 
     #[test]

@@ -197,11 +197,21 @@ fn schroeder_then_clipping_lower_the_crest_factor() {
 #[test]
 fn impossible_designs_are_refused_by_name() {
     let e = |r: Result<Vec<usize>, exo_impedance::ScienceError>| r.unwrap_err().to_string();
+    // Nyquist at 100 Hz is π · 100 = 314.16 rad/s: a band reaching it is
+    // refused, one just below it is not.
+    let beyond = e(log_spaced_bins(100.0, 1000, [2.0, 315.0], 5));
     assert!(
-        e(log_spaced_bins(100.0, 1000, [2.0, 400.0], 5)).contains("rad/s holds")
-            || e(log_spaced_bins(100.0, 1000, [400.0, 800.0], 5)).contains("Nyquist")
+        beyond.contains("beyond Nyquist (314.16 rad/s at 100 Hz)"),
+        "{beyond}"
     );
-    assert!(e(log_spaced_bins(100.0, 1000, [400.0, 800.0], 5)).contains("Nyquist"));
+    assert!(log_spaced_bins(100.0, 1000, [2.0, 314.0], 5).is_ok());
+    let at = e(log_spaced_bins(
+        100.0,
+        1000,
+        [2.0, std::f64::consts::PI * 100.0],
+        5,
+    ));
+    assert!(at.contains("beyond Nyquist"), "{at}");
     assert!(e(log_spaced_bins(100.0, 1000, [0.1, 0.5], 1)).contains("no frequency"));
     assert!(e(log_spaced_bins(100.0, 1000, [32.0, 2.0], 5)).contains("upper edge"));
     assert!(e(log_spaced_bins(f64::NAN, 1000, [2.0, 32.0], 5)).contains("rate_hz"));
