@@ -775,9 +775,6 @@ impl Identifier {
 mod tests {
     use super::*;
 
-    /// Each event's line, written out by hand: the FRF point's S_h, the M2
-    /// refit with its F-test (or none yet) and recommended f (or none),
-    /// nothing for the other models, warnings at WARN.
     /// `log` writes [`Event::line`] at its level, and nothing for a line
     /// that is `None` (captured by a subscriber of the test's own).
     #[test]
@@ -819,6 +816,9 @@ mod tests {
         );
     }
 
+    /// Each event's line, written out by hand: the FRF point's S_h, the M2
+    /// refit with its F-test (or none yet) and recommended f (or none),
+    /// nothing for the other models, warnings at WARN.
     #[test]
     fn each_event_logs_its_own_line_at_its_level() {
         use tracing::Level;
