@@ -242,7 +242,7 @@ impl Watch {
     /// [`HOLD_PATIENCE`] in all, ended early by a stop request. Between
     /// waits `frames_out` is connected to peers that appeared meanwhile: a
     /// restarted recorder is handed the frames' history only then (see
-    /// `exo_service_kit::Flow::Idle`; the driver and controller connect
+    /// `exo_service_kit::runner::Flow::Idle`; the driver and controller connect
     /// theirs while they wait for the held frame).
     fn hold(&mut self, next_frame: u64, frames_out: &dyn Connect, stop: &StopFlag) -> Result<()> {
         while let Some(p) = self.inbox.try_recv()? {
