@@ -229,7 +229,10 @@ fn impossible_designs_are_refused_by_name() {
     assert!(m(&[3], &[f64::NAN]).contains("amplitude"));
     assert!(m(&[3], &[1.0, 2.0]).contains("bins and amplitudes"));
     let ms = Multisine::schroeder(100.0, 64, &[3], &[1.0]).unwrap();
-    assert!(ms.clipped(5, 1.0).unwrap_err().to_string().contains("clip"));
+    for clip in [0.0, 1.0, -0.5, f64::NAN] {
+        let err = ms.clipped(5, clip).unwrap_err().to_string();
+        assert!(err.contains("clip"), "{clip}: {err}");
+    }
     assert!(ms
         .scaled_to_peak(-1.0)
         .unwrap_err()
