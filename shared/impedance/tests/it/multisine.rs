@@ -50,6 +50,7 @@ fn the_lines_lie_on_the_periods_grid_log_spaced_within_the_band() {
         assert!((2.0..=32.0).contains(&l.omega_rad_s));
     }
     assert!((ms.period_s() - 20.0).abs() < 1e-12);
+    assert_eq!((ms.rate_hz(), ms.period_samples()), (1000.0, 20_000));
 }
 
 /// Crowded at the low end (a 4 s period: 1.57 rad/s a bin, 12 lines over
