@@ -29,7 +29,7 @@ declare -A FILES=(
   [exo-identifier]="services/identifier/src/*.rs"
   [exo-controller]="services/controller/src/*.rs services/controller/src/*/*.rs"
   [exo-diagnose]="tools/diagnose/src/*.rs tools/diagnose/src/*/*.rs"
-  [exo-sensor-driver]="services/sensor-driver/src/driver.rs services/sensor-driver/src/node.rs"
+  [exo-sensor-driver]="services/sensor-driver/src/*.rs services/sensor-driver/src/*/*.rs"
   [exo-config]="shared/config/src/run.rs shared/config/src/run/*.rs shared/config/src/subject.rs shared/config/src/experiments.rs shared/config/src/ethercat.rs"
 )
 ORDER=(exo-impedance exo-identifier exo-controller exo-diagnose exo-sensor-driver exo-config)
