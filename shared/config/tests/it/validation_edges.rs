@@ -210,3 +210,99 @@ fn a_voluntary_bias_may_be_negative_within_its_range() {
         "voluntary.bias_nm",
     );
 }
+
+/// A lowering spring is a spring too: `release.spring_torque_nm` spans
+/// [−100, 100] Nm (the run file's documented range), both signs.
+#[test]
+fn a_release_springs_torque_may_lower_or_raise_within_100_nm() {
+    let section = |torque: &str| {
+        format!(
+            "[release]\nexperiment = 1\nspring_torque_nm = {torque}\nhold_s = 5.0\nobserve_s = 5.0\n\n[services]\n"
+        )
+    };
+    let mode = ("mode = \"identification\"", "mode = \"release\"");
+    for torque in ["-50.0", "-100.0", "100.0"] {
+        let s = section(torque);
+        let cfg = accepted(
+            &format!("rel{}", torque.replace(['-', '.'], "")),
+            &[mode, ("[services]\n", s.as_str())],
+        );
+        assert_eq!(
+            cfg.release.map(|r| r.spring_torque_nm),
+            Some(torque.parse().unwrap())
+        );
+    }
+    let s = section("-100.5");
+    refused_naming(
+        "relbeyond",
+        &[mode, ("[services]\n", s.as_str())],
+        "release.spring_torque_nm",
+    );
+}
+
+/// The periods asked must exist in the run's experiment table, not only
+/// within the largest table allowed (`MAX_PERIOD`, 10): a table of six
+/// periods refuses the default protocol's period 7, naming it; one of
+/// seven takes it.
+#[test]
+fn a_period_beyond_the_runs_table_is_refused_naming_it() {
+    let table = |n: &'static str, boost: &'static str| {
+        [
+            ("\nperiods = 10", n),
+            ("amplitude_boost_from_period = 8", boost),
+        ]
+    };
+    let (r, dir) = load_edited_in(
+        "p7",
+        "experiments.toml",
+        &table("\nperiods = 7", "amplitude_boost_from_period = 7"),
+    );
+    let _ = std::fs::remove_dir_all(dir);
+    r.unwrap_or_else(|e| panic!("a table of 7 periods with period 7 asked: {e}"));
+    let (r, dir) = load_edited_in(
+        "p6",
+        "experiments.toml",
+        &table("\nperiods = 6", "amplitude_boost_from_period = 7"),
+    );
+    let _ = std::fs::remove_dir_all(dir);
+    let err = r
+        .err()
+        .expect("period 7 of a 6-period table accepted")
+        .to_string();
+    assert!(
+        err.contains("protocol.periods[2]") && err.contains("period 7 is outside 1..=6"),
+        "{err}"
+    );
+}
+
+/// Nyquist is `π · run.rate_hz` rad/s: at 1 kHz (3141.6 rad/s) a protocol
+/// whose fastest line is 2004.7 rad/s (experiment 7's 4 rad/s × 10^0.45 in
+/// period 7: the frequency step 10^0.45) is accepted; the same at 500 Hz
+/// (1570.8 rad/s) is refused naming the experiment's frequency.
+#[test]
+fn an_excitation_between_the_two_rates_nyquist_frequencies() {
+    let step = (
+        "frequency_step = 1.2589254117941673",
+        "frequency_step = 2.8183829312644537",
+    );
+    let (r, dir) = load_edited_in("nyq1k", "experiments.toml", &[step]);
+    let _ = std::fs::remove_dir_all(dir);
+    r.unwrap_or_else(|e| panic!("2004.7 rad/s at 1 kHz: {e}"));
+    let (_, dir) = load_edited_in("nyq500", "experiments.toml", &[step]);
+    let run = dir.join("default.toml");
+    let text =
+        std::fs::read_to_string(&run)
+            .unwrap()
+            .replacen("rate_hz = 1000.0", "rate_hz = 500.0", 1);
+    std::fs::write(&run, text).unwrap();
+    let r = exo_config::RunConfig::from_file(&run);
+    let _ = std::fs::remove_dir_all(dir);
+    let err = r
+        .err()
+        .expect("2004.7 rad/s at 500 Hz accepted")
+        .to_string();
+    assert!(
+        err.contains("start_omega_rad_s") && err.contains("π·run.rate_hz = 1570.8 rad/s"),
+        "{err}"
+    );
+}
