@@ -266,8 +266,7 @@ fn a_period_beyond_the_runs_table_is_refused_naming_it() {
     );
     let _ = std::fs::remove_dir_all(dir);
     let err = r
-        .err()
-        .expect("period 7 of a 6-period table accepted")
+        .expect_err("period 7 of a 6-period table accepted")
         .to_string();
     assert!(
         err.contains("protocol.periods[2]") && err.contains("period 7 is outside 1..=6"),
@@ -297,10 +296,7 @@ fn an_excitation_between_the_two_rates_nyquist_frequencies() {
     std::fs::write(&run, text).unwrap();
     let r = exo_config::RunConfig::from_file(&run);
     let _ = std::fs::remove_dir_all(dir);
-    let err = r
-        .err()
-        .expect("2004.7 rad/s at 500 Hz accepted")
-        .to_string();
+    let err = r.expect_err("2004.7 rad/s at 500 Hz accepted").to_string();
     assert!(
         err.contains("start_omega_rad_s") && err.contains("π·run.rate_hz = 1570.8 rad/s"),
         "{err}"
