@@ -577,6 +577,37 @@ mod tests {
         ));
     }
 
+    /// A limit is the largest value tolerated, not the first refused: a
+    /// sample exactly at the run file's angle range or interaction-torque
+    /// limit runs on; one a nanoradian or a nano-newton-metre beyond latches
+    /// the fault (docs/faults.md).
+    #[test]
+    fn a_sample_at_a_limit_runs_on_and_just_beyond_faults() {
+        let k0 = Controller::from_config(&cfg()).unwrap();
+        let [lo, hi] = k0.limits.theta_rad;
+        let tc = k0.limits.tau_c_nm;
+        for (theta, tau) in [(lo, 0.0), (hi, 0.0), (0.3, tc), (0.3, -tc)] {
+            let mut k = Controller::from_config(&cfg()).unwrap();
+            assert_eq!(
+                k.tick(&sample(0, theta, tau)).fault,
+                None,
+                "θ {theta}, τ_c {tau}"
+            );
+        }
+        for (theta, tau) in [
+            (lo - 1e-9, 0.0),
+            (hi + 1e-9, 0.0),
+            (0.3, tc + 1e-9),
+            (0.3, -tc - 1e-9),
+        ] {
+            let mut k = Controller::from_config(&cfg()).unwrap();
+            assert!(
+                k.tick(&sample(0, theta, tau)).fault.is_some(),
+                "θ {theta}, τ_c {tau}"
+            );
+        }
+    }
+
     #[test]
     fn constant_alpha_amplifies_per_experiment() {
         let mut c = cfg();

@@ -286,6 +286,15 @@ mod tests {
             (analysis.omega, analysis.amplitude, analysis.alpha),
             (2.0, 2.0, 1.0)
         );
+        // The run file's one experiment and period, named in what goes out
+        // (the recorder and the identifier key their windows by them).
+        assert_eq!((analysis.experiment, analysis.period), (1, 1));
+        for (_, p) in &published {
+            let phase = p.protocol_phase();
+            if phase != Some(ProtocolPhase::Idle) {
+                assert_eq!((p.experiment, p.period), (1, 1), "{phase:?}");
+            }
+        }
     }
 
     #[test]

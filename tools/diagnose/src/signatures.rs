@@ -94,30 +94,69 @@ pub fn window_harmonics(t: &[f64], y: &[f64], w: f64) -> Option<(WindowSpectrum,
     let span = n as f64 * dt;
     let cycles = (span * w / std::f64::consts::TAU).round().max(1.0) as usize;
     let yv = DVector::from_column_slice(&y[..n]);
-    // Mean, trend, cos/sin of the first three harmonics, and (second pass)
-    // a decaying sinusoid `e^{−λt}` at the ringing's frequency.
-    let fit = |ringing: Option<(f64, f64)>| {
-        let p = if ringing.is_some() { 10 } else { 8 };
-        let x = DMatrix::from_fn(n, p, |i, j| {
-            let s = tau[i];
-            match (j, ringing) {
-                (0, _) => 1.0,
-                (1, _) => s / span - 0.5,
-                (8, Some((wr, l))) => (-l * s).exp() * (wr * s).cos(),
-                (9, Some((wr, l))) => (-l * s).exp() * (wr * s).sin(),
-                _ => {
-                    let h = ((j - 2) / 2 + 1) as f64;
-                    if j % 2 == 0 {
-                        (h * w * s).cos()
-                    } else {
-                        (h * w * s).sin()
-                    }
-                }
-            }
-        });
-        let beta = (x.transpose() * &x).try_inverse()? * (x.transpose() * &yv);
-        let r: Vec<f64> = (&yv - &x * &beta).iter().copied().collect();
+    // Mean, trend, cos/sin of the first three harmonics: one `sin_cos` a
+    // sample, the harmonics by the phasor's powers.
+    let fixed = DMatrix::from_fn(n, 8, |i, j| match j {
+        0 => 1.0,
+        1 => tau[i] / span - 0.5,
+        _ => 0.0,
+    });
+    let mut fixed = fixed;
+    for i in 0..n {
+        let (sn, cs) = (w * tau[i]).sin_cos();
+        let e1 = Complex64::new(cs, sn);
+        let mut e = e1;
+        for h in 0..3 {
+            fixed[(i, 2 + 2 * h)] = e.re;
+            fixed[(i, 3 + 2 * h)] = e.im;
+            e *= e1;
+        }
+    }
+    let gram = fixed.tr_mul(&fixed);
+    let fixed_y = fixed.tr_mul(&yv);
+    // Least squares on those terms and (second pass) a decaying sinusoid
+    // `e^{−λt}` at the ringing's frequency, given as its cosine and sine
+    // columns: the normal equations from the fixed terms' Gram matrix, built
+    // once.
+    let yy = yv.dot(&yv);
+    let fit0 = || {
+        let beta = gram.clone().try_inverse()? * &fixed_y;
+        let r: Vec<f64> = (&yv - &fixed * &beta).iter().copied().collect();
         Some((beta, r))
+    };
+    // With the ringing's cosine and sine columns `c`, `sn`: the
+    // coefficients and the residual sum of squares `y'y − β'X'y` (the
+    // residual itself is formed only for the best of the grid).
+    let fit_ringing = |c: &[f64], sn: &[f64]| {
+        let mut g = DMatrix::<f64>::zeros(10, 10);
+        g.view_mut((0, 0), (8, 8)).copy_from(&gram);
+        let mut xy = DVector::<f64>::zeros(10);
+        xy.rows_mut(0, 8).copy_from(&fixed_y);
+        for (k, col) in [c, sn].into_iter().enumerate() {
+            let v = DVector::from_column_slice(col);
+            let cross = fixed.tr_mul(&v);
+            for j in 0..8 {
+                g[(j, 8 + k)] = cross[j];
+                g[(8 + k, j)] = cross[j];
+            }
+            xy[8 + k] = v.dot(&yv);
+        }
+        let cc: f64 = c.iter().map(|v| v * v).sum();
+        let ss: f64 = sn.iter().map(|v| v * v).sum();
+        let cs: f64 = c.iter().zip(sn).map(|(a, b)| a * b).sum();
+        g[(8, 8)] = cc;
+        g[(9, 9)] = ss;
+        g[(8, 9)] = cs;
+        g[(9, 8)] = cs;
+        let beta = g.try_inverse()? * &xy;
+        let rss = yy - beta.dot(&xy);
+        Some((beta, rss))
+    };
+    let residual = |beta: &DVector<f64>, c: &[f64], sn: &[f64]| -> Vec<f64> {
+        let base = &fixed * beta.rows(0, 8);
+        (0..n)
+            .map(|i| y[i] - base[i] - beta[8] * c[i] - beta[9] * sn[i])
+            .collect()
     };
     // The residual's Hann-windowed spectrum (sidelobes falling as 1/Δω³,
     // so a strong transient does not leak over the band): bins 2 … up to
@@ -138,17 +177,25 @@ pub fn window_harmonics(t: &[f64], y: &[f64], w: f64) -> Option<(WindowSpectrum,
     // harmonics are a few bins apart, and the least squares removed the
     // first three anyway.
     let harmonic_bin = |k: usize| (1..=5).any(|h| k == h * cycles);
+    // Each sample's `e^{−j 2π t/T}`, whose k-th power is bin k's phasor.
+    let bin_step: Vec<Complex64> = tau
+        .iter()
+        .map(|&s| Complex64::from_polar(1.0, -std::f64::consts::TAU * s / span))
+        .collect();
     let spectrum = |r: &[f64], skip: Option<usize>| -> Vec<(usize, f64)> {
+        let mut acc = vec![Complex64::new(0.0, 0.0); kmax + 1];
+        for i in 0..n {
+            let a = hann[i] * r[i];
+            let step = bin_step[i];
+            let mut z = step * step;
+            for bin in acc.iter_mut().skip(2) {
+                *bin += a * z;
+                z *= step;
+            }
+        }
         (2..=kmax)
             .filter(|&k| !harmonic_bin(k) && skip.is_none_or(|q| (k as i64 - q as i64).abs() > 2))
-            .map(|k| {
-                let wk = std::f64::consts::TAU * k as f64 / span;
-                let mut acc = Complex64::new(0.0, 0.0);
-                for i in 0..n {
-                    acc += (hann[i] * r[i]) * Complex64::from_polar(1.0, -wk * tau[i]);
-                }
-                (k, (acc * (2.0 / sum_w)).norm_sqr())
-            })
+            .map(|k| (k, (acc[k] * (2.0 / sum_w)).norm_sqr()))
             .collect()
     };
     let floor = |pw: &[(usize, f64)]| {
@@ -156,7 +203,7 @@ pub fn window_harmonics(t: &[f64], y: &[f64], w: f64) -> Option<(WindowSpectrum,
         v.sort_by(f64::total_cmp);
         median(v) / std::f64::consts::LN_2 / enbw
     };
-    let (beta0, r0) = fit(None)?;
+    let (beta0, r0) = fit0()?;
     let mut power = spectrum(&r0, None);
     if power.len() < 8 {
         return None;
@@ -181,19 +228,48 @@ pub fn window_harmonics(t: &[f64], y: &[f64], w: f64) -> Option<(WindowSpectrum,
         // bin and the halves' estimate (least residual).
         let lambda0 = (-ratio.clamp(1e-3, 1.0).ln() / (0.5 * span)).max(0.2 / span);
         let dw = std::f64::consts::TAU / span;
-        let mut best: Option<(f64, DVector<f64>, Vec<f64>)> = None;
-        for i in -4..=4 {
-            for l in [0.0, 0.5, 0.75, 1.0, 1.5, 2.0, 3.0] {
-                let Some((b, r)) = fit(Some((wk + 0.125 * i as f64 * dw, l * lambda0))) else {
+        let decays: Vec<Vec<f64>> = [0.0f64, 0.5, 0.75, 1.0, 1.5, 2.0, 3.0]
+            .iter()
+            .map(|l| tau.iter().map(|s| (-l * lambda0 * s).exp()).collect())
+            .collect();
+        // The grid's frequencies `wk + i δ`, i = −4 … 4, δ = dw/8: each
+        // sample's phasor at `wk − 4δ` and its step `e^{jδt}`.
+        let delta = 0.125 * dw;
+        let mut phasor: Vec<(Complex64, Complex64)> = tau
+            .iter()
+            .map(|&s| {
+                let (a, b) = ((wk - 4.0 * delta) * s).sin_cos();
+                let (da, db) = (delta * s).sin_cos();
+                (Complex64::new(b, a), Complex64::new(db, da))
+            })
+            .collect();
+        let (mut c, mut sn) = (vec![0.0; n], vec![0.0; n]);
+        let mut best: Option<(f64, DVector<f64>, usize, usize)> = None;
+        for i in 0..9 {
+            for (l, decay) in decays.iter().enumerate() {
+                for (j, e) in decay.iter().enumerate() {
+                    c[j] = e * phasor[j].0.re;
+                    sn[j] = e * phasor[j].0.im;
+                }
+                let Some((b, rss)) = fit_ringing(&c, &sn) else {
                     continue;
                 };
-                let rss: f64 = r.iter().map(|v| v * v).sum();
                 if best.as_ref().is_none_or(|x| rss < x.0) {
-                    best = Some((rss, b, r));
+                    best = Some((rss, b, i, l));
                 }
             }
+            for p in phasor.iter_mut() {
+                p.0 *= p.1;
+            }
         }
-        let (_, b, r) = best?;
+        let (_, b, i, l) = best?;
+        let wr = wk + (i as f64 - 4.0) * delta;
+        for (j, s) in tau.iter().enumerate() {
+            let (a, cs) = (wr * s).sin_cos();
+            c[j] = decays[l][j] * cs;
+            sn[j] = decays[l][j] * a;
+        }
+        let r = residual(&b, &c, &sn);
         let pw = spectrum(&r, Some(k));
         (pw.len() >= 8).then(|| (b, floor(&pw), pw.len()))
     }) {
@@ -306,6 +382,29 @@ pub(crate) fn sh_harmonics(d: &Dataset) -> &[Option<crate::data::ShHarmonics>] {
 pub(crate) fn she_harmonics(d: &Dataset) -> &[Option<crate::data::ShHarmonics>] {
     d.she_harmonics
         .get_or_init(|| output_harmonics(d, |s| &s.tau_s_net_nm))
+}
+
+/// Every window's `τ_s` and `τ_d` harmonics with each one's noise power
+/// per bin ([`window_harmonics`]; `None` for a broadband window or one too
+/// short), computed once per dataset.
+fn sea_harmonics(d: &Dataset) -> &[Option<crate::data::SeaHarmonics>] {
+    d.sea_harmonics.get_or_init(|| {
+        d.signals
+            .iter()
+            .map(|s| {
+                let w = s.omega_rad_s;
+                if w <= 0.0
+                    || s.tau_d_nm.len() != s.t_s.len()
+                    || s.tau_d_nm.iter().any(|x| !x.is_finite())
+                {
+                    return None;
+                }
+                let (spec_s, ts) = window_harmonics(&s.t_s, &s.tau_s_nm, w)?;
+                let (spec_d, td) = window_harmonics(&s.t_s, &s.tau_d_nm, w)?;
+                Some(((spec_s.noise_power, ts), (spec_d.noise_power, td)))
+            })
+            .collect()
+    })
 }
 
 fn output_harmonics(
@@ -426,10 +525,7 @@ pub fn saturation_harmonic_check(
         let Some(n) = exo_impedance::frf::whole_cycles(&s.t_s, w) else {
             continue;
         };
-        let (Some((spec_s, ts)), Some((spec_d, td))) = (
-            window_harmonics(&s.t_s, &s.tau_s_nm, w),
-            window_harmonics(&s.t_s, &s.tau_d_nm, w),
-        ) else {
+        let Some(((noise_s, ts), (noise_d, td))) = sea_harmonics(d)[i] else {
             continue;
         };
         let c = &d.conditions[i];
@@ -447,8 +543,7 @@ pub fn saturation_harmonic_check(
             let k = h as usize - 1;
             let hw = f64::from(h) * w;
             let g = linear.predict_tf(Tf::Sea, hw, c, zero);
-            let sd =
-                component_sd(spec_s.noise_power).hypot(g.norm() * component_sd(spec_d.noise_power));
+            let sd = component_sd(noise_s).hypot(g.norm() * component_sd(noise_d));
             if sd.is_nan() || sd <= 0.0 {
                 continue;
             }

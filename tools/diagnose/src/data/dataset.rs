@@ -133,11 +133,22 @@ pub struct Dataset {
     pub(crate) sh_harmonics: std::sync::OnceLock<Vec<Option<ShHarmonics>>>,
     /// The same for `τ_s − τ_gravity` (`S_h-e`'s output) in place of `τ_c`.
     pub(crate) she_harmonics: std::sync::OnceLock<Vec<Option<ShHarmonics>>>,
+    /// The change within each window of `S_h` and of `S_h-e`
+    /// ([`super::within_window_rates`]), measured once when first needed.
+    pub(crate) within_rates: [std::sync::OnceLock<Vec<super::WindowRate>>; 2],
+    /// Per window, `τ_s`'s and `τ_d`'s residual noise power per bin and
+    /// harmonic phasors ([`crate::signatures::window_harmonics`]), for the
+    /// torque limit's check; measured once when first needed.
+    pub(crate) sea_harmonics: std::sync::OnceLock<Vec<Option<SeaHarmonics>>>,
 }
 
 /// One window's `θ_e` and `τ_c` harmonics (see [`Dataset::sh_harmonics`]):
 /// `(noise power of τ_c per bin, θ_e phasors, τ_c phasors)`.
 pub(crate) type ShHarmonics = (f64, [Complex64; 3], [Complex64; 3]);
+
+/// One window's `τ_s` and `τ_d` harmonics (see [`Dataset::sea_harmonics`]):
+/// `((noise power of τ_s per bin, τ_s phasors), (the same of τ_d))`.
+pub(crate) type SeaHarmonics = ((f64, [Complex64; 3]), (f64, [Complex64; 3]));
 
 impl Dataset {
     /// The experiments present, sorted.

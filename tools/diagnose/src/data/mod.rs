@@ -46,12 +46,14 @@ mod dataset;
 mod reduction;
 mod sine;
 mod transient;
+mod within;
 
 pub use condition::{CommandPeaks, Condition, GravityFundamentals};
-pub(crate) use dataset::ShHarmonics;
 pub use dataset::{Dataset, LocalNoise, Observation, TransientFree, WindowSignals};
+pub(crate) use dataset::{SeaHarmonics, ShHarmonics};
 pub use reduction::reduce;
 pub use transient::smooth_transient;
+pub use within::{within_window_rates, WindowRate};
 
 use serde::Serialize;
 

@@ -45,7 +45,7 @@ pub struct TfCheck {
 }
 
 /// What a candidate predicts within the windows (the change from the first
-/// half of each window to its second, [`crate::remains::within_window_rates`])
+/// half of each window to its second, [`crate::data::within_window_rates`])
 /// against what the data show there: with `m` the whitened predicted rate
 /// of change (candidate less current model) and `y` the measured one,
 /// `β = y·m/|m|²` is the fraction of the predicted change the data follow,
@@ -132,7 +132,7 @@ pub(super) fn window_check(
         if !d.supported.contains(&tf) {
             continue;
         }
-        for r in crate::remains::within_window_rates(d, tf) {
+        for r in crate::data::within_window_rates(d, tf) {
             let o = &r.observation;
             let c = &d.conditions[o.window];
             let mut later = c.clone();

@@ -52,8 +52,9 @@
 //!   holds);
 //! - `characterisation.rs`: [`characterise`] itself and the bands'
 //!   residuals;
-//! - `time.rs`: the change within a window ([`within_window_rates`],
-//!   [`WindowRate`]) and the drift across an experiment;
+//! - `time.rs`: the change within a window (its rates measured by
+//!   [`crate::data::within_window_rates`]) and the drift across an
+//!   experiment;
 //! - `regress.rs`: the weighted regressions they all use;
 //! - `words.rs`: the sentences.
 //!
@@ -69,7 +70,6 @@ mod time;
 mod words;
 
 pub use characterisation::characterise;
-pub use time::{within_window_rates, WindowRate};
 
 use serde::Serialize;
 

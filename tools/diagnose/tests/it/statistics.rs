@@ -25,9 +25,10 @@
 use crate::common;
 use common::default_plant;
 
+use exo_diagnose::data::within_window_rates;
 use exo_diagnose::data::{reduce, Reduction};
 use exo_diagnose::fit::rss;
-use exo_diagnose::remains::{characterise, within_window_rates};
+use exo_diagnose::remains::characterise;
 use exo_diagnose::synth::{synthesize, SynthPeriod, SynthSettings};
 use exo_diagnose::{diagnose, Settings, Term, Tf};
 use exo_impedance::ftest::{f_critical, f_survival};
