@@ -38,7 +38,7 @@ pub struct IdentifierSettings {
     pub fit_source: FitSource,
     /// Sign constraint on the damping terms of the fits.
     pub damping: DampingSign,
-    /// Welch segment length (samples, a power of two ≥ 16) for broadband windows.
+    /// Welch segment length (samples, at least 16; any length) for broadband windows.
     pub welch_segment: usize,
     /// Points a broadband window is summarised into.
     pub broadband_points: usize,
@@ -169,11 +169,11 @@ impl IdentifierSettings {
                 "must be above broadband_band_rad_s[0]",
             );
         }
-        if !(self.welch_segment.is_power_of_two() && self.welch_segment >= 16) {
+        if self.welch_segment < 16 {
             return err(
                 "welch_segment",
                 self.welch_segment as f64,
-                "must be a power of two, at least 16",
+                "must be at least 16",
             );
         }
         if self.broadband_points == 0 {

@@ -76,4 +76,4 @@ pub use lpm::{
 pub use sine::{
     sine_amplitude, sine_ratio, whole_cycles, SineAmplitude, SineCorrelator, SinePoint,
 };
-pub use welch::{average_bins, band_groups, fft_in_place, select_band, welch_h1, H1Bin};
+pub use welch::{average_bins, band_groups, fft_in_place, select_band, welch_h1, Fft, H1Bin};

@@ -185,7 +185,7 @@ fn bad_settings_are_refused_naming_the_field() {
         (
             "welch_segment",
             IdentifierSettings {
-                welch_segment: 1000,
+                welch_segment: 15,
                 ..Default::default()
             },
         ),
@@ -226,4 +226,13 @@ fn bad_settings_are_refused_naming_the_field() {
         ..Default::default()
     })
     .is_ok());
+    // A Welch segment need not be a power of two (rustfft, issue 34); 16 is
+    // the shortest.
+    for welch_segment in [16, 1000] {
+        assert!(Identifier::try_new(IdentifierSettings {
+            welch_segment,
+            ..Default::default()
+        })
+        .is_ok());
+    }
 }

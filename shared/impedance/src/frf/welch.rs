@@ -6,42 +6,60 @@ use num_complex::Complex64;
 
 use crate::error::{Result, ScienceError};
 
-/// In-place iterative radix-2 FFT (`n` a power of two), forward (`e^{−j}`).
+/// A forward FFT (`X_k = Σ x_n e^{−j2πkn/N}`) of one length `N ≥ 1`,
+/// planned once and applied to many buffers: rustfft's mixed-radix plans,
+/// with Rader's or Bluestein's algorithm for large prime factors, so a
+/// multisine's period or a Welch segment need not be a power of two.
+pub struct Fft {
+    plan: std::sync::Arc<dyn rustfft::Fft<f64>>,
+    scratch: Vec<Complex64>,
+}
+
+impl std::fmt::Debug for Fft {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Fft").field("len", &self.len()).finish()
+    }
+}
+
+impl Fft {
+    /// Plans the FFT of `n` samples; refused for `n = 0`.
+    pub fn new(n: usize) -> Result<Self> {
+        if n == 0 {
+            return Err(ScienceError::Infeasible("FFT of no samples".into()));
+        }
+        let plan = rustfft::FftPlanner::new().plan_fft_forward(n);
+        let scratch = vec![Complex64::new(0.0, 0.0); plan.get_inplace_scratch_len()];
+        Ok(Self { plan, scratch })
+    }
+
+    /// The length it was planned for.
+    pub fn len(&self) -> usize {
+        self.plan.len()
+    }
+
+    /// Always false: a plan has at least one sample ([`Fft::new`]).
+    pub fn is_empty(&self) -> bool {
+        self.plan.len() == 0
+    }
+
+    /// Transforms `a` in place; refused when its length is not the plan's.
+    pub fn forward(&mut self, a: &mut [Complex64]) -> Result<()> {
+        if a.len() != self.len() {
+            return Err(ScienceError::LengthMismatch {
+                what: "FFT buffer against its plan",
+                left: a.len(),
+                right: self.len(),
+            });
+        }
+        self.plan.process_with_scratch(a, &mut self.scratch);
+        Ok(())
+    }
+}
+
+/// In-place forward FFT of any length ≥ 1 (`e^{−j}`; see [`Fft`], which
+/// plans once for many buffers of one length).
 pub fn fft_in_place(a: &mut [Complex64]) -> Result<()> {
-    let n = a.len();
-    if n == 0 || !n.is_power_of_two() {
-        return Err(ScienceError::Infeasible(format!(
-            "FFT length {n} is not a power of two"
-        )));
-    }
-    let mut j = 0;
-    for i in 1..n {
-        let mut bit = n >> 1;
-        while j & bit != 0 {
-            j ^= bit;
-            bit >>= 1;
-        }
-        j |= bit;
-        if i < j {
-            a.swap(i, j);
-        }
-    }
-    let mut len = 2;
-    while len <= n {
-        let w = Complex64::from_polar(1.0, -std::f64::consts::TAU / len as f64);
-        for start in (0..n).step_by(len) {
-            let mut wk = Complex64::new(1.0, 0.0);
-            for k in 0..len / 2 {
-                let u = a[start + k];
-                let v = a[start + k + len / 2] * wk;
-                a[start + k] = u + v;
-                a[start + k + len / 2] = u - v;
-                wk *= w;
-            }
-        }
-        len <<= 1;
-    }
-    Ok(())
+    Fft::new(a.len())?.forward(a)
 }
 
 /// One frequency bin of an H1 estimate.
@@ -78,7 +96,7 @@ impl H1Bin {
 }
 
 /// Welch H1 estimate of `y/x` sampled at `rate_hz`, segments of
-/// `segment_len` (a power of two) with a Hann window and 50 % overlap,
+/// `segment_len` (any length ≥ 16) with a Hann window and 50 % overlap,
 /// each segment's mean removed. Bins 1 … `segment_len/2 − 1`.
 pub fn welch_h1(x: &[f64], y: &[f64], rate_hz: f64, segment_len: usize) -> Result<Vec<H1Bin>> {
     if x.len() != y.len() {
@@ -88,9 +106,9 @@ pub fn welch_h1(x: &[f64], y: &[f64], rate_hz: f64, segment_len: usize) -> Resul
             right: y.len(),
         });
     }
-    if !segment_len.is_power_of_two() || segment_len < 16 {
+    if segment_len < 16 {
         return Err(ScienceError::Infeasible(format!(
-            "H1 segment length {segment_len} must be a power of two ≥ 16"
+            "H1 segment length {segment_len} must be at least 16"
         )));
     }
     if x.len() < segment_len {
@@ -117,6 +135,7 @@ pub fn welch_h1(x: &[f64], y: &[f64], rate_hz: f64, segment_len: usize) -> Resul
     let mut sxy = vec![Complex64::new(0.0, 0.0); half];
     let mut fx = vec![Complex64::new(0.0, 0.0); segment_len];
     let mut fy = vec![Complex64::new(0.0, 0.0); segment_len];
+    let mut fft = Fft::new(segment_len)?;
     let mut segments = 0;
     let mut start = 0;
     while start + segment_len <= x.len() {
@@ -132,8 +151,8 @@ pub fn welch_h1(x: &[f64], y: &[f64], rate_hz: f64, segment_len: usize) -> Resul
             fx[i] = Complex64::new((xs[i] - mx) * window[i], 0.0);
             fy[i] = Complex64::new((ys[i] - my) * window[i], 0.0);
         }
-        fft_in_place(&mut fx)?;
-        fft_in_place(&mut fy)?;
+        fft.forward(&mut fx)?;
+        fft.forward(&mut fy)?;
         for k in 1..half {
             sxx[k] += fx[k].norm_sqr();
             syy[k] += fy[k].norm_sqr();

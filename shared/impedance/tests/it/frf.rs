@@ -307,20 +307,35 @@ fn a_bad_frequency_is_refused_by_name() {
     assert!(SineCorrelator::<1>::new(5.0, 0.0, true).is_ok());
 }
 
-/// The shortest Welch segment allowed is 16 samples (7 bins); 8 is refused.
+/// The shortest Welch segment allowed is 16 samples (7 bins); 15 and 8 are
+/// refused. A segment need not be a power of two: 20 samples give bins
+/// 1 … 9 at `k · rate / 20`.
 #[test]
 fn the_shortest_welch_segment_is_sixteen() {
     let x: Vec<f64> = (0..64).map(|k| (0.9 * k as f64).sin()).collect();
     let bins = welch_h1(&x, &x, 100.0, 16).unwrap();
     assert_eq!(bins.len(), 7);
+    assert!(welch_h1(&x, &x, 100.0, 15).is_err());
     assert!(welch_h1(&x, &x, 100.0, 8).is_err());
+    let bins = welch_h1(&x, &x, 100.0, 20).unwrap();
+    assert_eq!(bins.len(), 9);
+    for (k, b) in bins.iter().enumerate() {
+        let expected = std::f64::consts::TAU * (k + 1) as f64 * 100.0 / 20.0;
+        assert!((b.omega_rad_s - expected).abs() < 1e-12, "bin {}", k + 1);
+    }
 }
 
+/// Any length: powers of two, composites, a prime (Rader's or Bluestein's
+/// path), one sample; the empty buffer and a buffer of another length
+/// than the plan's are refused.
 #[test]
 fn fft_matches_a_naive_dft() {
     let mut n = Noise::new(7);
-    for log2 in 0..=9 {
-        let len = 1usize << log2;
+    let lengths: Vec<usize> = (0..=9)
+        .map(|l| 1usize << l)
+        .chain([3, 12, 100, 997, 1000])
+        .collect();
+    for len in lengths {
         let x: Vec<Complex64> = (0..len)
             .map(|_| Complex64::new(n.gauss(), n.gauss()))
             .collect();
@@ -333,8 +348,68 @@ fn fft_matches_a_naive_dft() {
             );
         }
     }
-    assert!(fft_in_place(&mut [Complex64::new(0.0, 0.0); 12]).is_err());
     assert!(fft_in_place(&mut []).is_err());
+    let mut plan = Fft::new(12).unwrap();
+    assert_eq!(plan.len(), 12);
+    assert!(plan.forward(&mut [Complex64::new(0.0, 0.0); 16]).is_err());
+}
+
+/// The radix-2 FFT exo used before rustfft (issue 34 item 2), kept here as
+/// the reference where both apply.
+fn radix2_reference(a: &mut [Complex64]) {
+    let n = a.len();
+    assert!(n.is_power_of_two());
+    let mut j = 0;
+    for i in 1..n {
+        let mut bit = n >> 1;
+        while j & bit != 0 {
+            j ^= bit;
+            bit >>= 1;
+        }
+        j |= bit;
+        if i < j {
+            a.swap(i, j);
+        }
+    }
+    let mut len = 2;
+    while len <= n {
+        let w = Complex64::from_polar(1.0, -std::f64::consts::TAU / len as f64);
+        for start in (0..n).step_by(len) {
+            let mut wk = Complex64::new(1.0, 0.0);
+            for k in 0..len / 2 {
+                let u = a[start + k];
+                let v = a[start + k + len / 2] * wk;
+                a[start + k] = u + v;
+                a[start + k + len / 2] = u - v;
+                wk *= w;
+            }
+        }
+        len <<= 1;
+    }
+}
+
+/// rustfft against the former radix-2 transform at the powers of two the
+/// Welch segments used (16 … 8192): the same bins to rounding, one plan
+/// reused across buffers.
+#[test]
+fn fft_matches_the_former_radix_2_transform_where_both_apply() {
+    let mut noise = Noise::new(11);
+    for log2 in 4..=13 {
+        let len = 1usize << log2;
+        let mut plan = Fft::new(len).unwrap();
+        for _ in 0..2 {
+            let x: Vec<Complex64> = (0..len)
+                .map(|_| Complex64::new(noise.gauss(), noise.gauss()))
+                .collect();
+            let (mut a, mut b) = (x.clone(), x);
+            plan.forward(&mut a).unwrap();
+            radix2_reference(&mut b);
+            let scale = (len as f64).sqrt();
+            for (k, (ak, bk)) in a.iter().zip(&b).enumerate() {
+                assert!((ak - bk).norm() < 1e-11 * scale, "n = {len}, bin {k}");
+            }
+        }
+    }
 }
 
 /// A discretised first-order lag y' = (x − y)/τ driven by random input:
@@ -359,7 +434,12 @@ fn lag_response(noise: f64) -> (Vec<f64>, Vec<f64>, f64) {
 #[test]
 fn h1_recovers_a_known_system_with_coherence_near_one() {
     let (x, y, tau) = lag_response(0.0);
-    let bins = welch_h1(&x, &y, 1000.0, 1024).unwrap();
+    // A power of two and a segment of 1000 samples (1 Hz bins, issue 34).
+    let mut bins = welch_h1(&x, &y, 1000.0, 1024).unwrap();
+    let thousand = welch_h1(&x, &y, 1000.0, 1000).unwrap();
+    assert_eq!(thousand.len(), 499);
+    assert!((thousand[4].omega_rad_s - std::f64::consts::TAU * 5.0).abs() < 1e-9);
+    bins.extend(thousand.into_iter().skip(2));
     // From the third bin up (the lowest carry the window's leakage of the
     // removed segment mean; select_band leaves them out).
     for b in bins.iter().skip(2).filter(|b| b.omega_rad_s < 100.0) {
@@ -511,7 +591,6 @@ fn band_selection_keeps_the_excited_coherent_bins_in_log_spaced_points() {
         .all(|p| p.omega_rad_s >= 1.0 && p.omega_rad_s <= 60.0));
     assert!(select_band(&bins, 1.1, 0.0, 1.0, 60.0, 12).is_empty());
     assert!(welch_h1(&x[..100], &y[..100], 1000.0, 1024).is_err());
-    assert!(welch_h1(&x, &y, 1000.0, 1000).is_err());
 }
 
 /// A bin at `omega` with input power `s_xx` and `H = h`.

@@ -112,7 +112,7 @@ impl Tf {
 pub struct Reduction {
     /// Smallest coherence (fraction of variance at ω) of θ_e and the output kept.
     pub min_coherence: f64,
-    /// Welch segment for broadband windows (samples, power of two).
+    /// Welch segment for broadband windows (samples, at least 16).
     pub welch_segment: usize,
     /// Bands a broadband window is summarised into.
     pub broadband_points: usize,
