@@ -122,54 +122,14 @@ pub fn configs_dir() -> PathBuf {
     workspace_root().join("configs")
 }
 
-/// A test's own directory under the system's temporary directory,
-/// `exo-it-{tag}-{pid}`: created empty, and removed when the test passes. A
-/// failing (panicking) test leaves it in place and prints where it is, for
-/// inspection. Without the removal, every test run left its recordings behind
-/// (about 1 GB per `cargo test --workspace`).
-pub struct ScratchDir(PathBuf);
+/// A test's own directory, removed when the test passes
+/// ([`exo_test_support::ScratchDir`]); here named `exo-it-{tag}-{pid}`.
+pub use exo_test_support::ScratchDir;
 
-impl ScratchDir {
-    /// Creates `exo-it-{tag}-{pid}` afresh (anything already there is removed).
-    pub fn new(tag: &str) -> Self {
-        let dir = std::env::temp_dir().join(format!("exo-it-{tag}-{}", std::process::id()));
-        Self::at(dir)
-    }
-
-    fn at(dir: PathBuf) -> Self {
-        let _ = std::fs::remove_dir_all(&dir);
-        std::fs::create_dir_all(&dir)
-            .unwrap_or_else(|e| panic!("cannot create {}: {e}", dir.display()));
-        ScratchDir(dir)
-    }
-
-    /// The directory.
-    pub fn path(&self) -> &Path {
-        &self.0
-    }
-}
-
-impl std::ops::Deref for ScratchDir {
-    type Target = Path;
-    fn deref(&self) -> &Path {
-        &self.0
-    }
-}
-
-impl AsRef<Path> for ScratchDir {
-    fn as_ref(&self) -> &Path {
-        &self.0
-    }
-}
-
-impl Drop for ScratchDir {
-    fn drop(&mut self) {
-        if std::thread::panicking() {
-            eprintln!("test failed: its files are kept in {}", self.0.display());
-        } else {
-            let _ = std::fs::remove_dir_all(&self.0);
-        }
-    }
+/// `exo-it-{tag}-{pid}` under the system's temporary directory, created
+/// empty (see [`ScratchDir`]).
+pub fn scratch_dir(tag: &str) -> ScratchDir {
+    ScratchDir::new(&format!("it-{tag}"))
 }
 
 /// A scratch directory for one test, with a run configuration derived from

@@ -4,6 +4,10 @@
 //! ARCHITECTURE.md, "Layers"), with no dependency of its own so that a
 //! pure-math crate's tests do not pull in IPC.
 //!
+//! [`ScratchDir`] is a test's own directory under the system's temporary
+//! directory, removed when the test passes and kept (its path printed) when
+//! it fails.
+//!
 //! [`CountingAllocator`] proves a path allocation-free: a test binary
 //! installs it as its global allocator and measures a closure with
 //! [`allocations_on_this_thread`] (only the test's own thread is counted,
@@ -24,6 +28,7 @@
 
 use std::alloc::{GlobalAlloc, Layout, System};
 use std::cell::Cell;
+use std::path::{Path, PathBuf};
 use std::process::Command;
 use std::sync::atomic::{AtomicUsize, Ordering};
 
@@ -138,4 +143,55 @@ pub fn in_a_process_of_its_own(test: &str) -> bool {
         out.status
     );
     false
+}
+
+/// A test's own directory under the system's temporary directory,
+/// `exo-{tag}-{pid}`: created empty, and removed when the test passes. A
+/// failing (panicking) test leaves it in place and prints where it is, for
+/// inspection. Without the removal, every test run left its recordings behind
+/// (about 1 GB per `cargo test --workspace`).
+pub struct ScratchDir(PathBuf);
+
+impl ScratchDir {
+    /// Creates `exo-{tag}-{pid}` afresh (anything already there is removed).
+    pub fn new(tag: &str) -> Self {
+        let dir = std::env::temp_dir().join(format!("exo-{tag}-{}", std::process::id()));
+        Self::at(dir)
+    }
+
+    /// Creates `dir` afresh, to be removed in the same way.
+    pub fn at(dir: PathBuf) -> Self {
+        let _ = std::fs::remove_dir_all(&dir);
+        std::fs::create_dir_all(&dir)
+            .unwrap_or_else(|e| panic!("cannot create {}: {e}", dir.display()));
+        ScratchDir(dir)
+    }
+
+    /// The directory.
+    pub fn path(&self) -> &Path {
+        &self.0
+    }
+}
+
+impl std::ops::Deref for ScratchDir {
+    type Target = Path;
+    fn deref(&self) -> &Path {
+        &self.0
+    }
+}
+
+impl AsRef<Path> for ScratchDir {
+    fn as_ref(&self) -> &Path {
+        &self.0
+    }
+}
+
+impl Drop for ScratchDir {
+    fn drop(&mut self) {
+        if std::thread::panicking() {
+            eprintln!("test failed: its files are kept in {}", self.0.display());
+        } else {
+            let _ = std::fs::remove_dir_all(&self.0);
+        }
+    }
 }

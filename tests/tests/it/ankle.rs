@@ -18,7 +18,7 @@ use exo_tests::{
 use serde_json::Value;
 
 fn scratch(tag: &str) -> ScratchDir {
-    ScratchDir::new(&format!("ankle-{tag}"))
+    exo_tests::scratch_dir(&format!("ankle-{tag}"))
 }
 
 /// `exo fit --json --joint ankle` of the record, with `extra` flags.

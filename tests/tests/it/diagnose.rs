@@ -8,7 +8,7 @@ use exo_tests::*;
 use serde_json::Value;
 
 fn scratch(tag: &str) -> ScratchDir {
-    ScratchDir::new(&format!("diag-{tag}"))
+    exo_tests::scratch_dir(&format!("diag-{tag}"))
 }
 
 /// The default plant with some of its text replaced, written to `dir`.

@@ -22,7 +22,7 @@ use serde_json::Value;
 /// A scratch directory of its own for each test (`case`), which run in
 /// parallel in one process.
 fn scratch(case: &str) -> ScratchDir {
-    ScratchDir::new(&format!("diag-outside-{case}"))
+    exo_tests::scratch_dir(&format!("diag-outside-{case}"))
 }
 
 /// Experiments 1, 4, 7 of Table I (α = 1; bias 0, 4, 8 Nm), ten periods

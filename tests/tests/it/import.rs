@@ -16,7 +16,7 @@ use exo_tests::*;
 
 /// A fresh scratch directory for one test.
 pub(crate) fn scratch(tag: &str) -> ScratchDir {
-    ScratchDir::new(&format!("import-{tag}"))
+    exo_tests::scratch_dir(&format!("import-{tag}"))
 }
 
 /// The simulated joint's inertia (kg·m²).

@@ -15,7 +15,7 @@ use exo_tests::{exo, python_script, stderr, stdout, stdout_of, ScratchDir};
 use serde_json::Value;
 
 fn scratch(tag: &str) -> ScratchDir {
-    ScratchDir::new(&format!("indep-{tag}"))
+    exo_tests::scratch_dir(&format!("indep-{tag}"))
 }
 
 fn rig(args: &[&str]) {

@@ -96,7 +96,7 @@ fn the_main_job_records_fits_and_reports_the_simulated_subject() {
 
 #[test]
 fn a_recording_written_by_an_independent_python_script_is_fitted() {
-    let dir = ScratchDir::new("py");
+    let dir = exo_tests::scratch_dir("py");
     let rec = dir.join("py.mcap");
     stdout_of(python_script("write_recording.py").arg(&rec).args([
         "--k",
@@ -115,7 +115,7 @@ fn a_recording_written_by_an_independent_python_script_is_fitted() {
 
 #[test]
 fn the_real_ankle_recording_is_imported_fitted_and_reported() {
-    let dir = ScratchDir::new("ankle");
+    let dir = exo_tests::scratch_dir("ankle");
     let rec = import_ankle(&dir);
     let v = fit_json(&[&rec]);
     let e = &v["subjects"][0]["experiments"][0];
@@ -310,7 +310,7 @@ fn a_recorder_killed_mid_run_leaves_a_readable_file_and_control_goes_on() {
 
 #[test]
 fn bad_recordings_are_named_never_a_panic() {
-    let dir = ScratchDir::new("bad");
+    let dir = exo_tests::scratch_dir("bad");
     let junk = dir.join("junk.mcap");
     std::fs::write(&junk, b"this is not a recording").unwrap();
     let out = exo(&["fit", junk.to_str().unwrap()]);

@@ -10,7 +10,7 @@ use exo_tests::*;
 use serde_json::Value;
 
 fn scratch(tag: &str) -> ScratchDir {
-    ScratchDir::new(&format!("repro-{tag}"))
+    exo_tests::scratch_dir(&format!("repro-{tag}"))
 }
 
 #[test]

@@ -9,10 +9,9 @@ fn write(dir: &Path, name: &str, text: &str) -> PathBuf {
     p
 }
 
-fn temp_dir(tag: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("exo-config-{tag}-{}", std::process::id()));
-    std::fs::create_dir_all(&d).unwrap();
-    d
+/// `exo-config-{tag}-{pid}`, removed when the test passes.
+fn temp_dir(tag: &str) -> exo_test_support::ScratchDir {
+    exo_test_support::ScratchDir::new(&format!("config-{tag}"))
 }
 
 #[test]
