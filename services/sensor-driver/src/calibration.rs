@@ -78,23 +78,30 @@ impl VelocityFilter {
     }
 }
 
+/// The rig the crate's unit tests calibrate against (the default plant's
+/// arm and sensors, 4096-count encoders, a 50 Hz velocity filter).
+#[cfg(test)]
+pub(crate) fn test_rig() -> RigSettings {
+    RigSettings {
+        arm_inertia_kg_m2: 0.1,
+        arm_mass_kg: 1.5,
+        arm_com_m: 0.2,
+        load_lever_arm_m: 0.45,
+        encoder_counts_per_rev: 4096.0,
+        cuff_lever_arm_m: 0.25,
+        sea_stiffness_nm_per_rad: 350.0,
+        sea_counts_per_rev: 4096.0,
+        velocity_cutoff_hz: 50.0,
+        gravity_m_s2: exo_config::GRAVITY_M_S2,
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
 
     fn rig() -> RigSettings {
-        RigSettings {
-            arm_inertia_kg_m2: 0.1,
-            arm_mass_kg: 1.5,
-            arm_com_m: 0.2,
-            load_lever_arm_m: 0.45,
-            encoder_counts_per_rev: 4096.0,
-            cuff_lever_arm_m: 0.25,
-            sea_stiffness_nm_per_rad: 350.0,
-            sea_counts_per_rev: 4096.0,
-            velocity_cutoff_hz: 50.0,
-            gravity_m_s2: exo_config::GRAVITY_M_S2,
-        }
+        test_rig()
     }
 
     #[test]

@@ -341,18 +341,7 @@ mod tests {
     use super::*;
 
     fn rig() -> RigSettings {
-        RigSettings {
-            arm_inertia_kg_m2: 0.1,
-            arm_mass_kg: 1.5,
-            arm_com_m: 0.2,
-            load_lever_arm_m: 0.45,
-            encoder_counts_per_rev: 4096.0,
-            cuff_lever_arm_m: 0.25,
-            sea_stiffness_nm_per_rad: 350.0,
-            sea_counts_per_rev: 4096.0,
-            velocity_cutoff_hz: 50.0,
-            gravity_m_s2: exo_config::GRAVITY_M_S2,
-        }
+        crate::calibration::test_rig()
     }
 
     fn frame(seq: u64) -> RawFrame {
