@@ -96,12 +96,11 @@ pub fn window_harmonics(t: &[f64], y: &[f64], w: f64) -> Option<(WindowSpectrum,
     let yv = DVector::from_column_slice(&y[..n]);
     // Mean, trend, cos/sin of the first three harmonics: one `sin_cos` a
     // sample, the harmonics by the phasor's powers.
-    let fixed = DMatrix::from_fn(n, 8, |i, j| match j {
+    let mut fixed = DMatrix::from_fn(n, 8, |i, j| match j {
         0 => 1.0,
         1 => tau[i] / span - 0.5,
         _ => 0.0,
     });
-    let mut fixed = fixed;
     for i in 0..n {
         let (sn, cs) = (w * tau[i]).sin_cos();
         let e1 = Complex64::new(cs, sn);
