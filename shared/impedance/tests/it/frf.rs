@@ -351,6 +351,8 @@ fn fft_matches_a_naive_dft() {
     assert!(fft_in_place(&mut []).is_err());
     let mut plan = Fft::new(12).unwrap();
     assert_eq!(plan.len(), 12);
+    assert!(!plan.is_empty());
+    assert_eq!(format!("{plan:?}"), "Fft { len: 12 }");
     assert!(plan.forward(&mut [Complex64::new(0.0, 0.0); 16]).is_err());
 }
 
