@@ -95,6 +95,24 @@ impl<'a> CommandCursor<'a> {
 mod tests {
     use super::*;
 
+    /// A window is half-open, `start <= stamp < end` (the analysis window's
+    /// closing state belongs to the next window, not to this one), oldest
+    /// first, also after the ring has wrapped.
+    #[test]
+    fn a_window_holds_its_start_and_not_its_end() {
+        for (cap, pushes) in [(16, 6u64), (4, 6)] {
+            let mut ring = Ring::<1>::new(cap);
+            for i in 1..=pushes {
+                ring.push(10 * i, [i as f64], 0);
+            }
+            let stamps = |a: u64, b: u64| ring.window(a, b).map(|e| e.0).collect::<Vec<_>>();
+            assert_eq!(stamps(30, 50), vec![30, 40], "ring of {cap}");
+            assert_eq!(stamps(31, 60), vec![40, 50], "ring of {cap}");
+            assert_eq!(stamps(40, 40), Vec::<u64>::new());
+            assert_eq!(stamps(50, 61), vec![50, 60]);
+        }
+    }
+
     #[test]
     fn the_command_cursor_gives_the_latest_command_at_or_before_a_stamp() {
         // A ring with room to spare, and a full one that has wrapped.
