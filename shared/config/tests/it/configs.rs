@@ -196,3 +196,46 @@ fn the_controllers_layout_is_eq_kp_or_the_set_gain_and_names_a_bad_key() {
     c.kp = None;
     assert_eq!(c.layout(0.3, 0.0).unwrap_err().key, "controller.kp");
 }
+
+/// CiA 402 fixes the width of the state machine's objects (controlword,
+/// statusword and error code 16 bits; modes of operation and its display,
+/// 0x6060/0x6061, 8 bits: CiA 402-2 object dictionary): an entry of another
+/// width is refused naming its `bits` key and the width, in either PDO;
+/// a role the standard leaves free (torque actual at 32 bits) is taken.
+#[test]
+fn cia_402_objects_of_the_wrong_width_are_refused_naming_the_entry() {
+    let cfg = RunConfig::from_file(&configs_dir().join("ethercat-kickcat.toml")).unwrap();
+    let e = cfg.bus.ethercat.as_ref().unwrap();
+    let find = |entries: &[exo_config::PdoEntry], role| {
+        entries.iter().position(|p| p.role == role).unwrap()
+    };
+    use exo_config::PdoRole;
+    for (role, wrong, fixed) in [
+        (PdoRole::ModeOfOperation, 16u8, 8u8),
+        (PdoRole::ModeDisplay, 16, 8),
+        (PdoRole::Controlword, 8, 16),
+        (PdoRole::Statusword, 32, 16),
+    ] {
+        let mut c = cfg.clone();
+        let b = c.bus.ethercat.as_mut().unwrap();
+        let (pdo, entries) = if role.is_output() {
+            ("rx_pdo", &mut b.rx_pdo.entries)
+        } else {
+            ("tx_pdo", &mut b.tx_pdo.entries)
+        };
+        let i = find(entries, role);
+        entries[i].bits = wrong;
+        let err = c.validate(Path::new("run.toml")).unwrap_err().to_string();
+        let key = format!("bus.ethercat.{pdo}.entries[{i}].bits");
+        assert!(
+            err.contains(&key) && err.contains(&format!("is {fixed} bits in CiA 402")),
+            "{role:?} at {wrong} bits: {err}"
+        );
+    }
+    let mut c = cfg.clone();
+    let b = c.bus.ethercat.as_mut().unwrap();
+    let i = find(&b.tx_pdo.entries, PdoRole::TorqueActual);
+    b.tx_pdo.entries[i].bits = 32;
+    assert!(c.validate(Path::new("run.toml")).is_ok());
+    assert_eq!(e.rx_pdo.entries.len(), 3);
+}
