@@ -243,9 +243,12 @@ pub fn window_harmonics(t: &[f64], y: &[f64], w: f64) -> Option<(WindowSpectrum,
             })
             .collect();
         let (mut c, mut sn) = (vec![0.0; n], vec![0.0; n]);
-        let mut best: Option<(f64, DVector<f64>, usize, usize)> = None;
-        for i in 0..9 {
-            for (l, decay) in decays.iter().enumerate() {
+        // The best grid point: its RSS, coefficients and (cosine, sine)
+        // columns.
+        type Best = (f64, DVector<f64>, Vec<f64>, Vec<f64>);
+        let mut best: Option<Best> = None;
+        for _ in 0..9 {
+            for decay in &decays {
                 for (j, e) in decay.iter().enumerate() {
                     c[j] = e * phasor[j].0.re;
                     sn[j] = e * phasor[j].0.im;
@@ -254,20 +257,14 @@ pub fn window_harmonics(t: &[f64], y: &[f64], w: f64) -> Option<(WindowSpectrum,
                     continue;
                 };
                 if best.as_ref().is_none_or(|x| rss < x.0) {
-                    best = Some((rss, b, i, l));
+                    best = Some((rss, b, c.clone(), sn.clone()));
                 }
             }
             for p in phasor.iter_mut() {
                 p.0 *= p.1;
             }
         }
-        let (_, b, i, l) = best?;
-        let wr = wk + (i as f64 - 4.0) * delta;
-        for (j, s) in tau.iter().enumerate() {
-            let (a, cs) = (wr * s).sin_cos();
-            c[j] = decays[l][j] * cs;
-            sn[j] = decays[l][j] * a;
-        }
+        let (_, b, c, sn) = best?;
         let r = residual(&b, &c, &sn);
         let pw = spectrum(&r, Some(k));
         (pw.len() >= 8).then(|| (b, floor(&pw), pw.len()))
