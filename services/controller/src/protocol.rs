@@ -437,6 +437,24 @@ mod tests {
         assert!(p.at(p.duration_s() + 1.0).done);
     }
 
+    /// `locate_from` on its own (the operator's restart calls it without
+    /// `at`'s guard): no step before the start or at a NaN time, from any
+    /// step; the step and the time into it otherwise, by hand.
+    #[test]
+    fn locating_a_time_before_the_start_or_at_nan_finds_no_step() {
+        let t = table();
+        let p = Protocol::new(&t, &[1, 4], Some(&[1, 4]));
+        let period = p.period_s();
+        for from in [0, 1, 2] {
+            for rel_s in [-1e-9, -0.5 * period, -3.0 * period, f64::NAN] {
+                assert_eq!(p.locate_from(from, rel_s), None, "{from}, {rel_s}");
+            }
+        }
+        assert_eq!(p.locate_from(1, 0.0), Some((1, 0.0)));
+        assert_eq!(p.locate_from(1, period + 2.5), Some((2, 2.5)));
+        assert_eq!(p.locate_from(2, 2.0 * period), None);
+    }
+
     #[test]
     fn a_restart_and_an_operator_stop_follow_the_same_periods() {
         let t = table();

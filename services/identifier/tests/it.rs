@@ -15,3 +15,5 @@ mod alloc;
 mod identifier;
 #[path = "it/identifier_inputs.rs"]
 mod identifier_inputs;
+#[path = "it/settings.rs"]
+mod settings;

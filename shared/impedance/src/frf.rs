@@ -71,7 +71,7 @@ mod welch;
 
 pub use lpm::{
     hann_mean, local_polynomial_ratio, mean_standard_error, mean_standard_error_beside,
-    LocalPolynomialPoint, HANN_MEAN_NOISE_GAIN,
+    LocalPolynomialPoint, BESIDE_BINS, HANN_MEAN_NOISE_GAIN,
 };
 pub use sine::{
     sine_amplitude, sine_ratio, whole_cycles, SineAmplitude, SineCorrelator, SinePoint,

@@ -85,15 +85,26 @@ pub fn mean_standard_error(t_s: &[f64], y: &[f64], omega_rad_s: f64) -> Option<(
     low_bin_noise(t_s, y, None, omega_rad_s).map(|(se, _, bins)| (se, bins))
 }
 
-/// [`mean_standard_error`] of `y` with what is linear in `x` at those
-/// bins taken out first: `Y_k − g X_k`, one real `g` fitted over the bins'
-/// real and imaginary parts (least squares). Where `y` responds to a slow
-/// wander of `x` that the mean's model accounts for by `x`'s own mean (a
-/// torque balance whose posture moved: gravity's moment follows the
-/// angle), that response is no noise of the balance's residual. Returns
-/// the standard error and its real degrees of freedom (two per bin less
-/// the one fitted and the share the trend took); `None` with fewer than two
-/// bins.
+/// [`mean_standard_error`] of a torque balance `y` with what the motion of
+/// the angle explains at the bins taken out first, read at the bins
+/// `k = 1…`[`BESIDE_BINS`] (multiples of the window's cycles left out). `x`
+/// is `sin θ`; `y` a balance of torques on a rigid link,
+/// `y = M θ̈ + b θ̇ + g sin θ + noise` (`τ_s − τ_gravity − τ_c` on the arm).
+/// At bin `k` the window's DFT of that is linear in five regressors fitted
+/// with real coefficients by least squares: `X_k`, `jω_k X_k`,
+/// `ω_k² X_k` (gravity's moment, the damping, the inertia; `sin θ`
+/// stands for `θ` about the window's posture) and the two boundary terms
+/// of a motion that is not periodic in the window, `1` and `jω_k` (the
+/// DFT of `θ̈` over a window `T` is `−ω_k² Θ_k + (2/T)(Δθ̇ + jω_k Δθ)`,
+/// `Δ` the change over the window). Without them a mode still ringing in
+/// the window (the arm's lightly damped mode near bins 2–3 of a window of
+/// ten cycles, 10–500 times the white noise's power there on the
+/// independent rig's nulls, docs/diagnose.md) was read as noise of the
+/// mean, where the Hann-tapered mean ([`hann_mean`]) hardly holds it.
+/// Where `y` follows the posture's slow wander the same way, that response
+/// is no noise of the balance either. Returns the standard error and its
+/// real degrees of freedom (two per bin less the regressors' rank and the
+/// share the trend took); `None` with fewer than two bins.
 pub fn mean_standard_error_beside(
     t_s: &[f64],
     y: &[f64],
@@ -103,9 +114,19 @@ pub fn mean_standard_error_beside(
     low_bin_noise(t_s, y, Some(x), omega_rad_s).map(|(se, dof, _)| (se, dof))
 }
 
-/// The noise of the mean of `y` from its lowest bins, less what is linear
-/// in `x` there when given: the standard error, its real degrees of
-/// freedom and the bins ([`mean_standard_error`],
+/// The highest bin of the window [`mean_standard_error_beside`] reads: twelve
+/// bins for six cycles leave it ten (the line's and its harmonic's out),
+/// twenty real components for five regressors. Four (as
+/// [`mean_standard_error`] reads) would leave three degrees of freedom.
+/// An assumption: the noise of the balance is flat from zero frequency to
+/// twelve times the window's (white sensor noise; the motion that colours
+/// it is taken out); a sensor's own slow drift within a window would be
+/// read low.
+pub const BESIDE_BINS: i64 = 12;
+
+/// The noise of the mean of `y` from its lowest bins, less what the motion
+/// of `x` explains there when given: the standard error, its real degrees
+/// of freedom and the bins ([`mean_standard_error`],
 /// [`mean_standard_error_beside`]).
 fn low_bin_noise(
     t_s: &[f64],
@@ -129,33 +150,91 @@ fn low_bin_noise(
     let half_n = 0.5 * n as f64;
     let ramp_norm = ramp.iter().map(|r| r * r).sum::<f64>()
         - half_n * dft_at(t_s, &ramp, omega_rad_s).norm_sqr();
-    let mut bins = Vec::with_capacity(4);
+    let top = if x.is_some() { BESIDE_BINS } else { 4 };
+    // (ω_k, Y_k, X_k) at each bin.
+    let mut bins = Vec::with_capacity(top as usize);
     let mut trend_dof = 0.0;
-    for k in (1..=4i64).filter(|k| k % c != 0) {
+    for k in (1..=top).filter(|k| k % c != 0) {
         let wk = omega_rad_s * k as f64 / c as f64;
         let xk = if x.is_some() {
             dft_at(t_s, &xd, wk)
         } else {
             Complex64::new(0.0, 0.0)
         };
-        bins.push((dft_at(t_s, &yd, wk), xk));
+        bins.push((wk, dft_at(t_s, &yd, wk), xk));
         trend_dof += half_n * dft_at(t_s, &ramp, wk).norm_sqr() / ramp_norm;
     }
     if bins.len() < 2 || !trend_dof.is_finite() {
         return None;
     }
-    let xx: f64 = bins.iter().map(|(_, xk)| xk.norm_sqr()).sum();
-    let xy: f64 = bins.iter().map(|(yk, xk)| (xk.conj() * yk).re).sum();
-    // An `x` with nothing at the bins but rounding (a pure line, taken
-    // out with the line) fits no slope.
+    // An `x` with nothing at the bins but rounding (a pure line, taken out
+    // with the line) explains nothing there.
     let x_power: f64 = x.map_or(0.0, |x| x.iter().map(|v| v * v).sum());
-    let fitted = xx > 1e-15 * x_power;
-    let g = if fitted { xy / xx } else { 0.0 };
-    let ss: f64 = bins.iter().map(|(yk, xk)| (yk - xk * g).norm_sqr()).sum();
-    let dof = 2.0 * bins.len() as f64 - if fitted { 1.0 } else { 0.0 } - trend_dof;
+    if bins.iter().map(|b| b.2.norm_sqr()).sum::<f64>() <= 1e-15 * x_power {
+        bins.iter_mut().for_each(|b| b.2 = Complex64::new(0.0, 0.0));
+    }
+    let (ss, rank) = if x.is_some() {
+        beside_motion(&bins)
+    } else {
+        (bins.iter().map(|(_, yk, _)| yk.norm_sqr()).sum(), 0)
+    };
+    let dof = 2.0 * bins.len() as f64 - rank as f64 - trend_dof;
+    if dof <= 0.0 {
+        return None;
+    }
     // For white noise of variance s² each real component of a bin holds
     // 2 s²/n, and the mean's variance is s²/n.
     Some(((ss / dof / 2.0).sqrt(), dof, bins.len()))
+}
+
+/// The bins' residual sum of squares less the five regressors of
+/// [`mean_standard_error_beside`], and their numerical rank: each column
+/// scaled to unit norm, singular values below 1e-9 of the largest not
+/// counted (an `x` zeroed for having nothing at the bins fits only the
+/// boundary terms).
+fn beside_motion(bins: &[(f64, Complex64, Complex64)]) -> (f64, usize) {
+    use nalgebra::{DMatrix, DVector};
+    const REGRESSORS: usize = 5;
+    let column = |j: usize, (wk, _, xk): &(f64, Complex64, Complex64)| -> Complex64 {
+        let jw = Complex64::new(0.0, *wk);
+        match j {
+            0 => *xk,
+            1 => jw * xk,
+            2 => xk * (wk * wk),
+            3 => Complex64::new(1.0, 0.0),
+            _ => jw,
+        }
+    };
+    let m = 2 * bins.len();
+    let mut a = DMatrix::<f64>::from_fn(m, REGRESSORS, |i, j| {
+        let v = column(j, &bins[i / 2]);
+        if i % 2 == 0 {
+            v.re
+        } else {
+            v.im
+        }
+    });
+    let b = DVector::<f64>::from_fn(m, |i, _| {
+        let v = bins[i / 2].1;
+        if i % 2 == 0 {
+            v.re
+        } else {
+            v.im
+        }
+    });
+    for mut col in a.column_iter_mut() {
+        let norm = col.norm();
+        if norm > 0.0 {
+            col /= norm;
+        }
+    }
+    let svd = a.clone().svd(true, true);
+    let eps = 1e-9 * svd.singular_values.max();
+    let rank = svd.singular_values.iter().filter(|s| **s > eps).count();
+    match svd.solve(&b, eps) {
+        Ok(coef) => ((b - a * coef).norm_squared(), rank),
+        Err(_) => (b.norm_squared(), 0),
+    }
 }
 
 /// The mean of `v` weighted by the periodic Hann taper

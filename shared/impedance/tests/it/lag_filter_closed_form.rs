@@ -206,3 +206,22 @@ fn a_section_near_nyquist_is_refused() {
         );
     }
 }
+
+/// The zeros and the band by hand: three sections from p₁ = 0.1 rad/s with
+/// r_pp = 10 and f = 0.5 have r_zp = √10, poles 0.1, 1, 10 rad/s, zeros
+/// 0.1√10, √10, 10√10 rad/s, and act as `s^(−f)` over [p₁, z₃] =
+/// [0.1, 31.62…] rad/s.
+#[test]
+fn the_zeros_and_the_band_by_hand() {
+    let lf = LagFilter::new(3, 0.1, 10.0, 0.5, 2.0).unwrap();
+    let root10 = 10f64.sqrt();
+    let want = [0.1 * root10, root10, 10.0 * root10];
+    let zeros = lf.zeros_rad_s();
+    assert_eq!(zeros.len(), 3);
+    for (z, w) in zeros.iter().zip(want) {
+        assert!((z - w).abs() <= 1e-12 * w, "{z} against {w}");
+    }
+    let (lo, hi) = lf.band_rad_s();
+    assert!((lo - 0.1).abs() <= 1e-15, "{lo}");
+    assert!((hi - 10.0 * root10).abs() <= 1e-12 * hi, "{hi}");
+}

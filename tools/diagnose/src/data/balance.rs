@@ -9,7 +9,11 @@ use super::Tf;
 /// The static balance over the window's whole cycles. Where the window
 /// allows the noise of its mean to be measured near zero frequency
 /// (`exo_impedance::frf::mean_standard_error_beside`: two cycles or more,
-/// less what follows sin θ at those bins) every
+/// at the window's bins 1–12 less what the arm's motion explains there:
+/// gravity's moment with sin θ, the damping and inertia with its
+/// derivatives, a motion not periodic in the window by its boundary terms;
+/// stop 45: before, bins 1–4 less sin θ's slope read the arm's ringing as
+/// noise, and the balance's χ² sat at 0.64–0.77 on nulls) every
 /// mean of the balance is the Hann-tapered one
 /// (`exo_impedance::frf::hann_mean`: the line and a ringing mode's
 /// boundary term `M_e Δθ̇/T` left out), judged by that noise times the
@@ -44,9 +48,10 @@ pub(super) fn balance(
         cond.sin_theta_mean = plain(&sin_theta);
         return;
     };
-    // Its noise less what follows the posture at those bins: the model
+    // Its noise less what follows the arm's motion at those bins: the model
     // takes gravity's moment at the window's own mean sin θ, so a slow
-    // wander of the angle is no noise of the residual (stop 37).
+    // wander of the angle is no noise of the residual (stop 37), nor is the
+    // inertia's and damping's response to a ringing mode (stop 45).
     let measured = mean_standard_error_beside(t_s, &y, &sin_theta, w).filter(|(se, _)| *se > 0.0);
     let mean: &dyn Fn(&[f64]) -> f64 = if measured.is_some() {
         &hann_mean

@@ -58,9 +58,9 @@ pub struct Observation {
     /// Degrees of freedom of [`Self::sigma`] where it was estimated from so
     /// few values that a residual over it is Student-t distributed rather
     /// than normal: the static balance's mean noise, two per DFT bin it was
-    /// measured at less the posture's slope fitted there and the share the
-    /// trend took (`exo_impedance::frf::mean_standard_error_beside`, about
-    /// 2.2 for two bins to 6.1 for four). The
+    /// measured at less the arm's motion's five regressors fitted there and
+    /// the share the trend took (`exo_impedance::frf::mean_standard_error_beside`,
+    /// about 6 for two cycles (six bins) to 18 for twelve or more). The
     /// lack-of-fit χ² takes such a residual at its normal equivalent
     /// ([`crate::fit::lack_of_fit_chi2`]). `None` where σ is known well
     /// enough to be taken as exact.

@@ -491,8 +491,8 @@ fn the_reduction_gives_each_line_its_transient_free_value_with_sqrt_leverage() {
 /// its window's signals: over two cycles or more the Hann-tapered mean
 /// (the taper written out here) of `τ_s_net − τ_c`, of `τ_gravity`, `τ_c`
 /// and `sin θ`, its σ the mean's noise near zero frequency less what
-/// follows sin θ there, times √(3/2), with two degrees of freedom per bin
-/// less the slope and the trend's share; over one cycle the plain means and
+/// the arm's motion explains there, times √(3/2), with its degrees of
+/// freedom; over one cycle the plain means and
 /// the residual's per-cycle standard error, no degrees of freedom; the
 /// SEA's mean torque the plain mean in both.
 #[test]
@@ -630,4 +630,47 @@ fn the_reduction_holds_values_of_a_quantised_angle_to_the_quantiser() {
         }
     }
     assert!(checked >= 10, "{checked} values held to the quantiser");
+}
+
+/// A window with no coherent line gives no static balance either: with the
+/// coherence floor above 1 every line of experiment 1 is left out, and so
+/// is every balance, each with its note; at the default floor every
+/// window with a line keeps its balance (stop 45: on a fresh null of the
+/// independent rig the arm had run away in its last periods, every line
+/// was left out, and the balance kept there was 56–71 σ off).
+#[test]
+fn a_window_without_a_coherent_line_has_no_static_balance() {
+    use exo_diagnose::data::{reduce, Reduction};
+    use exo_diagnose::synth::{synthesize, SynthSettings};
+    let periods = common::protocol(&[(1, 30.0, 12.0, 4.5, 0.0)]);
+    let rec = synthesize(
+        &common::default_plant(),
+        &periods,
+        &SynthSettings::default(),
+    );
+    let none = reduce(
+        std::slice::from_ref(&rec),
+        &Reduction {
+            min_coherence: 1.01,
+            ..Reduction::default()
+        },
+    );
+    assert_eq!(none.observations.len(), 0);
+    let left_out = none
+        .notes
+        .iter()
+        .filter(|n| n.contains("static balance left out: no line of the window is coherent"))
+        .count();
+    assert_eq!(left_out, periods.len(), "{:?}", none.notes);
+
+    let all = reduce(&[rec], &Reduction::default());
+    let windows_with_lines: std::collections::BTreeSet<usize> = all
+        .observations
+        .iter()
+        .filter(|o| o.tf.is_dynamic())
+        .map(|o| o.window)
+        .collect();
+    let balances: std::collections::BTreeSet<usize> =
+        all.of(Tf::Balance).map(|o| o.window).collect();
+    assert_eq!(balances, windows_with_lines);
 }
