@@ -412,9 +412,15 @@ fn a_link_taken_down_latches_within_the_cycle_and_the_drive_restarts_cleanly() {
     rig.reset(1);
     let took = rig.enable();
     assert!(took < 50);
+    // No fault and no device's fault bit; a frame the machine sent late
+    // (`LATE`, `STALE`: this shared machine's timing, not the drive's; a
+    // run of them long enough would latch and fail the first assertion) is
+    // no failure of the restart (stop 45: one LATE frame, cycle 163, under
+    // the full suite's load).
     for k in 0..200 {
         let s = rig.step(tau_of(k));
-        assert_eq!((s.fault, s.frame_status), (None, 0), "cycle {k}");
+        assert_eq!(s.fault, None, "cycle {k}: {s:?}");
+        assert_eq!(s.frame_status & bus_status::FAULTS, 0, "cycle {k}: {s:?}");
         assert_eq!(s.sample_status & status::SAFE_STATE, 0);
     }
     assert_ne!(rig.bus.readings().target_torque_units, 0);
