@@ -104,7 +104,8 @@ pub fn mean_standard_error(t_s: &[f64], y: &[f64], omega_rad_s: f64) -> Option<(
 /// Where `y` follows the posture's slow wander the same way, that response
 /// is no noise of the balance either. Returns the standard error and its
 /// real degrees of freedom (two per bin less the regressors' rank and the
-/// share the trend took); `None` with fewer than two bins.
+/// share the trend took); `None` with fewer than two bins or no degree of
+/// freedom left.
 pub fn mean_standard_error_beside(
     t_s: &[f64],
     y: &[f64],
