@@ -12,6 +12,8 @@ mod bad_values;
 mod common;
 #[path = "it/configs.rs"]
 mod configs;
+#[path = "it/cross_checks.rs"]
+mod cross_checks;
 #[path = "it/safety_defaults.rs"]
 mod safety_defaults;
 #[path = "it/subjects_table3.rs"]

@@ -58,3 +58,22 @@ pub fn accepted(tag: &str, edits: &[(&str, &str)]) -> RunConfig {
     let _ = std::fs::remove_dir_all(dir);
     r.unwrap_or_else(|e| panic!("{edits:?} refused: {e}"))
 }
+
+/// A scratch copy of `configs/` with several of its files edited (each
+/// `(file, edits)`, files relative to `configs/`), `default.toml` loaded.
+pub fn load_files_edited(
+    tag: &str,
+    files: &[(&str, &[(&str, &str)])],
+) -> (Result<RunConfig, ConfigError>, PathBuf) {
+    let (_, dir) = load_edited_in(tag, "default.toml", &[]);
+    for (file, edits) in files {
+        let path = dir.join(file);
+        let mut text = std::fs::read_to_string(&path).unwrap();
+        for (from, to) in *edits {
+            assert!(text.contains(from), "{from:?} not in {file}");
+            text = text.replacen(from, to, 1);
+        }
+        std::fs::write(&path, text).unwrap();
+    }
+    (RunConfig::from_file(&dir.join("default.toml")), dir)
+}
