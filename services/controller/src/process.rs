@@ -16,7 +16,6 @@
 
 use std::time::{Duration, Instant};
 
-use anyhow::{bail, Result};
 use exo_config::TimingMode;
 use exo_messages::channels::ProcessName;
 use exo_messages::{
@@ -25,13 +24,31 @@ use exo_messages::{
 use exo_service_kit::channels::{
     COMMAND, IDENTIFIER_ESTIMATE, OPERATOR, OPERATOR_REPLY, PROTOCOL, SENSOR,
 };
-use exo_service_kit::ipc::{Connect, Inbox, Outbox};
+use exo_service_kit::ipc::{Connect, Inbox, IpcError, Outbox};
 use exo_service_kit::runner::{Context, Flow, Process};
 use exo_service_kit::{RealtimeProcess, ServiceArgs, StopFlag};
 use tracing::info;
 
 use crate::node::ControllerNode;
-use crate::Fault;
+use crate::{ControllerError, Fault};
+
+/// Why the controller process stops with an error.
+#[derive(Debug, thiserror::Error)]
+pub enum ControllerProcessError {
+    /// A channel could not be opened, sent on or received from.
+    #[error(transparent)]
+    Ipc(#[from] IpcError),
+    /// The run file's controller could not be built.
+    #[error(transparent)]
+    Controller(#[from] ControllerError),
+    /// No sensor sample came for a minute: the sensor driver has stopped.
+    #[error("no sensor sample for {} s: is the sensor driver running?", GIVE_UP_AFTER.as_secs())]
+    NoSample,
+}
+
+/// How long the controller waits without a sensor sample before it gives
+/// up on the run.
+const GIVE_UP_AFTER: Duration = Duration::from_secs(60);
 
 /// The controller process.
 pub struct ControllerProcess {
@@ -52,10 +69,11 @@ pub struct ControllerProcess {
 
 impl Process for ControllerProcess {
     type Args = ServiceArgs;
+    type Error = ControllerProcessError;
     const NAME: ProcessName = ProcessName::Controller;
     const REALTIME: Option<RealtimeProcess> = Some(RealtimeProcess::Controller);
 
-    fn open(cx: Context<'_, ServiceArgs>) -> Result<Self> {
+    fn open(cx: Context<'_, ServiceArgs>) -> Result<Self, ControllerProcessError> {
         let (cfg, ipc) = (cx.cfg, cx.ipc);
         let sensor_in = ipc.inbox(SENSOR, 64)?.with_spin(cfg.lockstep_spin());
         // The operator inbox is opened before the protocol outbox: `exo op`
@@ -115,13 +133,13 @@ impl Process for ControllerProcess {
         ]
     }
 
-    fn step(&mut self, _stop: &StopFlag) -> Result<Flow> {
+    fn step(&mut self, _stop: &StopFlag) -> Result<Flow, ControllerProcessError> {
         let Some(s) = self.sensor_in.recv_timeout(self.wait)? else {
             if self.node.answered() >= self.arm_after && !self.lockstep {
                 self.node.raise(Fault::SampleTimeout);
             }
-            if self.idle_since.elapsed() > Duration::from_secs(60) {
-                bail!("no sensor sample for 60 s: is the sensor driver running?");
+            if self.idle_since.elapsed() > GIVE_UP_AFTER {
+                return Err(ControllerProcessError::NoSample);
             }
             return Ok(Flow::Idle);
         };
@@ -160,7 +178,7 @@ impl Process for ControllerProcess {
         })
     }
 
-    fn finish(self) -> Result<()> {
+    fn finish(self) -> Result<(), ControllerProcessError> {
         let wall_s = self.wall_start.elapsed().as_secs_f64();
         info!(
             "controller: stopped at sim {:.1} s (wall {wall_s:.1} s, {:.0}× real time)",

@@ -14,7 +14,6 @@
 
 use std::time::{Duration, Instant};
 
-use anyhow::Result;
 use exo_messages::channels::ProcessName;
 use exo_messages::{
     ActuatorCommand, FrfPoint, ImpedanceEstimate, OffPathProgress, ProtocolState, SensorSample,
@@ -22,7 +21,7 @@ use exo_messages::{
 use exo_service_kit::channels::{
     COMMAND, IDENTIFIER_ESTIMATE, IDENTIFIER_FRF, IDENTIFIER_PROGRESS, PROTOCOL, SENSOR,
 };
-use exo_service_kit::ipc::{Connect, Inbox, Outbox, DEEPEST, OFF_PATH_COALESCE};
+use exo_service_kit::ipc::{Connect, Inbox, IpcError, Outbox, DEEPEST, OFF_PATH_COALESCE};
 use exo_service_kit::runner::{Context, Flow, Process};
 use exo_service_kit::{monotonic_ns, RealtimeProcess, ServiceArgs, StopFlag};
 use tracing::{info, warn};
@@ -32,6 +31,15 @@ use crate::{Event, Identifier, IdentifierSettings};
 
 /// The progress is published when it changed, and at least this often.
 const PROGRESS_EVERY: Duration = Duration::from_millis(50);
+
+/// Why the identifier process stops with an error: only its channels can
+/// fail (building the identifier from the run file cannot).
+#[derive(Debug, thiserror::Error)]
+pub enum IdentifierProcessError {
+    /// A channel could not be opened, sent on or received from.
+    #[error(transparent)]
+    Ipc(#[from] IpcError),
+}
 
 /// The identifier process.
 pub struct IdentifierProcess {
@@ -50,10 +58,11 @@ pub struct IdentifierProcess {
 
 impl Process for IdentifierProcess {
     type Args = ServiceArgs;
+    type Error = IdentifierProcessError;
     const NAME: ProcessName = ProcessName::Identifier;
     const REALTIME: Option<RealtimeProcess> = None;
 
-    fn open(cx: Context<'_, ServiceArgs>) -> Result<Self> {
+    fn open(cx: Context<'_, ServiceArgs>) -> Result<Self, IdentifierProcessError> {
         let ipc = cx.ipc;
         // The progress first, with nothing taken (the estimate outbox,
         // which `exo run` waits for, is the last port).
@@ -89,7 +98,7 @@ impl Process for IdentifierProcess {
         vec![]
     }
 
-    fn step(&mut self, _stop: &StopFlag) -> Result<Flow> {
+    fn step(&mut self, _stop: &StopFlag) -> Result<Flow, IdentifierProcessError> {
         let mut got = false;
         while let Some(p) = self.protocol_in.try_recv()? {
             self.id.on_protocol(&p, &mut self.events);
@@ -132,7 +141,7 @@ impl Process for IdentifierProcess {
         Ok(Flow::Continue)
     }
 
-    fn finish(self) -> Result<()> {
+    fn finish(self) -> Result<(), IdentifierProcessError> {
         if let Some(first) = self.taken.first_missing {
             warn!(
                 "identifier: {} samples missed (sequence gaps), the first seq {first}",

@@ -9,19 +9,37 @@
 use std::sync::Arc;
 use std::time::Duration;
 
-use anyhow::Result;
 use exo_messages::channels::{
     Channel, ProcessName, Topic, BUS_MOTOR, BUS_SENSOR, CHANNELS, COMMAND, IDENTIFIER_ESTIMATE,
     IDENTIFIER_FRF, OPERATOR, PROTOCOL, SENSOR,
 };
 use exo_recording::Recordable;
-use exo_service_kit::ipc::{Connect, Inbox, Ipc, DEEPEST, OFF_PATH_COALESCE};
+use exo_service_kit::ipc::{Connect, Inbox, Ipc, IpcError, DEEPEST, OFF_PATH_COALESCE};
 use exo_service_kit::runner::{Context as RunContext, Flow, Process};
 use exo_service_kit::{RealtimeProcess, ServiceArgs, StopFlag};
 use foxglove::{PartialMetadata, RawChannel, WebSocketServerHandle};
 use tracing::{info, warn};
 
-use crate::{start_server, Listen, LiveChannels};
+use crate::{start_server, Listen, LiveChannels, LiveError};
+
+/// Why the live-view process stops with an error.
+#[derive(Debug, thiserror::Error)]
+pub enum LiveProcessError {
+    /// A channel could not be opened or received from.
+    #[error(transparent)]
+    Ipc(#[from] IpcError),
+    /// The `[live]` table, the Foxglove channels or the server.
+    #[error(transparent)]
+    Live(#[from] LiveError),
+    /// A channel outside the recording contract was asked for a tap.
+    #[error("{topic}: not in the recording contract, not shown")]
+    NotRecorded {
+        /// The channel's topic.
+        topic: &'static str,
+    },
+}
+
+type Result<T, E = LiveProcessError> = std::result::Result<T, E>;
 
 /// One subscribed channel and its Foxglove channel.
 struct Tap<T: Recordable> {
@@ -82,10 +100,9 @@ fn open_tap(ipc: &Ipc, live: &LiveChannels, channel: Channel) -> Result<Box<dyn 
         Channel::IdentifierEstimate => Tap::boxed(ipc, live, IDENTIFIER_ESTIMATE),
         Channel::Operator => Tap::boxed(ipc, live, OPERATOR),
         Channel::OperatorReply | Channel::RecorderProgress | Channel::IdentifierProgress => {
-            anyhow::bail!(
-                "{}: not in the recording contract, not shown",
-                channel.info().topic
-            )
+            Err(LiveProcessError::NotRecorded {
+                topic: channel.info().topic,
+            })
         }
     }
 }
@@ -102,6 +119,7 @@ pub struct LiveProcess {
 
 impl Process for LiveProcess {
     type Args = ServiceArgs;
+    type Error = LiveProcessError;
     const NAME: ProcessName = ProcessName::Live;
     const REALTIME: Option<RealtimeProcess> = None;
 

@@ -21,20 +21,19 @@
 
 use std::time::{Duration, Instant};
 
-use anyhow::{bail, Result};
 use exo_config::TimingMode;
 use exo_messages::channels::ProcessName;
 use exo_messages::{BusMotorCommand, BusSensorFrame, OffPathProgress, ProtocolState};
 use exo_service_kit::channels::{
     BUS_MOTOR, BUS_SENSOR, IDENTIFIER_PROGRESS, PROTOCOL, RECORDER_PROGRESS,
 };
-use exo_service_kit::ipc::{Connect, Inbox, Outbox, REALTIME_SETTLE_PLANT};
+use exo_service_kit::ipc::{Connect, Inbox, IpcError, Outbox, REALTIME_SETTLE_PLANT};
 use exo_service_kit::runner::{Context, Flow, Process};
 use exo_service_kit::{monotonic_ns, sleep_until_ns, RealtimeProcess, ServiceArgs, StopFlag};
 use tracing::{info, warn};
 
 use crate::pace::{OffPathPace, Pace};
-use crate::{PlantModel, PlantNode};
+use crate::{PlantModel, PlantModelError, PlantNode, StepMismatch};
 
 const RESEND_AFTER: Duration = Duration::from_millis(200);
 const GIVE_UP_AFTER: Duration = Duration::from_secs(20);
@@ -50,6 +49,26 @@ const HOLD_WAIT: Duration = Duration::from_millis(20);
 const HOLDS_LOGGED: u64 = 5;
 /// How often a hold looks whether the process it waits for still lives.
 const ALIVE_EVERY: Duration = Duration::from_millis(500);
+
+/// Why the plant simulator process stops with an error.
+#[derive(Debug, thiserror::Error)]
+pub enum PlantProcessError {
+    /// The plant model file could not be read or is invalid.
+    #[error(transparent)]
+    Model(#[from] PlantModelError),
+    /// The model's integration step does not divide the control period.
+    #[error(transparent)]
+    Step(#[from] StepMismatch),
+    /// A channel could not be opened, sent on or received from.
+    #[error(transparent)]
+    Ipc(#[from] IpcError),
+    /// Lockstep: no motor command answered frame `frame` in time.
+    #[error("no motor command for frame {frame} within {GIVE_UP_AFTER:?}: is the sensor driver running?")]
+    NoMotorCommand {
+        /// The frame's tick.
+        frame: u64,
+    },
+}
 
 /// The plant simulator process.
 pub struct PlantProcess {
@@ -70,11 +89,12 @@ pub struct PlantProcess {
 
 impl Process for PlantProcess {
     type Args = ServiceArgs;
+    type Error = PlantProcessError;
     const NAME: ProcessName = ProcessName::PlantSim;
     const REALTIME: Option<RealtimeProcess> = Some(RealtimeProcess::PlantSim);
     const SETTLE: Duration = REALTIME_SETTLE_PLANT;
 
-    fn open(cx: Context<'_, ServiceArgs>) -> Result<Self> {
+    fn open(cx: Context<'_, ServiceArgs>) -> Result<Self, PlantProcessError> {
         let (cfg, ipc) = (cx.cfg, cx.ipc);
         let model = PlantModel::from_file(&cfg.plant_model)?;
         let node = PlantNode::new(cfg, &model, cx.args.inject_fault_at)?;
@@ -124,7 +144,7 @@ impl Process for PlantProcess {
         ports
     }
 
-    fn step(&mut self, stop: &StopFlag) -> Result<Flow> {
+    fn step(&mut self, stop: &StopFlag) -> Result<Flow, PlantProcessError> {
         if self.node.finished() {
             return Ok(Flow::Done);
         }
@@ -172,7 +192,7 @@ impl Process for PlantProcess {
                     last_send = Instant::now();
                 }
                 if started.elapsed() > GIVE_UP_AFTER {
-                    bail!("no motor command for frame {k} within {GIVE_UP_AFTER:?}: is the sensor driver running?");
+                    return Err(PlantProcessError::NoMotorCommand { frame: k });
                 }
             }
         }
@@ -190,7 +210,7 @@ impl Process for PlantProcess {
         Ok(Flow::Continue)
     }
 
-    fn finish(self) -> Result<()> {
+    fn finish(self) -> Result<(), PlantProcessError> {
         for r in self.watches.iter().filter(|r| r.holds > 0) {
             info!(
                 "plant-sim: simulated time held {} times for the {}, {:.1} s in all{}",
@@ -244,7 +264,12 @@ impl Watch {
     /// restarted recorder is handed the frames' history only then (see
     /// `exo_service_kit::runner::Flow::Idle`; the driver and controller connect
     /// theirs while they wait for the held frame).
-    fn hold(&mut self, next_frame: u64, frames_out: &dyn Connect, stop: &StopFlag) -> Result<()> {
+    fn hold(
+        &mut self,
+        next_frame: u64,
+        frames_out: &dyn Connect,
+        stop: &StopFlag,
+    ) -> Result<(), IpcError> {
         while let Some(p) = self.inbox.try_recv()? {
             self.pace.on_progress(&p);
         }

@@ -7,17 +7,30 @@
 
 use std::time::Duration;
 
-use anyhow::{Context as _, Result};
 use exo_messages::channels::ProcessName;
 use exo_messages::{ActuatorCommand, ProtocolState, SensorSample};
 use exo_recording::Record;
 use exo_service_kit::channels::{COMMAND, PROTOCOL, SENSOR};
-use exo_service_kit::ipc::{Connect, Outbox};
+use exo_service_kit::ipc::{Connect, IpcError, Outbox};
 use exo_service_kit::runner::{Context, Flow, Process};
 use exo_service_kit::{RealtimeProcess, ServiceArgs, StopFlag};
 use tracing::info;
 
-use crate::PlayerNode;
+use crate::{PlayerError, PlayerNode};
+
+/// Why the player process stops with an error.
+#[derive(Debug, thiserror::Error)]
+pub enum PlayerProcessError {
+    /// The run file names no recording to play.
+    #[error("player: the run file has no [player] table naming the recording")]
+    NoPlayerTable,
+    /// The recording cannot be played.
+    #[error(transparent)]
+    Player(#[from] PlayerError),
+    /// A channel could not be opened or sent on.
+    #[error(transparent)]
+    Ipc(#[from] IpcError),
+}
 
 /// The player process.
 pub struct PlayerProcess {
@@ -31,15 +44,16 @@ pub struct PlayerProcess {
 
 impl Process for PlayerProcess {
     type Args = ServiceArgs;
+    type Error = PlayerProcessError;
     const NAME: ProcessName = ProcessName::Player;
     const REALTIME: Option<RealtimeProcess> = None;
 
-    fn open(cx: Context<'_, ServiceArgs>) -> Result<Self> {
+    fn open(cx: Context<'_, ServiceArgs>) -> Result<Self, PlayerProcessError> {
         let settings = cx
             .cfg
             .player
             .as_ref()
-            .context("player: the run file has no [player] table naming the recording")?;
+            .ok_or(PlayerProcessError::NoPlayerTable)?;
         let node = PlayerNode::open(&settings.file)?;
         info!(
             "player: playing {} messages of {}",
@@ -60,7 +74,7 @@ impl Process for PlayerProcess {
         vec![&self.sample_out, &self.command_out, &self.protocol_out]
     }
 
-    fn step(&mut self, _stop: &StopFlag) -> Result<Flow> {
+    fn step(&mut self, _stop: &StopFlag) -> Result<Flow, PlayerProcessError> {
         match self.node.next_record() {
             Some(Record::Sensor(s)) => {
                 self.sample_out.send(s)?;
@@ -80,7 +94,7 @@ impl Process for PlayerProcess {
         Ok(Flow::Continue)
     }
 
-    fn finish(self) -> Result<()> {
+    fn finish(self) -> Result<(), PlayerProcessError> {
         info!("player: {} messages played", self.played);
         Ok(())
     }

@@ -28,7 +28,6 @@ use std::sync::Arc;
 use std::thread::JoinHandle;
 use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
 
-use anyhow::{Context, Result};
 use exo_config::TimingMode;
 use exo_messages::channels::ProcessName;
 use exo_messages::channels::{
@@ -36,7 +35,8 @@ use exo_messages::channels::{
     OPERATOR, PROTOCOL, RECORDER_PROGRESS, SENSOR,
 };
 use exo_messages::{Message, OffPathProgress};
-use exo_service_kit::ipc::{Connect, Inbox, Ipc, Outbox, DEEPEST, OFF_PATH_COALESCE};
+use exo_recording::RecordingError;
+use exo_service_kit::ipc::{Connect, Inbox, Ipc, IpcError, Outbox, DEEPEST, OFF_PATH_COALESCE};
 use exo_service_kit::runner::{Context as RunContext, Flow, Process};
 use exo_service_kit::{monotonic_ns, RealtimeProcess, ServiceArgs, StopFlag};
 use tracing::{info, warn};
@@ -47,6 +47,58 @@ use crate::{
 };
 
 type Writer = FileWriter;
+
+/// Why the recorder process stops with an error.
+#[derive(Debug, thiserror::Error)]
+pub enum RecorderProcessError {
+    /// A channel could not be opened, sent on or received from.
+    #[error(transparent)]
+    Ipc(#[from] IpcError),
+    /// The recording could not be started or written (boxed, as each
+    /// [`RecordingError`] below: the error stays small).
+    #[error(transparent)]
+    Recording(Box<RecordingError>),
+    /// The segments a recorder before this one left unfinished could not
+    /// be finished.
+    #[error("finishing the segments of {}", first.display())]
+    Orphans {
+        /// The run's first segment.
+        first: PathBuf,
+        /// Why.
+        #[source]
+        source: std::io::Error,
+    },
+    /// The writing thread could not be started.
+    #[error("starting the writing thread")]
+    Spawn(#[source] std::io::Error),
+    /// The writing thread has gone: it failed (its error comes when it is
+    /// joined) or finished.
+    #[error("the writing thread stopped")]
+    WriterGone,
+    /// The writing thread failed writing the file.
+    #[error("the writing thread stopped")]
+    Writer(#[source] Box<RecordingError>),
+    /// The writing thread panicked.
+    #[error("the writing thread panicked")]
+    WriterPanicked,
+    /// The file's summary could not be written.
+    #[error("finishing {path}")]
+    Finish {
+        /// The file.
+        path: String,
+        /// Why.
+        #[source]
+        source: Box<RecordingError>,
+    },
+    /// A channel outside the recording contract was asked for a tap.
+    #[error("{topic}: not in the recording contract, not recorded")]
+    NotRecorded {
+        /// The channel's topic.
+        topic: &'static str,
+    },
+}
+
+type Result<T, E = RecorderProcessError> = std::result::Result<T, E>;
 
 /// Records per hand-off batch, and how many batches may wait for the writer:
 /// 256 × 4 096 records (≤ 190 MB, allocated only as a stall needs them) ride
@@ -118,7 +170,7 @@ impl<T: Message> Drain for Tap<T> {
     ) -> Result<usize> {
         let mut n = 0;
         loop {
-            if full == WhenFull::Stop && out.is_full().map_err(|_| writer_gone())? {
+            if full == WhenFull::Stop && out.is_full()? {
                 break;
             }
             let Some(m) = self.inbox.try_recv()? else {
@@ -126,7 +178,7 @@ impl<T: Message> Drain for Tap<T> {
             };
             let r = (self.wrap)(m);
             taken.see(&r);
-            out.push(r).map_err(|_| writer_gone())?;
+            out.push(r)?;
             n += 1;
         }
         Ok(n)
@@ -152,16 +204,23 @@ fn open_tap(ipc: &Ipc, channel: Channel) -> Result<Box<dyn Drain>> {
         Channel::BusSensor => Tap::boxed(ipc, BUS_SENSOR, Record::BusSensor),
         Channel::BusMotor => Tap::boxed(ipc, BUS_MOTOR, Record::BusMotor),
         Channel::OperatorReply | Channel::RecorderProgress | Channel::IdentifierProgress => {
-            anyhow::bail!(
-                "{}: not in the recording contract, not recorded",
-                channel.info().topic
-            )
+            Err(RecorderProcessError::NotRecorded {
+                topic: channel.info().topic,
+            })
         }
     }
 }
 
-fn writer_gone() -> anyhow::Error {
-    anyhow::anyhow!("the writing thread stopped")
+impl From<RecordingError> for RecorderProcessError {
+    fn from(e: RecordingError) -> Self {
+        RecorderProcessError::Recording(Box::new(e))
+    }
+}
+
+impl From<WriterGone> for RecorderProcessError {
+    fn from(_: WriterGone) -> Self {
+        RecorderProcessError::WriterGone
+    }
 }
 
 /// A tap on every channel the table marks `recorded`; the sample channel's
@@ -216,7 +275,7 @@ fn write_batches(
     mut w: Writer,
     batches: BatchReceiver,
     written: &Written,
-) -> Result<(Writer, Drops)> {
+) -> Result<(Writer, Drops), RecordingError> {
     let mut drops = Drops::default();
     let mut last_flush = Instant::now();
     loop {
@@ -243,7 +302,7 @@ fn write_batches(
 pub struct RecorderProcess {
     taps: Taps,
     out: BatchSender,
-    writer: JoinHandle<Result<(Writer, Drops)>>,
+    writer: JoinHandle<Result<(Writer, Drops), RecordingError>>,
     written: Arc<Written>,
     progress: Progress,
     taken: FramesTaken,
@@ -265,7 +324,7 @@ impl RecorderProcess {
             n += self
                 .taps
                 .drain(&mut self.out, &mut self.taken, WhenFull::Stop)?;
-            if !self.out.is_full().map_err(|_| writer_gone())? {
+            if !self.out.is_full()? {
                 break;
             }
             std::thread::sleep(OFF_PATH_COALESCE);
@@ -278,6 +337,7 @@ impl RecorderProcess {
 
 impl Process for RecorderProcess {
     type Args = ServiceArgs;
+    type Error = RecorderProcessError;
     const NAME: ProcessName = ProcessName::Recorder;
     const REALTIME: Option<RealtimeProcess> = None;
 
@@ -295,9 +355,12 @@ impl Process for RecorderProcess {
         // one recording.
         // A recorder before this one that died left its segment under its
         // partial name: its complete chunks are the run's recording so far.
-        for done in exo_recording::segments::finish_orphans(&first)
-            .with_context(|| format!("finishing the segments of {}", first.display()))?
-        {
+        for done in exo_recording::segments::finish_orphans(&first).map_err(|source| {
+            RecorderProcessError::Orphans {
+                first: first.clone(),
+                source,
+            }
+        })? {
             warn!(
                 "recorder: {} was left unfinished by a recorder that died: kept, with what its complete chunks hold{}",
                 done.0.display(),
@@ -346,7 +409,7 @@ impl Process for RecorderProcess {
             std::thread::Builder::new()
                 .name("recorder-writer".into())
                 .spawn(move || write_batches(w, batches, &written))
-                .context("starting the writing thread")?
+                .map_err(RecorderProcessError::Spawn)?
         };
         Ok(RecorderProcess {
             taps,
@@ -381,7 +444,7 @@ impl Process for RecorderProcess {
             std::thread::sleep(OFF_PATH_COALESCE);
         }
         if self.since_hand_off.elapsed() >= BATCH_MAX_AGE {
-            self.out.hand_off().map_err(|_| writer_gone())?;
+            self.out.hand_off()?;
             self.since_hand_off = Instant::now();
         }
         self.progress.publish(self.taken.count(), &self.written)?;
@@ -397,8 +460,8 @@ impl Process for RecorderProcess {
         let (mut w, drops) = self
             .writer
             .join()
-            .map_err(|_| anyhow::anyhow!("the writing thread panicked"))?
-            .context("the writing thread stopped")?;
+            .map_err(|_| RecorderProcessError::WriterPanicked)?
+            .map_err(|e| RecorderProcessError::Writer(Box::new(e)))?;
         let received = self.received + last? as u64;
         // The last word on how far the file reaches.
         self.written.missed.store(drops.total(), Ordering::Release);
@@ -406,7 +469,10 @@ impl Process for RecorderProcess {
         let counted = drops.counted();
         w.write_metadata("exo.drops", &drops.metadata(discarded))?;
         let written = w.messages_written();
-        w.finish().with_context(|| format!("finishing {path}"))?;
+        w.finish().map_err(|e| RecorderProcessError::Finish {
+            path: path.clone(),
+            source: Box::new(e),
+        })?;
         let dropped = drops.total();
         let gaps: Vec<String> = counted
             .iter()

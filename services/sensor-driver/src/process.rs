@@ -25,19 +25,18 @@
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
-use anyhow::{bail, Context, Result};
 use exo_config::{BusBackend, TimingMode};
 use exo_messages::channels::ProcessName;
 use exo_messages::{ActuatorCommand, OperatorCommand, ProtocolState, SensorSample};
 use exo_service_kit::channels::{COMMAND, OPERATOR, PROTOCOL, SENSOR};
-use exo_service_kit::ipc::{Connect, Inbox, Outbox};
+use exo_service_kit::ipc::{Connect, Inbox, IpcError, Outbox};
 use exo_service_kit::latency::fmt_us;
 use exo_service_kit::runner::{Context as RunContext, Flow, Process};
 use exo_service_kit::{monotonic_ns, RealtimeProcess, ServiceArgs, StopFlag};
 use tracing::{error, info, warn};
 
 use crate::backends::SimulatorBus;
-use crate::ethercat::EthercatBus;
+use crate::ethercat::{EthercatBus, EthercatError};
 use crate::{DriverNode, HardwareBus, RoundTrip};
 
 const RESEND_AFTER: Duration = Duration::from_millis(200);
@@ -47,6 +46,39 @@ const STARTUP_PATIENCE: Duration = Duration::from_secs(60);
 /// `safety.lockstep_timeout_ms` after the frame, a controller whose process
 /// is gone latches it. Below the plant's 20 s without a motor command.
 const LOCKSTEP_LIVE_PATIENCE: Duration = Duration::from_secs(15);
+
+/// Why the sensor-driver process stops with an error.
+#[derive(Debug, thiserror::Error)]
+pub enum DriverProcessError {
+    /// `--round-trip-warmup-s` is not a number of seconds ≥ 0.
+    #[error("--round-trip-warmup-s must be a finite number of seconds ≥ 0, not {0}")]
+    Warmup(f64),
+    /// `bus.backend = "ethercat"` without its table.
+    #[error("bus.backend = \"ethercat\" needs a [bus.ethercat] table")]
+    NoEthercatTable,
+    /// A channel (or the simulator's bus) could not be opened, sent on or
+    /// received from.
+    #[error(transparent)]
+    Ipc(#[from] IpcError),
+    /// The EtherCAT bus refused the run file at bring-up, or failed.
+    #[error(transparent)]
+    Ethercat(#[from] EthercatError),
+    /// The controller never answered after the start.
+    #[error("no command from the controller within {STARTUP_PATIENCE:?} of start")]
+    NoCommand,
+    /// The round-trip report could not be serialised.
+    #[error("serialising the round-trip report")]
+    SerialiseReport(#[source] serde_json::Error),
+    /// The round-trip report could not be written.
+    #[error("writing the round-trip report {}", path.display())]
+    WriteReport {
+        /// The file (`--round-trip-report`).
+        path: PathBuf,
+        /// Why.
+        #[source]
+        source: std::io::Error,
+    },
+}
 
 /// Command line of `exo-sensor-driver`: every service's, plus the round-trip report.
 #[derive(Debug, clap::Parser)]
@@ -98,16 +130,14 @@ pub struct DriverProcess {
 
 impl Process for DriverProcess {
     type Args = DriverArgs;
+    type Error = DriverProcessError;
     const NAME: ProcessName = ProcessName::SensorDriver;
     const REALTIME: Option<RealtimeProcess> = Some(RealtimeProcess::SensorDriver);
 
-    fn open(cx: RunContext<'_, DriverArgs>) -> Result<Self> {
+    fn open(cx: RunContext<'_, DriverArgs>) -> Result<Self, DriverProcessError> {
         let (cfg, ipc, args) = (cx.cfg, cx.ipc, cx.args);
         if !(args.round_trip_warmup_s.is_finite() && args.round_trip_warmup_s >= 0.0) {
-            bail!(
-                "--round-trip-warmup-s must be a finite number of seconds ≥ 0, not {}",
-                args.round_trip_warmup_s
-            );
+            return Err(DriverProcessError::Warmup(args.round_trip_warmup_s));
         }
         let lockstep = cfg.run.timing == TimingMode::Lockstep;
         let deadline = Duration::from_secs_f64(
@@ -127,7 +157,7 @@ impl Process for DriverProcess {
         let bus = match cfg.bus.backend {
             BusBackend::Ethercat => {
                 let Some(settings) = &cfg.bus.ethercat else {
-                    bail!("bus.backend = \"ethercat\" needs a [bus.ethercat] table");
+                    return Err(DriverProcessError::NoEthercatTable);
                 };
                 let bus = EthercatBus::open(settings, cfg.run.rate_hz)?;
                 // The command must come within the cycle it answers, early
@@ -182,7 +212,7 @@ impl Process for DriverProcess {
         out
     }
 
-    fn step(&mut self, stop: &StopFlag) -> Result<Flow> {
+    fn step(&mut self, stop: &StopFlag) -> Result<Flow, DriverProcessError> {
         let DriverProcess {
             node,
             ports,
@@ -203,7 +233,7 @@ impl Process for DriverProcess {
         }
     }
 
-    fn finish(mut self) -> Result<()> {
+    fn finish(mut self) -> Result<(), DriverProcessError> {
         if let Bus::Ethercat(bus) = &mut self.bus {
             let c = bus.counters();
             let [exchange, lateness, own] = bus.timing();
@@ -274,7 +304,14 @@ impl Cycle<'_> {
     /// (bounded) for the controller's command, write the torque back. A
     /// fault the bus found itself latches the safe state before the
     /// frame's sample is made, so that sample already carries it.
-    fn serve_one<B: HardwareBus>(&mut self, bus: &mut B, stop: &StopFlag) -> Result<Flow> {
+    fn serve_one<B: HardwareBus>(
+        &mut self,
+        bus: &mut B,
+        stop: &StopFlag,
+    ) -> Result<Flow, DriverProcessError>
+    where
+        DriverProcessError: From<B::Error>,
+    {
         let (node, ports) = (&mut *self.node, self.ports);
         // In real time, once the stream runs, a silent bus is the driver's
         // to detect: it does not wait for the next frame. Once the silence
@@ -360,7 +397,7 @@ impl Cycle<'_> {
                     last_send = Instant::now();
                 }
                 if started.elapsed() > STARTUP_PATIENCE {
-                    bail!("no command from the controller within {STARTUP_PATIENCE:?} of start");
+                    return Err(DriverProcessError::NoCommand);
                 }
                 if !self.timing.lockstep && started.elapsed() >= self.timing.deadline {
                     // Not armed yet: hold the safe torque without latching.
@@ -410,7 +447,10 @@ impl Cycle<'_> {
 }
 
 /// Logs the round-trip percentiles and, if asked, writes them to `file` (JSON).
-fn report_round_trip(round_trip: &RoundTrip, file: Option<&Path>) -> Result<()> {
+fn report_round_trip(
+    round_trip: &RoundTrip,
+    file: Option<&Path>,
+) -> Result<(), DriverProcessError> {
     let report = round_trip.report();
     match &report {
         Some(r) => info!(
@@ -427,10 +467,13 @@ fn report_round_trip(round_trip: &RoundTrip, file: Option<&Path>) -> Result<()> 
     }
     if let Some(path) = file {
         let text =
-            serde_json::to_string_pretty(&report).context("serialising the round-trip report")?;
-        std::fs::write(path, text + "\n").map_err(|e| {
-            error!("sensor-driver: writing the round-trip report: {e}");
-            anyhow::anyhow!("writing the round-trip report {}: {e}", path.display())
+            serde_json::to_string_pretty(&report).map_err(DriverProcessError::SerialiseReport)?;
+        std::fs::write(path, text + "\n").map_err(|source| {
+            error!("sensor-driver: writing the round-trip report: {source}");
+            DriverProcessError::WriteReport {
+                path: path.to_path_buf(),
+                source,
+            }
         })?;
     }
     Ok(())

@@ -6,19 +6,84 @@
 use std::collections::BTreeMap;
 use std::time::Duration;
 
-use anyhow::Result;
 use exo_messages::channels::{
     Channel, ProcessName, Topic, BUS_MOTOR, BUS_SENSOR, CHANNELS, COMMAND, IDENTIFIER_ESTIMATE,
     IDENTIFIER_FRF, OPERATOR, PROTOCOL, SENSOR,
 };
 use exo_recording::Recordable;
-use exo_service_kit::ipc::{Connect, Inbox, Ipc, Outbox, DEEPEST, OFF_PATH_COALESCE};
+use exo_service_kit::ipc::{Connect, Inbox, Ipc, IpcError, Outbox, DEEPEST, OFF_PATH_COALESCE};
 use exo_service_kit::runner::{Context as RunContext, Flow, Process};
 use exo_service_kit::{RealtimeProcess, ServiceArgs, StopFlag};
 use tracing::{info, warn};
 use zenoh::Wait;
 
-use crate::{channel_of_key, is_loopback_endpoint, key, zenoh_config};
+use crate::{channel_of_key, is_loopback_endpoint, key, zenoh_config, TunnelError};
+
+/// Why the tunnel process stops with an error. Zenoh's errors are kept as
+/// their message (`message`): their `Display` already includes their cause.
+#[derive(Debug, thiserror::Error)]
+pub enum TunnelProcessError {
+    /// A channel could not be opened, sent on or received from.
+    #[error(transparent)]
+    Ipc(#[from] IpcError),
+    /// The Zenoh configuration could not be built.
+    #[error(transparent)]
+    Config(#[from] TunnelError),
+    /// Export: the Zenoh session could not listen where `[tunnel] listen` says.
+    #[error("tunnel: cannot listen on {endpoints} ([tunnel] listen): {message}")]
+    Listen {
+        /// The endpoints, comma-separated.
+        endpoints: String,
+        /// Zenoh's message.
+        message: String,
+    },
+    /// Import: the Zenoh session could not connect to `--import-from`.
+    #[error("tunnel: cannot connect to {endpoint}: {message}")]
+    Connect {
+        /// The endpoint.
+        endpoint: String,
+        /// Zenoh's message.
+        message: String,
+    },
+    /// Export: a channel's Zenoh publisher could not be declared.
+    #[error("declaring the Zenoh publisher {key}: {message}")]
+    DeclarePublisher {
+        /// Its key.
+        key: String,
+        /// Zenoh's message.
+        message: String,
+    },
+    /// Export: a sample could not be put on Zenoh.
+    #[error("Zenoh put on {key}: {message}")]
+    Put {
+        /// The key.
+        key: String,
+        /// Zenoh's message.
+        message: String,
+    },
+    /// Import: the remote instance's keys could not be subscribed to.
+    #[error("subscribing to {keys}: {message}")]
+    Subscribe {
+        /// The key expression (`<remote>/**`).
+        keys: String,
+        /// Zenoh's message.
+        message: String,
+    },
+    /// Import: receiving from the Zenoh subscriber failed.
+    #[error("Zenoh subscriber: {0}")]
+    Subscriber(String),
+    /// The Zenoh session could not be closed.
+    #[error("closing the Zenoh session: {0}")]
+    Close(String),
+    /// A channel outside the recording contract was asked for a port.
+    #[error("{topic}: not in the recording contract, not tunnelled")]
+    NotTunnelled {
+        /// The channel's topic.
+        topic: &'static str,
+    },
+}
+
+type Result<T, E = TunnelProcessError> = std::result::Result<T, E>;
 
 /// Command line of `exo-tunnel`: every service's, plus the import side's.
 #[derive(Debug, clap::Parser)]
@@ -80,7 +145,10 @@ impl<T: Recordable> Port for Export<T> {
             self.publisher
                 .put(buf.as_slice())
                 .wait()
-                .map_err(|e| anyhow::anyhow!("Zenoh put on {}: {e}", self.publisher.key_expr()))?;
+                .map_err(|e| TunnelProcessError::Put {
+                    key: self.publisher.key_expr().to_string(),
+                    message: e.to_string(),
+                })?;
             n += 1;
         }
         Ok(n)
@@ -112,7 +180,10 @@ fn export<T: Recordable>(
         .declare_publisher(k.clone())
         .congestion_control(zenoh::qos::CongestionControl::Block)
         .wait()
-        .map_err(|e| anyhow::anyhow!("declaring the Zenoh publisher {k}: {e}"))?;
+        .map_err(|e| TunnelProcessError::DeclarePublisher {
+            key: k.clone(),
+            message: e.to_string(),
+        })?;
     Ok(Box::new(Export {
         inbox: ipc.inbox(topic, DEEPEST)?,
         publisher,
@@ -146,10 +217,9 @@ fn port(ipc: &Ipc, session: Option<&zenoh::Session>, channel: Channel) -> Result
         Channel::IdentifierEstimate => either!(IDENTIFIER_ESTIMATE),
         Channel::Operator => either!(OPERATOR),
         Channel::OperatorReply | Channel::RecorderProgress | Channel::IdentifierProgress => {
-            anyhow::bail!(
-                "{}: not in the recording contract, not tunnelled",
-                channel.info().topic
-            )
+            Err(TunnelProcessError::NotTunnelled {
+                topic: channel.info().topic,
+            })
         }
     }
 }
@@ -179,6 +249,7 @@ pub struct TunnelProcess {
 
 impl Process for TunnelProcess {
     type Args = TunnelArgs;
+    type Error = TunnelProcessError;
     const NAME: ProcessName = ProcessName::Tunnel;
     const REALTIME: Option<RealtimeProcess> = None;
 
@@ -189,12 +260,13 @@ impl Process for TunnelProcess {
             None => {
                 let listen = settings.listen();
                 let config = zenoh_config(&listen, &[], file)?;
-                let session = zenoh::open(config).wait().map_err(|e| {
-                    anyhow::anyhow!(
-                        "tunnel: cannot listen on {} ([tunnel] listen): {e}",
-                        listen.join(", ")
-                    )
-                })?;
+                let session =
+                    zenoh::open(config)
+                        .wait()
+                        .map_err(|e| TunnelProcessError::Listen {
+                            endpoints: listen.join(", "),
+                            message: e.to_string(),
+                        })?;
                 let mut ports = vec![port(cx.ipc, Some(&session), Channel::Sensor)?];
                 for c in CHANNELS
                     .iter()
@@ -226,9 +298,13 @@ impl Process for TunnelProcess {
                     .clone()
                     .unwrap_or_else(|| cx.ipc.instance().to_string());
                 let config = zenoh_config(&[], std::slice::from_ref(from), file)?;
-                let session = zenoh::open(config)
-                    .wait()
-                    .map_err(|e| anyhow::anyhow!("tunnel: cannot connect to {from}: {e}"))?;
+                let session =
+                    zenoh::open(config)
+                        .wait()
+                        .map_err(|e| TunnelProcessError::Connect {
+                            endpoint: from.clone(),
+                            message: e.to_string(),
+                        })?;
                 let mut ports = Vec::with_capacity(CHANNELS.len());
                 for c in CHANNELS.iter().filter(|c| c.recorded) {
                     ports.push(port(cx.ipc, None, c.channel)?);
@@ -237,7 +313,10 @@ impl Process for TunnelProcess {
                 let subscriber = session
                     .declare_subscriber(keys.clone())
                     .wait()
-                    .map_err(|e| anyhow::anyhow!("subscribing to {keys}: {e}"))?;
+                    .map_err(|e| TunnelProcessError::Subscribe {
+                        keys: keys.clone(),
+                        message: e.to_string(),
+                    })?;
                 info!(
                     "tunnel: importing instance {remote} from {from} onto this computer's instance {}",
                     cx.ipc.instance()
@@ -283,7 +362,7 @@ impl Process for TunnelProcess {
             } => {
                 let first = subscriber
                     .recv_timeout(Duration::from_millis(20))
-                    .map_err(|e| anyhow::anyhow!("Zenoh subscriber: {e}"))?;
+                    .map_err(|e| TunnelProcessError::Subscriber(e.to_string()))?;
                 let mut next = first;
                 while let Some(sample) = next {
                     let k = sample.key_expr().as_str().to_string();
@@ -303,7 +382,7 @@ impl Process for TunnelProcess {
                     }
                     next = subscriber
                         .try_recv()
-                        .map_err(|e| anyhow::anyhow!("Zenoh subscriber: {e}"))?;
+                        .map_err(|e| TunnelProcessError::Subscriber(e.to_string()))?;
                 }
             }
         }
@@ -320,7 +399,7 @@ impl Process for TunnelProcess {
         self.session
             .close()
             .wait()
-            .map_err(|e| anyhow::anyhow!("closing the Zenoh session: {e}"))?;
+            .map_err(|e| TunnelProcessError::Close(e.to_string()))?;
         Ok(())
     }
 }

@@ -65,6 +65,20 @@ pub fn init_logging(service: &str) {
     tracing::debug!(service, "logging started");
 }
 
+/// An error with its causes, each after `: ` (`outer: inner: innermost`,
+/// following [`std::error::Error::source`]): how a process's failure is
+/// logged ([`runner::main`]) and how a supervisor or a test prints one.
+pub fn error_chain(e: &dyn std::error::Error) -> String {
+    let mut out = e.to_string();
+    let mut cause = e.source();
+    while let Some(c) = cause {
+        out.push_str(": ");
+        out.push_str(&c.to_string());
+        cause = c.source();
+    }
+    out
+}
+
 /// A flag raised by SIGINT or SIGTERM: loops check it and exit cleanly, so
 /// iceoryx2 resources are released.
 #[derive(Debug, Clone)]

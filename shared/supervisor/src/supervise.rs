@@ -10,6 +10,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex, PoisonError};
 use std::time::{Duration, Instant};
 
+use exo_service_kit::error_chain;
 use exo_service_kit::ipc::IpcError;
 
 use crate::error::{Error, Result};
@@ -309,7 +310,7 @@ where
                 Err(e) => eprintln!(
                     "exo: warning: cannot watch {} start: {}",
                     spec.name,
-                    chain(&e)
+                    error_chain(&e)
                 ),
             }
         }
@@ -419,7 +420,7 @@ where
             running.remove(i);
         }
         if let Err(e) = on_tick() {
-            let message = chain(&*e.into());
+            let message = error_chain(&*e.into());
             // Quiet runs kept the services' logs back: give the error the
             // real-time path's last lines, which say why.
             let message = match logs {
@@ -490,18 +491,6 @@ fn restart(
             patience.as_secs_f64() * 1e3
         )
     }))
-}
-
-/// An error with its causes, each after `: ` (as `anyhow` writes `{:#}`).
-fn chain(e: &(dyn std::error::Error + 'static)) -> String {
-    let mut out = e.to_string();
-    let mut cause = e.source();
-    while let Some(c) = cause {
-        out.push_str(": ");
-        out.push_str(&c.to_string());
-        cause = c.source();
-    }
-    out
 }
 
 /// The standard argument list of a service: `--config FILE`.

@@ -265,7 +265,7 @@ mod tests {
             interface: "ecm9".into(),
             source: OpenError::NoSuchInterface("ecm9".into()),
         };
-        let chain = format!("{:#}", anyhow::Error::from(e));
+        let chain = exo_service_kit::error_chain(&e);
         assert_eq!(
             chain,
             "bus.ethercat.interface = \"ecm9\": no network interface \"ecm9\" on this machine"
