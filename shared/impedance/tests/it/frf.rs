@@ -659,3 +659,40 @@ fn a_band_is_labelled_at_its_input_power_weighted_frequency() {
     assert!(average_bins(&dead, &[1, 2]).is_none());
     assert!(average_bins(&flat, &[]).is_none());
 }
+
+/// A window of exactly `k` periods of samples is whole: every sample
+/// counts (the block ends one mean spacing after its last stamp); one
+/// sample short, only `k − 1` periods' do. The stamps are written as a
+/// recorder writes them (`t0 + i·h`, from several starts), so the span
+/// over the period falls a rounding error either side of `k`: the
+/// boundary's tolerance must take both.
+#[test]
+fn a_window_of_exactly_whole_cycles_keeps_every_sample() {
+    let mut checked = 0;
+    for (rate_hz, t0) in [
+        (1000.0, 0.0),
+        (500.0, 12.345),
+        (1000.0, 1234.5678),
+        (200.0, 0.1),
+    ] {
+        let h = 1.0 / rate_hz;
+        for per_period in [3usize, 7, 50, 63, 100, 157, 630, 1000, 1571] {
+            let omega = std::f64::consts::TAU / (per_period as f64 * h);
+            for k in 1..=6usize {
+                let n = k * per_period;
+                let t: Vec<f64> = (0..n).map(|i| t0 + i as f64 * h).collect();
+                let what =
+                    format!("{k} periods of {per_period} samples at {rate_hz} Hz from {t0} s");
+                assert_eq!(whole_cycles(&t, omega), Some(n), "{what}");
+                let short = whole_cycles(&t[..n - 1], omega);
+                assert_eq!(
+                    short,
+                    (k > 1).then_some(n - per_period),
+                    "{what}, one short"
+                );
+                checked += 1;
+            }
+        }
+    }
+    assert_eq!(checked, 4 * 9 * 6);
+}
