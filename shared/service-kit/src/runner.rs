@@ -320,4 +320,20 @@ mod tests {
         let e = drive(p, &StopFlag::unraised(), TimingMode::Lockstep).unwrap_err();
         assert!(matches!(e, RunError::Process(TestError::Finish)), "{e:?}");
     }
+
+    /// A run file that cannot be read ends the run before anything opens,
+    /// with the config's error naming the file (the process is never
+    /// opened: `Failing::open` would panic).
+    #[test]
+    fn a_missing_run_file_ends_the_run_naming_it() {
+        let args = ServiceArgs {
+            config: "/nonexistent/exo-run.toml".into(),
+            iceoryx2_config: None,
+            output: None,
+            inject_fault_at: None,
+        };
+        let e = run::<Failing>(args).unwrap_err();
+        assert!(matches!(e, RunError::Config(_)), "{e:?}");
+        assert!(error_chain(&e).contains("/nonexistent/exo-run.toml"), "{e}");
+    }
 }
