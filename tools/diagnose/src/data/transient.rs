@@ -71,7 +71,11 @@ fn keeps_own_transient(d2: f64, v: f64) -> bool {
 pub(super) fn pool_transients(d: &mut Dataset) {
     // The white σ's share that is noise, pooled per experiment and
     // transfer function: the local polynomials' residual over the white
-    // σ, weighted by its degrees of freedom, within [MIN_NOISE_SHARE, 1].
+    // σ, weighted by its degrees of freedom, at least MIN_NOISE_SHARE and
+    // not capped at 1 (stop 46: a cap at 1 biased the share low where the
+    // noise is white, whose pooled ratio scatters about 1, and where it is
+    // coloured above the white level near the lines; dev nulls' χ²/dof
+    // 1.042 → 1.018 (simulator), 1.097 → 1.073 (rig)).
     let mut noise: BTreeMap<(u32, Tf), (f64, f64)> = BTreeMap::new();
     for o in &d.observations {
         let Some(l) = o.transient_free.and_then(|t| t.local_noise) else {
@@ -91,7 +95,7 @@ pub(super) fn pool_transients(d: &mut Dataset) {
         noise
             .get(&(e, tf))
             .filter(|g| g.1 > 0.0)
-            .map_or(1.0, |g| (g.0 / g.1).clamp(MIN_NOISE_SHARE, 1.0))
+            .map_or(1.0, |g| (g.0 / g.1).max(MIN_NOISE_SHARE))
     };
     // Per component: the line's noise variance, the estimate's own noise,
     // the leak.
@@ -265,7 +269,8 @@ mod tests {
 
     /// By hand: the white σ's share that is noise is the local noise ratio
     /// pooled over an experiment's lines of one transfer function, weighted
-    /// by degrees of freedom ((4·0.5 + 6·0.8)/10 = 0.68), within [0.5, 1]; it
+    /// by degrees of freedom ((4·0.5 + 6·0.8)/10 = 0.68), at least 0.5 and
+    /// not capped at 1; it
     /// scales the line's noise and its estimate's before the transient is
     /// pooled, also for a line of the experiment without its own measure.
     #[test]
@@ -287,7 +292,8 @@ mod tests {
         d.observations
             .push(with(line(Tf::Sh, 0, 2.0, c(4.0), 3.0), 0.8, 6));
         d.observations.push(line(Tf::Sh, 0, 2.0, c(0.0), 3.0));
-        // Experiment 2: a ratio above 1 pools to 1, the white σ kept.
+        // Experiment 2: a ratio above 1 is taken as measured (1.5, σ² = 6;
+        // its transient's part (0 − 1.5·(8 − 4))/6 is negative, none added).
         d.observations
             .push(with(line(Tf::Sh, 1, 2.0, c(0.0), 2.0), 1.5, 5));
         // Another transfer function of experiment 1: its own pool (none).
@@ -306,7 +312,8 @@ mod tests {
             assert!((s(i)[0] - 2.72f64.sqrt()).abs() < 1e-12, "{i}: {:?}", s(i));
             assert!((s(i)[1] - 2.72f64.sqrt()).abs() < 1e-12, "{i}: {:?}", s(i));
         }
-        assert_eq!(s(3), [2.0, 2.0]);
+        assert!((s(3)[0] - 6f64.sqrt()).abs() < 1e-12, "{:?}", s(3));
+        assert!((s(3)[1] - 6f64.sqrt()).abs() < 1e-12, "{:?}", s(3));
         assert_eq!(s(4), [2.0, 2.0]);
         assert!((s(5)[0] - 2f64.sqrt()).abs() < 1e-12, "{:?}", s(5));
         assert_eq!(s(6), [2.0, 2.0]);

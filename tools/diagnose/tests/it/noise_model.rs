@@ -406,8 +406,8 @@ fn the_reduction_gives_each_line_its_transient_free_value_with_sqrt_leverage() {
         )
     };
     // The white σ's share that is noise: the local residual over white σ²
-    // times leverage, pooled with the degrees of freedom as weights, in
-    // [0.5, 1].
+    // times leverage, pooled with the degrees of freedom as weights, at
+    // least 0.5 (not capped at 1).
     let (mut num, mut den) = (0.0, 0.0);
     for o in d.of(Tf::Sh) {
         let Some(lp) = local(o) else { continue };
@@ -416,7 +416,7 @@ fn the_reduction_gives_each_line_its_transient_free_value_with_sqrt_leverage() {
         num += lp.dof as f64 * lp.residual_sigma.powi(2) / (white * lp.leverage);
         den += lp.dof as f64;
     }
-    let q = (num / den).clamp(0.5, 1.0);
+    let q = (num / den).max(0.5);
     // Per component: (noise variance, the estimate's own noise, the
     // squared leak).
     let parts = |o: &exo_diagnose::data::Observation| {
