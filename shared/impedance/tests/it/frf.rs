@@ -696,3 +696,47 @@ fn a_window_of_exactly_whole_cycles_keeps_every_sample() {
     }
     assert_eq!(checked, 4 * 9 * 6);
 }
+
+/// A sine amplitude written by hand (its noise as given, isotropic).
+fn amplitude_by_hand(re: f64, im: f64, var: f64, explained: f64) -> SineAmplitude {
+    SineAmplitude {
+        amplitude: Complex64::new(re, im),
+        amplitude_cov: [[var, 0.0], [0.0, var]],
+        residual_var: var,
+        total_var: 1.0,
+        explained_fraction: explained,
+        n: 1000,
+        cycles: 2,
+    }
+}
+
+/// The ratio's covariance by hand from `δR = δY/X − R·δX/X`: with
+/// isotropic noise `a` on X and `b` on Y, each component's variance is
+/// `b/|X|² + a|R|²/|X|²`. X = 2 + j, Y = 3 − j: R = 1 − j, |X|² = 5,
+/// |R|² = 2. Input noise alone (a = 0.01): 0.004; output alone (b =
+/// 0.01): 0.002; both: 0.006, uncorrelated components; the relative error
+/// `√(2·0.006)/√2`; the coherence the smaller explained fraction. A zero
+/// output with no noise anywhere: the ratio 0, its relative error
+/// infinite (not 0/0).
+#[test]
+fn the_ratios_noise_by_hand_from_the_input_and_the_output() {
+    let x = |a| amplitude_by_hand(2.0, 1.0, a, 0.9);
+    let y = |b| amplitude_by_hand(3.0, -1.0, b, 0.7);
+    for (a, b, var) in [(0.01, 0.0, 0.004), (0.0, 0.01, 0.002), (0.01, 0.01, 0.006)] {
+        let p = sine_ratio(&x(a), &y(b)).unwrap();
+        assert!((p.ratio - Complex64::new(1.0, -1.0)).norm() < 1e-15);
+        for (got, want) in [
+            (p.cov[0][0], var),
+            (p.cov[1][1], var),
+            (p.cov[0][1], 0.0),
+            (p.cov[1][0], 0.0),
+        ] {
+            assert!((got - want).abs() < 1e-15, "a {a} b {b}: {:?}", p.cov);
+        }
+        assert!((p.noise_rel - var.sqrt()).abs() < 1e-12, "{}", p.noise_rel);
+        assert_eq!(p.coherence, 0.7);
+    }
+    let zero = sine_ratio(&x(0.0), &amplitude_by_hand(0.0, 0.0, 0.0, 0.0)).unwrap();
+    assert_eq!(zero.ratio, Complex64::new(0.0, 0.0));
+    assert_eq!(zero.noise_rel, f64::INFINITY);
+}
