@@ -64,8 +64,14 @@
 //! carries power and the coherence is high, averaged into log-spaced
 //! points. H1 is unbiased by output noise (it only lowers `γ²`); input
 //! noise biases it low. Welch allocates its spectra once per call.
+//!
+//! # Periodic (multisine) excitation
+//!
+//! [`periodic_frf`]: each excited line's `Ȳ/X̄` over whole periods, its
+//! noise from the spread between the periods (module `periodic`).
 
 mod lpm;
+mod periodic;
 mod sine;
 mod welch;
 
@@ -73,6 +79,7 @@ pub use lpm::{
     hann_mean, local_polynomial_ratio, mean_standard_error, mean_standard_error_beside,
     LocalPolynomialPoint, BESIDE_BINS, HANN_MEAN_NOISE_GAIN,
 };
+pub use periodic::{periodic_frf, PeriodicLine};
 pub use sine::{
     sine_amplitude, sine_ratio, whole_cycles, SineAmplitude, SineCorrelator, SinePoint,
 };

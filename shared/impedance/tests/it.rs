@@ -25,6 +25,8 @@ mod low_bin_noise;
 mod multisine;
 #[path = "it/paper.rs"]
 mod paper;
+#[path = "it/periodic.rs"]
+mod periodic;
 #[path = "it/power_law_numpy.rs"]
 mod power_law_numpy;
 #[path = "it/properties.rs"]

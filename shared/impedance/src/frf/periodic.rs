@@ -1,0 +1,165 @@
+//! The estimate of a periodic (multisine) excitation's response, line by
+//! line, from whole periods (issue 34 item 2): the nonparametric estimate
+//! for periodic excitations of R. Pintelon and J. Schoukens, *System
+//! Identification: A Frequency Domain Approach* (2nd ed., Wiley–IEEE 2012),
+//! section 2.4: each period's DFT at the excited bins, averaged over the
+//! periods, and the noise from the spread between periods. A signal made
+//! of lines on a period's own bins puts each line in its own bin with no
+//! leakage; the noise needs no model of its colour, since it is measured
+//! at each line from the periods' disagreement.
+//!
+//! For `P` periods with DFTs `X_p(k)`, `Y_p(k)` at bin `k`:
+//! `X̄ = Σ X_p / P`, `Ȳ` likewise, `Ĝ = Ȳ / X̄`; the sample (co)variances
+//! `σ̂²_X = Σ |X_p − X̄|² / (P − 1)`, `σ̂²_Y`, `σ̂²_YX = Σ (Y_p − Ȳ)(X_p − X̄)* / (P − 1)`;
+//! and to first order (circular noise)
+//! `σ̂²_Ĝ = |Ĝ|² / P · (σ̂²_Y/|Ȳ|² + σ̂²_X/|X̄|² − 2 Re(σ̂²_YX / (Ȳ X̄*)))`,
+//! half of it in each of the real and imaginary parts.
+//!
+//! The caller leaves out the periods in which the system had not reached
+//! its steady state (a transient is not periodic and would be read as
+//! noise and bias).
+
+use num_complex::Complex64;
+
+use super::welch::Fft;
+use crate::error::{Result, ScienceError};
+
+/// One excited line's response over whole periods.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PeriodicLine {
+    /// Its bin in the period (cycles per period).
+    pub bin: usize,
+    /// Its frequency (rad/s): `2π · bin · rate_hz / period_samples`.
+    pub omega_rad_s: f64,
+    /// `Ȳ/X̄` (units of `y` over units of `x`).
+    pub ratio: Complex64,
+    /// Covariance of `(Re Ĝ, Im Ĝ)` from the spread between periods
+    /// (ratio units²; circular: the two variances equal, no covariance).
+    pub cov: [[f64; 2]; 2],
+    /// Relative standard error `σ̂_Ĝ / |Ĝ|` (dimensionless); infinite when
+    /// `Ĝ = 0`.
+    pub noise_rel: f64,
+    /// Periods averaged; the variance has `P − 1` degrees of freedom.
+    pub periods: usize,
+}
+
+/// `Y/X` at each of `bins` from the whole periods of `period_samples`
+/// samples in `x` and `y` (sampled at `rate_hz`, starting on a period's
+/// first sample), with its noise from the spread between the periods
+/// (module docs). Refused, naming what is wrong: lengths that differ or are
+/// not whole periods, fewer than two periods (no spread to measure), a bin
+/// at 0 or not below Nyquist, a sample that is not finite, or an input with
+/// nothing at an excited bin (its line within its own scatter between
+/// periods, or below 2e-9 of the input's RMS).
+pub fn periodic_frf(
+    x: &[f64],
+    y: &[f64],
+    rate_hz: f64,
+    period_samples: usize,
+    bins: &[usize],
+) -> Result<Vec<PeriodicLine>> {
+    let rate_hz = crate::error::positive("rate_hz", rate_hz)?;
+    if x.len() != y.len() {
+        return Err(ScienceError::LengthMismatch {
+            what: "periodic response: input and output",
+            left: x.len(),
+            right: y.len(),
+        });
+    }
+    if period_samples == 0 || x.len() % period_samples != 0 {
+        return Err(ScienceError::Infeasible(format!(
+            "periodic response: {} samples are not whole periods of {period_samples}",
+            x.len()
+        )));
+    }
+    let periods = x.len() / period_samples;
+    if periods < 2 {
+        return Err(ScienceError::Infeasible(format!(
+            "periodic response: {periods} period(s); at least two are needed to measure the noise"
+        )));
+    }
+    for &b in bins {
+        if b == 0 || 2 * b >= period_samples {
+            return Err(ScienceError::Infeasible(format!(
+                "periodic response: bin {b} is not between 1 and Nyquist of a {period_samples}-sample period"
+            )));
+        }
+    }
+    if let Some(i) = x.iter().chain(y).position(|v| !v.is_finite()) {
+        let (which, at) = if i < x.len() {
+            ("input", i)
+        } else {
+            ("output", i - x.len())
+        };
+        return Err(ScienceError::Infeasible(format!(
+            "periodic response: the {which}'s sample {at} is not finite"
+        )));
+    }
+    let mut fft = Fft::new(period_samples)?;
+    let mut buf = vec![Complex64::new(0.0, 0.0); period_samples];
+    // Per signal, period and bin: the DFT at the excited bins.
+    let mut spectra = |s: &[f64]| -> Result<Vec<Vec<Complex64>>> {
+        s.chunks_exact(period_samples)
+            .map(|p| {
+                for (b, v) in buf.iter_mut().zip(p) {
+                    *b = Complex64::new(*v, 0.0);
+                }
+                fft.forward(&mut buf)?;
+                Ok(bins.iter().map(|&k| buf[k]).collect())
+            })
+            .collect()
+    };
+    let xs = spectra(x)?;
+    let ys = spectra(y)?;
+    let p = periods as f64;
+    // The input's RMS times the period's length: what a line is compared
+    // with before it is taken as excited.
+    let x_scale =
+        (x.iter().map(|v| v * v).sum::<f64>() / x.len() as f64).sqrt() * period_samples as f64;
+    let d_omega = std::f64::consts::TAU * rate_hz / period_samples as f64;
+    bins.iter()
+        .enumerate()
+        .map(|(j, &bin)| {
+            let xm = xs.iter().map(|s| s[j]).sum::<Complex64>() / p;
+            let ym = ys.iter().map(|s| s[j]).sum::<Complex64>() / p;
+            let (mut vx, mut vy, mut vyx) = (0.0, 0.0, Complex64::new(0.0, 0.0));
+            for (xp, yp) in xs.iter().zip(&ys) {
+                let (dx, dy) = (xp[j] - xm, yp[j] - ym);
+                vx += dx.norm_sqr();
+                vy += dy.norm_sqr();
+                vyx += dy * dx.conj();
+            }
+            let dof = p - 1.0;
+            let (vx, vy, vyx) = (vx / dof, vy / dof, vyx / dof);
+            // An excited line stands above its own scatter between periods
+            // and above the rounding of the period's transform (a line of
+            // amplitude A in a signal of RMS r has |X| = A N/2 against
+            // r N: refused below A = 2e-9 r).
+            if xm.norm_sqr() <= vx / p || xm.norm() <= 1e-9 * x_scale {
+                return Err(ScienceError::Infeasible(format!(
+                    "periodic response: the input has nothing at bin {bin} beyond its noise between periods"
+                )));
+            }
+            let ratio = ym / xm;
+            // |Ĝ|²(σ²_Y/|Ȳ|² + ...) written without dividing by Ȳ, which
+            // may be zero: |Ĝ|²σ²_Y/|Ȳ|² = σ²_Y/|X̄|², and
+            // |Ĝ|² Re(σ²_YX/(Ȳ X̄*)) = Re(Ĝ* σ²_YX)/|X̄|².
+            let x2 = xm.norm_sqr();
+            let var = ((vy + ratio.norm_sqr() * vx - 2.0 * (ratio.conj() * vyx).re) / x2 / p)
+                .max(0.0);
+            let rn = ratio.norm();
+            Ok(PeriodicLine {
+                bin,
+                omega_rad_s: bin as f64 * d_omega,
+                ratio,
+                cov: [[0.5 * var, 0.0], [0.0, 0.5 * var]],
+                noise_rel: if rn > 0.0 {
+                    var.sqrt() / rn
+                } else {
+                    f64::INFINITY
+                },
+                periods,
+            })
+        })
+        .collect()
+}

@@ -1,0 +1,126 @@
+//! The periodic (multisine) response estimate (issue 34 item 2) against
+//! physics written here: a joint's torque `τ = K θ + B θ̇ + M θ̈` for a
+//! multisine angle, each line's response in closed form
+//! (`G(jω) = K − Mω² + jBω`, sampled with `f64::cos`), and the noise
+//! estimate against the scatter of many seeded repetitions.
+
+use exo_impedance::frf::periodic_frf;
+use exo_impedance::multisine::Multisine;
+use exo_impedance::Complex64;
+
+use crate::rng::SplitMix64;
+
+const RATE_HZ: f64 = 1000.0;
+const PERIOD: usize = 2000;
+const BINS: [usize; 5] = [3, 5, 8, 13, 21];
+const K: f64 = 40.0;
+const B: f64 = 1.5;
+const M: f64 = 0.11;
+
+/// The joint's response at ω (Nm/rad), by hand.
+fn g(w: f64) -> Complex64 {
+    Complex64::new(K - M * w * w, B * w)
+}
+
+/// `periods` periods of the angle (rad) and of the torque (Nm), each line
+/// `A cos(ωt + φ)` of the angle answered by `A|G| cos(ωt + φ + ∠G)`.
+fn record(periods: usize) -> (Multisine, Vec<f64>, Vec<f64>) {
+    let ms = Multisine::schroeder(RATE_HZ, PERIOD, &BINS, &[0.05; 5]).unwrap();
+    let n = periods * PERIOD;
+    let (mut theta, mut tau) = (vec![0.0; n], vec![0.0; n]);
+    for i in 0..n {
+        let t = i as f64 / RATE_HZ;
+        for l in ms.lines() {
+            let gl = g(l.omega_rad_s);
+            theta[i] += l.amplitude * (l.omega_rad_s * t + l.phase_rad).cos();
+            tau[i] += l.amplitude * gl.norm() * (l.omega_rad_s * t + l.phase_rad + gl.arg()).cos();
+        }
+    }
+    (ms, theta, tau)
+}
+
+/// Noise-free: every line's `Ĝ` is the closed form to 1e-9, at the
+/// period's grid frequency, with no spread between periods.
+#[test]
+fn each_lines_response_is_the_closed_form() {
+    let (ms, theta, tau) = record(4);
+    let lines = periodic_frf(&theta, &tau, RATE_HZ, PERIOD, &BINS).unwrap();
+    assert_eq!(lines.len(), BINS.len());
+    for (l, m) in lines.iter().zip(ms.lines()) {
+        assert_eq!(l.bin, m.bin);
+        assert!((l.omega_rad_s - m.omega_rad_s).abs() < 1e-12);
+        let want = g(m.omega_rad_s);
+        assert!(
+            (l.ratio - want).norm() < 1e-9 * want.norm(),
+            "bin {}: {} against {want}",
+            l.bin,
+            l.ratio
+        );
+        assert!(l.noise_rel < 1e-9, "bin {}: {}", l.bin, l.noise_rel);
+        assert_eq!(l.periods, 4);
+    }
+}
+
+/// With white noise on both signals (encoder-like 2e-4 rad on the angle,
+/// 0.05 Nm on the torque), over 2000 seeded repetitions of 8 periods: the
+/// estimate is unbiased (the mean error within four standard errors of
+/// the mean) and the variance it reports from the periods' spread
+/// averages the scatter it really has, within 10 % at every line (the
+/// empirical variance of 4000 components has a 2.2 % sampling error).
+#[test]
+fn the_noise_from_the_periods_spread_is_the_real_scatter() {
+    let (ms, theta, tau) = record(8);
+    let trials = 2000;
+    let mut rng = SplitMix64(0x5eed_0034);
+    let mut err = vec![Vec::new(); BINS.len()];
+    let mut reported = vec![0.0; BINS.len()];
+    for _ in 0..trials {
+        let x: Vec<f64> = theta.iter().map(|v| v + 2e-4 * rng.gaussian()).collect();
+        let y: Vec<f64> = tau.iter().map(|v| v + 0.05 * rng.gaussian()).collect();
+        let lines = periodic_frf(&x, &y, RATE_HZ, PERIOD, &BINS).unwrap();
+        for (j, l) in lines.iter().enumerate() {
+            err[j].push(l.ratio - g(ms.lines()[j].omega_rad_s));
+            reported[j] += l.cov[0][0] + l.cov[1][1];
+        }
+    }
+    for j in 0..BINS.len() {
+        let n = trials as f64;
+        let mean = err[j].iter().sum::<Complex64>() / n;
+        let scatter = err[j].iter().map(|e| (e - mean).norm_sqr()).sum::<f64>() / (n - 1.0);
+        let reported = reported[j] / n;
+        assert!(
+            mean.norm() < 4.0 * (scatter / n).sqrt(),
+            "bin {}: bias {mean} against {}",
+            BINS[j],
+            (scatter / n).sqrt()
+        );
+        let ratio = reported / scatter;
+        assert!(
+            (0.9..1.1).contains(&ratio),
+            "bin {}: reported {reported:.3e}, scatter {scatter:.3e} ({ratio:.3})",
+            BINS[j]
+        );
+    }
+}
+
+/// Bad input is refused naming what is wrong, never a panic or a NaN.
+#[test]
+fn what_cannot_be_estimated_is_refused_by_name() {
+    let (_, theta, tau) = record(2);
+    let err = |x: &[f64], y: &[f64], period: usize, bins: &[usize]| {
+        periodic_frf(x, y, RATE_HZ, period, bins)
+            .unwrap_err()
+            .to_string()
+    };
+    assert!(err(&theta[..PERIOD], &tau[..PERIOD], PERIOD, &BINS).contains("at least two"));
+    assert!(err(&theta[..PERIOD + 1], &tau[..PERIOD + 1], PERIOD, &BINS).contains("whole periods"));
+    assert!(err(&theta, &tau[1..], PERIOD, &BINS).contains("input and output"));
+    assert!(err(&theta, &tau, PERIOD, &[0]).contains("bin 0"));
+    assert!(err(&theta, &tau, PERIOD, &[PERIOD / 2]).contains("Nyquist"));
+    assert!(err(&theta, &tau, PERIOD, &[4]).contains("nothing at bin 4"));
+    assert!(err(&theta, &tau, 0, &BINS).contains("whole periods"));
+    let mut bad = tau.clone();
+    bad[2500] = f64::NAN;
+    assert!(err(&theta, &bad, PERIOD, &BINS).contains("output's sample 2500"));
+    assert!(periodic_frf(&theta, &tau, f64::NAN, PERIOD, &BINS).is_err());
+}
