@@ -66,7 +66,7 @@ pub fn periodic_frf(
             right: y.len(),
         });
     }
-    if period_samples == 0 || x.len() % period_samples != 0 {
+    if period_samples == 0 || !x.len().is_multiple_of(period_samples) {
         return Err(ScienceError::Infeasible(format!(
             "periodic response: {} samples are not whole periods of {period_samples}",
             x.len()
