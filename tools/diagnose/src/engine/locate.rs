@@ -296,3 +296,23 @@ pub(super) fn summary_of(cells: &[Cell], what: &str) -> Vec<String> {
     out.sort_by(|a, b| b.0.total_cmp(&a.0));
     out.into_iter().map(|(_, s)| s).collect()
 }
+
+#[cfg(test)]
+mod tests {
+    use super::pearson;
+
+    /// Pearson's r by hand: a line up is 1, down −1; (1, 3, 2, 4) against
+    /// (1, 2, 3, 4) is 0.8 (Σdxdy 4 over √(5·5)); three points are enough,
+    /// two are not; a constant has no correlation.
+    #[test]
+    fn the_correlation_by_hand() {
+        let x = [1.0, 2.0, 3.0, 4.0];
+        assert!((pearson(&x, &[2.0, 4.0, 6.0, 8.0]) - 1.0).abs() < 1e-15);
+        assert!((pearson(&x, &[8.0, 6.0, 4.0, 2.0]) + 1.0).abs() < 1e-15);
+        assert!((pearson(&x, &[1.0, 3.0, 2.0, 4.0]) - 0.8).abs() < 1e-15);
+        assert!((pearson(&x[..3], &[1.0, 3.0, 2.0]) - 0.5).abs() < 1e-15);
+        assert!(pearson(&x[..2], &[1.0, 2.0]).is_nan());
+        assert!(pearson(&x, &[3.0; 4]).is_nan());
+        assert!(pearson(&[3.0; 4], &x).is_nan());
+    }
+}
