@@ -122,5 +122,11 @@ fn what_cannot_be_estimated_is_refused_by_name() {
     let mut bad = tau.clone();
     bad[2500] = f64::NAN;
     assert!(err(&theta, &bad, PERIOD, &BINS).contains("output's sample 2500"));
+    let mut bad = tau.clone();
+    bad[0] = f64::INFINITY;
+    assert!(err(&theta, &bad, PERIOD, &BINS).contains("output's sample 0 "));
+    let mut bad = theta.clone();
+    bad[7] = f64::NAN;
+    assert!(err(&bad, &tau, PERIOD, &BINS).contains("input's sample 7 "));
     assert!(periodic_frf(&theta, &tau, f64::NAN, PERIOD, &BINS).is_err());
 }
