@@ -130,3 +130,44 @@ fn what_cannot_be_estimated_is_refused_by_name() {
     assert!(err(&bad, &tau, PERIOD, &BINS).contains("input's sample 7 "));
     assert!(periodic_frf(&theta, &tau, f64::NAN, PERIOD, &BINS).is_err());
 }
+
+/// Which bins count as excited, at any scale of the signal: a multisine of
+/// a line, one 1e-7 of it and one 1e-12 of it, its period repeated bit for
+/// bit (no spread between periods), `y = 3x`. The first two are taken
+/// (ratio 3) at an amplitude of 1e-6 and of 100 (the rule is relative to
+/// the input's RMS, not absolute); the third, below the rule's 2e-9 of the
+/// RMS, and bin 4, which holds only the transform's rounding, are refused
+/// at both.
+#[test]
+fn an_excited_line_is_judged_against_the_inputs_own_size() {
+    for scale in [1e-6, 1e2] {
+        let ms = Multisine::schroeder(
+            RATE_HZ,
+            PERIOD,
+            &[3, 8, 13],
+            &[scale, 1e-7 * scale, 1e-12 * scale],
+        )
+        .unwrap();
+        let one = ms.period();
+        let x: Vec<f64> = (0..3).flat_map(|_| one.iter().copied()).collect();
+        let y: Vec<f64> = x.iter().map(|v| 3.0 * v).collect();
+        let lines = periodic_frf(&x, &y, RATE_HZ, PERIOD, &[3, 8]).unwrap();
+        for l in &lines {
+            assert!(
+                (l.ratio - Complex64::new(3.0, 0.0)).norm() < 1e-6,
+                "scale {scale}, bin {}: {}",
+                l.bin,
+                l.ratio
+            );
+        }
+        for bin in [4, 13] {
+            let refused = periodic_frf(&x, &y, RATE_HZ, PERIOD, &[bin]).unwrap_err();
+            assert!(
+                refused
+                    .to_string()
+                    .contains(&format!("nothing at bin {bin} ")),
+                "scale {scale}: {refused}"
+            );
+        }
+    }
+}
