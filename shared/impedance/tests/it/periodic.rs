@@ -171,3 +171,23 @@ fn an_excited_line_is_judged_against_the_inputs_own_size() {
         }
     }
 }
+
+/// Noise in the excitation itself, which the system answers: x = the
+/// multisine plus white noise, y = 40·x (a spring). Each period's ratio is
+/// then exactly 40, and so is the estimate; the reported variance is
+/// nothing only because the output's noise and the input's cancel through
+/// their covariance: without it the relative error would be
+/// `√(2σ²_X/(P|X̄|²))` ≈ 3.6e-3 here (σ_X per bin 0.01·√1000, |X̄| 50,
+/// P = 6); asked below 1e-8, the rounding of a cancelled variance (7e-11
+/// measured).
+#[test]
+fn noise_the_system_answers_cancels_through_the_covariance() {
+    let (_, theta, _) = record(6);
+    let mut rng = SplitMix64(0x5eed_0035);
+    let x: Vec<f64> = theta.iter().map(|v| v + 0.01 * rng.gaussian()).collect();
+    let y: Vec<f64> = x.iter().map(|v| 40.0 * v).collect();
+    for l in periodic_frf(&x, &y, RATE_HZ, PERIOD, &BINS).unwrap() {
+        assert!((l.ratio - Complex64::new(40.0, 0.0)).norm() < 1e-9, "{l:?}");
+        assert!(l.noise_rel < 1e-8, "bin {}: {}", l.bin, l.noise_rel);
+    }
+}
