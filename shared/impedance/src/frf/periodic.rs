@@ -49,8 +49,9 @@ pub struct PeriodicLine {
 /// (module docs). Refused, naming what is wrong: lengths that differ or are
 /// not whole periods, fewer than two periods (no spread to measure), a bin
 /// at 0 or not below Nyquist, a sample that is not finite, or an input with
-/// nothing at an excited bin (its line within its own scatter between
-/// periods, or below 2e-9 of the input's RMS).
+/// nothing at an excited bin (its line not above its own scatter between
+/// periods at the 1 % level of F(2, 2(P − 1)), or below 2e-9 of the
+/// input's RMS).
 pub fn periodic_frf(
     x: &[f64],
     y: &[f64],
@@ -132,10 +133,14 @@ pub fn periodic_frf(
             let dof = p - 1.0;
             let (vx, vy, vyx) = (vx / dof, vy / dof, vyx / dof);
             // An excited line stands above its own scatter between periods
-            // and above the rounding of the period's transform (a line of
-            // amplitude A in a signal of RMS r has |X| = A N/2 against
-            // r N: refused below A = 2e-9 r).
-            if xm.norm_sqr() <= vx / p || xm.norm() <= 1e-9 * x_scale {
+            // at the 1 % level (under noise alone F = |X̄|² P / σ̂²_X follows
+            // F(2, 2(P − 1)), whose 99th percentile is (d/2)(0.01^(−2/d) − 1),
+            // d = 2(P − 1)), and above the rounding of the period's
+            // transform (a line of amplitude A in a signal of RMS r has
+            // |X| = A N/2 against r N: refused below A = 2e-9 r).
+            let d2 = 2.0 * dof;
+            let f_crit = 0.5 * d2 * (0.01f64.powf(-2.0 / d2) - 1.0);
+            if xm.norm_sqr() * p <= f_crit * vx || xm.norm() <= 1e-9 * x_scale {
                 return Err(ScienceError::Infeasible(format!(
                     "periodic response: the input has nothing at bin {bin} beyond its noise between periods"
                 )));
