@@ -7,8 +7,9 @@
 //! safe state once the stream is established (0.1 s of samples answered);
 //! in lockstep a stalled loop is the plant's or the driver's to report.
 //!
-//! Operator commands (`<instance>/operator`, e.g. from `exo op`) and the
-//! identifier's estimates are taken before each sample is answered; the
+//! Operator commands (`<instance>/operator`, e.g. from `exo op`) and, when
+//! the run adopts the identifier's recommended f, its estimates are taken
+//! before each sample is answered; the
 //! node decides, and each command is answered on
 //! `<instance>/operator/reply` with the verdict and what was done or why
 //! not. A stopped protocol holds gravity compensation and does
@@ -58,7 +59,12 @@ pub struct ControllerProcess {
     reply_out: Outbox<OperatorReply>,
     command_out: Outbox<ActuatorCommand>,
     protocol_out: Outbox<ProtocolState>,
-    estimate_in: Inbox<ImpedanceEstimate>,
+    /// The identifier's estimates, only when the run adopts its
+    /// recommended f (`controller.adopt_recommended_f`): otherwise the
+    /// control path holds no port of the identifier's, so a restarted
+    /// identifier's new segments are never mapped in the controller's tick
+    /// (issue 32 item 4).
+    estimate_in: Option<Inbox<ImpedanceEstimate>>,
     lockstep: bool,
     wait: Duration,
     arm_after: u64,
@@ -87,7 +93,11 @@ impl Process for ControllerProcess {
         let reply_out = ipc.outbox(OPERATOR_REPLY)?;
         let command_out = ipc.outbox(COMMAND)?;
         let protocol_out = ipc.outbox(PROTOCOL)?;
-        let estimate_in = ipc.inbox(IDENTIFIER_ESTIMATE, 16)?;
+        let estimate_in = if cfg.controller.adopt_recommended_f {
+            Some(ipc.inbox(IDENTIFIER_ESTIMATE, 16)?)
+        } else {
+            None
+        };
         let node = ControllerNode::new(cfg)?;
         let lockstep = cfg.run.timing == TimingMode::Lockstep;
         info!(
@@ -123,14 +133,17 @@ impl Process for ControllerProcess {
     }
 
     fn ports(&self) -> Vec<&dyn Connect> {
-        vec![
+        let mut ports: Vec<&dyn Connect> = vec![
             &self.sensor_in,
             &self.command_out,
             &self.protocol_out,
             &self.operator_in,
             &self.reply_out,
-            &self.estimate_in,
-        ]
+        ];
+        if let Some(e) = &self.estimate_in {
+            ports.push(e);
+        }
+        ports
     }
 
     fn step(&mut self, _stop: &StopFlag) -> Result<Flow, ControllerProcessError> {
@@ -162,8 +175,10 @@ impl Process for ControllerProcess {
                 format_args!("{outcome}"),
             ))?;
         }
-        while let Some(e) = self.estimate_in.try_recv()? {
-            self.node.on_estimate(&e);
+        if let Some(inbox) = &self.estimate_in {
+            while let Some(e) = inbox.try_recv()? {
+                self.node.on_estimate(&e);
+            }
         }
         let answer = self.node.on_sample(&s);
         if let Some(p) = answer.protocol {
