@@ -23,6 +23,8 @@ mod import;
 mod import_csv;
 #[path = "it/independent.rs"]
 mod independent;
+#[path = "it/multisine.rs"]
+mod multisine;
 #[path = "it/operator.rs"]
 mod operator;
 #[path = "it/pipeline.rs"]

@@ -136,6 +136,22 @@ impl Controller {
                     load,
                 )
             }
+            ProtocolMode::Multisine => {
+                let table = cfg.experiment_table();
+                let m = cfg.protocol.multisine().unwrap_or_default();
+                let design = m
+                    .design(cfg.run.rate_hz)
+                    .map_err(|e| ControllerError::Config(e.to_string()))?;
+                let load = cfg
+                    .protocol
+                    .experiments
+                    .first()
+                    .and_then(|n| table.get(*n))
+                    .map_or(0.0, |e| e.load_kg);
+                let protocol = Protocol::new(table, &cfg.protocol.experiments, Some(&[1]))
+                    .with_multisine(&design, |e| m.peak_nm_of(table, e));
+                (protocol, load)
+            }
             ProtocolMode::Voluntary => {
                 let v = cfg.voluntary.ok_or_else(|| {
                     ControllerError::Config("voluntary mode needs [voluntary]".into())

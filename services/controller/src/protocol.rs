@@ -46,6 +46,24 @@ pub struct Protocol {
     steps: Vec<(ExperimentSpec, u32)>,
     table: ExperimentTable,
     timing: ProtocolTiming,
+    excitation: Excitation,
+}
+
+/// What each period excites with.
+#[derive(Debug, Clone)]
+enum Excitation {
+    /// The experiment table's sine of each period (Table I).
+    Sine,
+    /// A designed periodic multisine (`mode = "multisine"`): one period of
+    /// it at unit peak, sampled at the control rate, scaled per step.
+    Multisine {
+        /// One period's samples, peak 1.
+        unit_period: Vec<f64>,
+        /// The control rate (Hz) the period is sampled at.
+        rate_hz: f64,
+        /// Peak torque (Nm) of each step.
+        peak_nm: Vec<f64>,
+    },
 }
 
 impl Protocol {
@@ -64,6 +82,59 @@ impl Protocol {
             steps,
             table: table.clone(),
             timing: table.timing,
+            excitation: Excitation::Sine,
+        }
+    }
+
+    /// The same steps excited by a periodic multisine instead of the
+    /// table's sines: `design` (sampled at its own rate, the control rate)
+    /// scaled in each step to `peak_nm_of` its experiment (Nm). The
+    /// multisine starts at sample 0 of its period when the settling window
+    /// opens, so the analysis window (whole periods after whole periods of
+    /// settling) holds whole periods.
+    pub fn with_multisine(
+        mut self,
+        design: &exo_impedance::multisine::Multisine,
+        peak_nm_of: impl Fn(&ExperimentSpec) -> f64,
+    ) -> Self {
+        let peak = design.peak();
+        let unit_period = design.period().iter().map(|x| x / peak).collect();
+        self.excitation = Excitation::Multisine {
+            unit_period,
+            rate_hz: design.rate_hz(),
+            peak_nm: self.steps.iter().map(|(e, _)| peak_nm_of(e)).collect(),
+        };
+        self
+    }
+
+    /// Frequency (rad/s; 0 for a multisine, the wire's "broadband"), peak
+    /// amplitude (Nm) and the excitation's value at unit amplitude
+    /// `since_start_s` after it started in step `index` (which exists).
+    /// Allocation-free.
+    fn excite(&self, index: usize, since_start_s: f64) -> (f64, f64, f64) {
+        let (e, period) = &self.steps[index];
+        match &self.excitation {
+            Excitation::Sine => {
+                let omega = self.table.omega_rad_s(e, *period);
+                (
+                    omega,
+                    self.table.amplitude_nm(e, *period),
+                    (omega * since_start_s).sin(),
+                )
+            }
+            Excitation::Multisine {
+                unit_period,
+                rate_hz,
+                peak_nm,
+            } => {
+                let n = (since_start_s * rate_hz).round();
+                let value = if n >= 0.0 && !unit_period.is_empty() {
+                    unit_period[(n as u64 % unit_period.len() as u64) as usize]
+                } else {
+                    0.0
+                };
+                (0.0, peak_nm[index], value)
+            }
         }
     }
 
@@ -159,12 +230,11 @@ impl Protocol {
     /// into its period (in its rest, or the ramp-in of an experiment
     /// without bias): an operator stop or start then has nothing to ramp out.
     pub fn quiet(&self, index: usize, tau_s: f64) -> bool {
-        let Some((e, period)) = self.steps.get(index) else {
+        let Some((e, _)) = self.steps.get(index) else {
             return true;
         };
         let (_, bias_fraction, envelope) = self.shape(tau_s);
-        bias_fraction * e.bias_nm == 0.0
-            && (envelope == 0.0 || self.table.amplitude_nm(e, *period) == 0.0)
+        bias_fraction * e.bias_nm == 0.0 && (envelope == 0.0 || self.excite(index, 0.0).1 == 0.0)
     }
 
     /// The state `elapsed_s` after an operator stop `tau_stop_s` into step
@@ -181,10 +251,9 @@ impl Protocol {
         let t = &self.timing;
         let (_, bias_fraction, envelope) = self.shape(tau_stop_s);
         let fade = 1.0 - smooth_step(elapsed_s / t.ramp_out_s);
-        let omega = self.table.omega_rad_s(e, *period);
-        let amplitude = self.table.amplitude_nm(e, *period);
+        let (omega, amplitude, wave) = self.excite(index, tau_stop_s + elapsed_s - t.ramp_in_s);
         let excitation = if tau_stop_s >= t.ramp_in_s {
-            fade * envelope * amplitude * (omega * (tau_stop_s + elapsed_s - t.ramp_in_s)).sin()
+            fade * envelope * amplitude * wave
         } else {
             0.0
         };
@@ -276,9 +345,8 @@ impl Protocol {
     fn point(&self, index: usize, tau_s: f64) -> ProtocolPoint {
         let (e, period) = &self.steps[index];
         let (phase, bias_fraction, envelope) = self.shape(tau_s);
-        let omega = self.table.omega_rad_s(e, *period);
-        let amplitude = self.table.amplitude_nm(e, *period);
-        let excitation = envelope * amplitude * (omega * (tau_s - self.timing.ramp_in_s)).sin();
+        let (omega, amplitude, wave) = self.excite(index, tau_s - self.timing.ramp_in_s);
+        let excitation = envelope * amplitude * wave;
         ProtocolPoint {
             experiment: e.number,
             period: *period,
@@ -422,6 +490,86 @@ mod tests {
             let b = p.at(15.0 + tau).tau_bias_nm;
             assert!((b - full * fade).abs() < 1e-12, "at 15 + {tau} s: {b}");
         }
+    }
+
+    /// A multisine protocol (issue 34 item 1): from the settling window's
+    /// start, sample `n` of the period (100 Hz, 200 samples: lines at bins
+    /// 3, 5 and 11 written out by hand in the test) scaled to each
+    /// experiment's peak; whole periods in the analysis window; the wire's
+    /// "broadband" ω = 0 and the peak as the amplitude; faded in and out
+    /// as the sine is; an operator stop continuous with the running
+    /// protocol.
+    #[test]
+    fn a_multisine_protocol_plays_the_design_scaled_to_each_experiments_peak() {
+        let mut t = table();
+        t.timing = ProtocolTiming {
+            ramp_in_s: 1.0,
+            settling_s: 2.0,
+            analysis_s: 4.0,
+            ramp_out_s: 1.0,
+            rest_s: 0.5,
+        };
+        let (rate, n_period) = (100.0, 200usize);
+        let design = exo_impedance::multisine::Multisine::schroeder(
+            rate,
+            n_period,
+            &[3, 5, 11],
+            &[1.0, 0.5, 0.25],
+        )
+        .unwrap();
+        let by_hand = |n: usize| -> f64 {
+            design
+                .lines()
+                .iter()
+                .map(|l| {
+                    let arg = std::f64::consts::TAU * (l.bin * n) as f64 / n_period as f64;
+                    l.amplitude * (arg + l.phase_rad).cos()
+                })
+                .sum()
+        };
+        let peak = (0..n_period).map(|n| by_hand(n).abs()).fold(0.0, f64::max);
+        let p = Protocol::new(&t, &[1, 7], Some(&[1])).with_multisine(&design, |e| {
+            if e.number == 1 {
+                3.0
+            } else {
+                1.5
+            }
+        });
+        assert_eq!(p.len(), 2);
+        let step_s = p.period_s();
+        assert_eq!(step_s, 8.5);
+        for (step, scale) in [(0usize, 3.0), (1, 1.5)] {
+            // Every tick of the analysis window (3 s to 7 s into the step:
+            // samples 200..600 of the multisine, two whole periods).
+            for k in 200..600usize {
+                let s = p.at(step as f64 * step_s + 1.0 + k as f64 / rate);
+                assert_eq!(s.phase, ProtocolPhase::Analysis, "{step} {k}");
+                assert_eq!(s.omega_rad_s, 0.0);
+                assert_eq!(s.amplitude_nm, scale);
+                let want = scale * by_hand(k % n_period) / peak;
+                assert!((s.tau_excitation_nm - want).abs() < 1e-9, "{step} {k}");
+                assert!(s.tau_excitation_nm.abs() <= scale + 1e-9);
+            }
+        }
+        // Faded in over the first half of the settling window (1 s).
+        let k = 37usize;
+        let fade = 0.5 - 0.5 * (std::f64::consts::PI * k as f64 / rate).cos();
+        let s = p.at(1.0 + k as f64 / rate);
+        assert_eq!(s.phase, ProtocolPhase::Settling);
+        assert!((s.tau_excitation_nm - fade * 3.0 * by_hand(k) / peak).abs() < 1e-9);
+        assert_eq!(p.at(0.5).tau_excitation_nm, 0.0);
+        assert_eq!(p.at(8.2).tau_excitation_nm, 0.0);
+        // An operator stop 0.25 s into the analysis window holds the
+        // multisine on, faded out over the ramp-out.
+        let tau_stop = 3.25;
+        let s = p.stopping(0, tau_stop, 0.0);
+        assert!((s.tau_excitation_nm - p.at(tau_stop).tau_excitation_nm).abs() < 1e-12);
+        let elapsed = 0.4;
+        let fade = 0.5 + 0.5 * (std::f64::consts::PI * elapsed).cos();
+        let n = ((tau_stop + elapsed - 1.0) * rate).round() as usize;
+        let s = p.stopping(0, tau_stop, elapsed);
+        assert!((s.tau_excitation_nm - fade * 3.0 * by_hand(n % n_period) / peak).abs() < 1e-9);
+        assert!(!p.quiet(0, 4.0));
     }
 
     #[test]

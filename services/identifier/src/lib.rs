@@ -27,7 +27,10 @@
 //!     eq. Sh3); and `τ_s/τ_d`.
 //!   - Broadband (`omega = 0`): Welch H1 with coherence over the excited
 //!     band, summarised in up to [`IdentifierSettings::broadband_points`]
-//!     log-spaced points.
+//!     log-spaced points; or, in a run whose excitation is a designed
+//!     periodic multisine ([`Identifier::with_periodic_lines`]), one point
+//!     per excited line from the window's whole periods, its noise from the
+//!     spread between them (`exo_impedance::frf::periodic_frf`).
 //!
 //!   A sample with a fault bit ([`status::FAULT_MASK`]) or the safe state
 //!   ([`status::SAFE_STATE`]) anywhere in the window discards the window
@@ -112,6 +115,33 @@ pub struct Identifier {
     settings_of: BTreeMap<u32, (f64, f64)>,
     power_law: Option<PowerLawFit>,
     recommended_f: Option<f64>,
+    /// A periodic excitation's period (samples) and excited bins
+    /// ([`Identifier::with_periodic_lines`]).
+    periodic: Option<(usize, Vec<usize>)>,
+}
+
+/// Degree of the slow trend removed from a periodic window's signals
+/// beside its lines ([`exo_impedance::frf::remove_slow_trend`]): a cubic
+/// follows a creep whose time constant is a third of the window or more.
+const TREND_DEGREE: usize = 3;
+
+/// One broadband window's signals, sample by sample, and how many samples
+/// had their own command.
+struct WindowSignals {
+    /// `θ_e` (rad).
+    theta_rad: Vec<f64>,
+    /// `τ_c` (Nm).
+    tau_c_nm: Vec<f64>,
+    /// `τ_s − τ_gravity` (Nm).
+    tau_s_less_gravity_nm: Vec<f64>,
+    /// `τ_s` as measured (Nm).
+    tau_s_nm: Vec<f64>,
+    /// `τ_d` (Nm).
+    tau_d_nm: Vec<f64>,
+    /// Samples whose command was found at their own stamp.
+    exact: usize,
+    /// The rate of the window's own stamps (Hz).
+    rate_hz: f64,
 }
 
 impl Identifier {
@@ -138,6 +168,7 @@ impl Identifier {
             settings_of: BTreeMap::new(),
             power_law: None,
             recommended_f: None,
+            periodic: None,
         }
     }
 
@@ -145,6 +176,45 @@ impl Identifier {
     pub fn try_new(s: IdentifierSettings) -> Result<Self, SettingsError> {
         s.validate()?;
         Ok(Identifier::new(s))
+    }
+
+    /// Broadband windows of a periodic excitation (issue 34: a designed
+    /// multisine) are estimated line by line at `bins` (cycles per period)
+    /// from the window's whole periods of `period_samples` samples at
+    /// [`IdentifierSettings::rate_hz`], the noise from the spread between
+    /// periods, instead of by Welch's method. Refused: a period of fewer
+    /// than 4 samples, no bin, a bin at 0 or not below Nyquist, a bin twice.
+    pub fn with_periodic_lines(
+        mut self,
+        period_samples: usize,
+        bins: Vec<usize>,
+    ) -> Result<Self, SettingsError> {
+        let err = |value: f64, why| {
+            Err(SettingsError {
+                field: "periodic_lines",
+                value,
+                why,
+            })
+        };
+        if period_samples < 4 {
+            return err(period_samples as f64, "a period needs at least 4 samples");
+        }
+        if bins.is_empty() {
+            return err(0.0, "name at least one excited bin");
+        }
+        for (i, &b) in bins.iter().enumerate() {
+            if b == 0 || 2 * b >= period_samples {
+                return err(
+                    b as f64,
+                    "each bin must lie between 1 and Nyquist (period_samples / 2)",
+                );
+            }
+            if bins[..i].contains(&b) {
+                return err(b as f64, "a bin is named twice");
+            }
+        }
+        self.periodic = Some((period_samples, bins));
+        Ok(self)
     }
 
     /// The settings.
@@ -292,6 +362,8 @@ impl Identifier {
         let new_points = if p.omega > 0.0 {
             self.sine_point(&p, origin, end, &what, out)
                 .map(|pt| vec![pt])
+        } else if let Some((period_samples, bins)) = &self.periodic {
+            self.periodic_points(&p, origin, end, (*period_samples, bins), &what, out)
         } else {
             self.broadband_points(&p, origin, end, &what, out)
         };
@@ -434,6 +506,146 @@ impl Identifier {
         })
     }
 
+    /// The window's signals (allocates: window ends only).
+    fn window_signals(
+        &self,
+        origin: u64,
+        end: u64,
+        what: &str,
+        out: &mut Vec<Event>,
+    ) -> WindowSignals {
+        let n = self.sensor.window(origin, end).count();
+        let mut w = WindowSignals {
+            theta_rad: Vec::with_capacity(n),
+            tau_c_nm: Vec::with_capacity(n),
+            tau_s_less_gravity_nm: Vec::with_capacity(n),
+            tau_s_nm: Vec::with_capacity(n),
+            tau_d_nm: Vec::with_capacity(n),
+            exact: 0,
+            rate_hz: self.s.rate_hz,
+        };
+        let mut cursor = CommandCursor::new(&self.command);
+        let mut last = origin;
+        for (stamp, [theta, tau_c, tau_s], _) in self.sensor.window(origin, end) {
+            let (tau_d, gravity) = match cursor.at(stamp) {
+                Some(([d, g], hit)) => {
+                    w.exact += usize::from(hit);
+                    (d, g)
+                }
+                None => (0.0, 0.0),
+            };
+            w.theta_rad.push(theta);
+            w.tau_c_nm.push(tau_c);
+            w.tau_s_less_gravity_nm.push(tau_s - gravity);
+            w.tau_s_nm.push(tau_s);
+            w.tau_d_nm.push(tau_d);
+            last = stamp;
+        }
+        self.command_coverage(what, w.exact, n, out);
+        // The rate of the window's own stamps (a recording may not say its rate).
+        let span_s = (last - origin) as f64 * 1e-9;
+        if n > 1 && span_s > 0.0 {
+            w.rate_hz = (n - 1) as f64 / span_s;
+        }
+        w
+    }
+
+    /// Points at a multisine's excited lines from the window's whole
+    /// periods (issue 34 item 2; `exo_impedance::frf::periodic_frf`): each
+    /// line's `S_h`, `S_h-e` and `τ_s/τ_d` with its noise from the spread
+    /// between the periods; no leakage, no taper. The window's first whole
+    /// periods are used (any `period_samples` consecutive samples of a
+    /// periodic steady state are a whole period). At the control rate
+    /// (the design's grid). Allocates: window ends only.
+    fn periodic_points(
+        &self,
+        p: &ProtocolState,
+        origin: u64,
+        end: u64,
+        (period_samples, bins): (usize, &[usize]),
+        what: &str,
+        out: &mut Vec<Event>,
+    ) -> Option<Vec<FrfPoint>> {
+        let mut w = self.window_signals(origin, end, what, out);
+        let n = w.theta_rad.len();
+        let whole = (n / period_samples) * period_samples;
+        if whole < 2 * period_samples {
+            out.push(Event::Warning(format!(
+                "{what}: {n} samples hold fewer than two whole multisine periods of {period_samples}; no FRF point"
+            )));
+            return None;
+        }
+        // A creep of the operating point across the window (a viscoelastic
+        // joint relaxing under the bias) is not periodic: removed with the
+        // sine windows' `detrend`, a cubic fitted beside the lines.
+        let mut channels = [
+            &mut w.theta_rad[..whole],
+            &mut w.tau_c_nm[..whole],
+            &mut w.tau_s_less_gravity_nm[..whole],
+            &mut w.tau_s_nm[..whole],
+            &mut w.tau_d_nm[..whole],
+        ];
+        if self.s.detrend {
+            if let Err(e) = exo_impedance::frf::remove_slow_trend(
+                &mut channels,
+                period_samples,
+                bins,
+                TREND_DEGREE,
+            ) {
+                out.push(Event::Warning(format!("{what}: {e}; no FRF point")));
+                return None;
+            }
+        }
+        let [theta, tau_c, tau_s_less_gravity, tau_s, tau_d] = channels;
+        let rate = self.s.rate_hz;
+        let line = |x: &[f64], y: &[f64]| {
+            exo_impedance::frf::periodic_frf(x, y, rate, period_samples, bins)
+        };
+        let (s_h, s_he) = match (line(theta, tau_c), line(theta, tau_s_less_gravity)) {
+            (Ok(a), Ok(b)) => (a, b),
+            (Err(e), _) | (_, Err(e)) => {
+                out.push(Event::Warning(format!("{what}: {e}; no FRF point")));
+                return None;
+            }
+        };
+        // τ_s/τ_d only when (nearly) every sample has its own command.
+        let sea = if w.exact >= n * 9 / 10 && w.exact > 0 {
+            line(tau_d, tau_s).ok()
+        } else {
+            None
+        };
+        let periods = whole / period_samples;
+        Some(
+            s_h.iter()
+                .zip(&s_he)
+                .enumerate()
+                .map(|(i, (c, a))| {
+                    let sea = sea
+                        .as_ref()
+                        .map_or(Complex64::new(0.0, 0.0), |s| s[i].ratio);
+                    FrfPoint {
+                        experiment: p.experiment,
+                        period: p.period,
+                        omega: c.omega_rad_s,
+                        s_h_re: c.ratio.re,
+                        s_h_im: c.ratio.im,
+                        s_he_re: a.ratio.re,
+                        s_he_im: a.ratio.im,
+                        s_he_noise_rel: a.noise_rel,
+                        sea_re: sea.re,
+                        sea_im: sea.im,
+                        // The coherence its noise implies over `periods`
+                        // averaged periods: a period's SNR is
+                        // 1/(P·noise_rel²), γ² = SNR/(1 + SNR).
+                        coherence: 1.0 / (1.0 + periods as f64 * c.noise_rel * c.noise_rel),
+                        noise_rel: c.noise_rel,
+                        ..Default::default()
+                    }
+                })
+                .collect(),
+        )
+    }
+
     /// Points from Welch H1 over the excited band (allocates: window ends only).
     fn broadband_points(
         &self,
@@ -443,43 +655,19 @@ impl Identifier {
         what: &str,
         out: &mut Vec<Event>,
     ) -> Option<Vec<FrfPoint>> {
-        let n = self.sensor.window(origin, end).count();
-        let (mut th, mut tc, mut ts, mut ts_raw, mut td) = (
-            Vec::with_capacity(n),
-            Vec::with_capacity(n),
-            Vec::with_capacity(n),
-            Vec::with_capacity(n),
-            Vec::with_capacity(n),
+        let w = self.window_signals(origin, end, what, out);
+        let (th, tc, ts, ts_raw, td) = (
+            &w.theta_rad,
+            &w.tau_c_nm,
+            &w.tau_s_less_gravity_nm,
+            &w.tau_s_nm,
+            &w.tau_d_nm,
         );
-        let mut cursor = CommandCursor::new(&self.command);
-        let (mut exact, mut last) = (0, origin);
-        for (stamp, [theta, tau_c, tau_s], _) in self.sensor.window(origin, end) {
-            let (tau_d, gravity) = match cursor.at(stamp) {
-                Some(([d, g], hit)) => {
-                    exact += usize::from(hit);
-                    (d, g)
-                }
-                None => (0.0, 0.0),
-            };
-            th.push(theta);
-            tc.push(tau_c);
-            ts.push(tau_s - gravity);
-            ts_raw.push(tau_s);
-            td.push(tau_d);
-            last = stamp;
-        }
-        self.command_coverage(what, exact, n, out);
-        // The rate of the window's own stamps (a recording may not say its rate).
-        let span_s = (last - origin) as f64 * 1e-9;
-        let rate = if n > 1 && span_s > 0.0 {
-            (n - 1) as f64 / span_s
-        } else {
-            self.s.rate_hz
-        };
+        let (n, exact, rate) = (th.len(), w.exact, w.rate_hz);
         let seg = self.s.welch_segment.min(n.next_power_of_two() / 2).max(16);
         let [lo, hi] = self.s.broadband_band_rad_s;
-        let spectra = welch_h1(&th, &tc, rate, seg)
-            .and_then(|c| welch_h1(&th, &ts, rate, seg).map(|s| (c, s)));
+        let spectra =
+            welch_h1(th, tc, rate, seg).and_then(|c| welch_h1(th, ts, rate, seg).map(|s| (c, s)));
         let (h_c, h_s) = match spectra {
             Ok(v) => v,
             Err(e) => {
@@ -489,7 +677,7 @@ impl Identifier {
         };
         // τ_s/τ_d only when (nearly) every sample has its own command.
         let sea = if exact >= n * 9 / 10 && exact > 0 {
-            welch_h1(&td, &ts_raw, rate, seg).ok()
+            welch_h1(td, ts_raw, rate, seg).ok()
         } else {
             None
         };

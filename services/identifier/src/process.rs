@@ -39,6 +39,9 @@ pub enum IdentifierProcessError {
     /// A channel could not be opened, sent on or received from.
     #[error(transparent)]
     Ipc(#[from] IpcError),
+    /// The run's multisine cannot be estimated line by line.
+    #[error("protocol.multisine: {0}")]
+    Multisine(String),
 }
 
 /// The identifier process.
@@ -73,8 +76,18 @@ impl Process for IdentifierProcess {
             ..Default::default()
         };
         progress_out.send(told)?;
+        let mut id = Identifier::new(IdentifierSettings::of_run(cx.cfg));
+        if let Some(m) = cx.cfg.protocol.multisine() {
+            // Line by line at the design's bins (the run file was checked).
+            let (period_samples, bins) = m
+                .bins(cx.cfg.run.rate_hz)
+                .map_err(|e| IdentifierProcessError::Multisine(e.to_string()))?;
+            id = id
+                .with_periodic_lines(period_samples, bins)
+                .map_err(|e| IdentifierProcessError::Multisine(e.to_string()))?;
+        }
         let p = IdentifierProcess {
-            id: Identifier::new(IdentifierSettings::of_run(cx.cfg)),
+            id,
             events: Vec::with_capacity(64),
             sensor_in: ipc.inbox(SENSOR, DEEPEST)?,
             command_in: ipc.inbox(COMMAND, DEEPEST)?,

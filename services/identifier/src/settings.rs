@@ -48,7 +48,8 @@ pub struct IdentifierSettings {
     pub min_rel_power: f64,
     /// Band (rad/s) a broadband estimate is limited to.
     pub broadband_band_rad_s: [f64; 2],
-    /// Fit a linear trend with the sinusoid in sine windows (slow drift).
+    /// Fit a linear trend with the sinusoid in sine windows, and a cubic
+    /// beside the lines in periodic (multisine) windows (slow drift).
     pub detrend: bool,
 }
 
@@ -86,6 +87,13 @@ impl IdentifierSettings {
             load_lever_arm_m: cfg.rig.load_lever_arm_m,
             k_range_nm_per_rad: cfg.controller.k_range_nm_per_rad,
             f_bounds: cfg.controller.f_bounds,
+            // A multisine's analysis window may be longer than the default
+            // ring: keep it whole, with room for its closing samples.
+            max_window_s: cfg
+                .experiments
+                .as_ref()
+                .map_or(0.0, |t| t.timing.analysis_s + 5.0)
+                .max(IdentifierSettings::default().max_window_s),
             ..IdentifierSettings::default()
         }
     }

@@ -15,5 +15,7 @@ mod alloc;
 mod identifier;
 #[path = "it/identifier_inputs.rs"]
 mod identifier_inputs;
+#[path = "it/multisine.rs"]
+mod multisine;
 #[path = "it/settings.rs"]
 mod settings;

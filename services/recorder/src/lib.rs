@@ -349,6 +349,21 @@ pub fn run_metadata(cfg: &RunConfig, config_file: &Path) -> BTreeMap<String, Str
         "protocol_mode",
         format!("{:?}", cfg.protocol.mode).to_lowercase(),
     );
+    // The lines a multisine run excites (issue 34: a recording says what
+    // was applied). The run file was checked: its design exists.
+    if let Some(Ok(design)) = cfg
+        .protocol
+        .multisine()
+        .map(|ms| ms.design(cfg.run.rate_hz))
+    {
+        exo_recording::excitation::MultisineLines {
+            period_samples: design.period_samples(),
+            bins: design.lines().iter().map(|l| l.bin).collect(),
+            amplitudes: design.lines().iter().map(|l| l.amplitude).collect(),
+            phases_rad: design.lines().iter().map(|l| l.phase_rad).collect(),
+        }
+        .write_to(&mut m);
+    }
     m
 }
 

@@ -52,7 +52,7 @@ pub fn controller_margins(
     let subject = cfg.subject();
     let sea = SeaModel::new(sea_hz, sea_zeta).map_err(|e| science("sea.dynamics", e))?;
     let held: Vec<u32> = match cfg.protocol.mode {
-        ProtocolMode::Identification => cfg.protocol.experiments.clone(),
+        ProtocolMode::Identification | ProtocolMode::Multisine => cfg.protocol.experiments.clone(),
         ProtocolMode::Voluntary => cfg.voluntary.map(|v| v.experiment).into_iter().collect(),
         ProtocolMode::Release => cfg.release.map(|r| r.experiment).into_iter().collect(),
     };
@@ -145,7 +145,11 @@ pub fn controller_margins(
                     ));
                 }
             }
-            None if cfg.protocol.mode == ProtocolMode::Identification && spec.alpha > 1.0 => {
+            None if matches!(
+                cfg.protocol.mode,
+                ProtocolMode::Identification | ProtocolMode::Multisine
+            ) && spec.alpha > 1.0 =>
+            {
                 // Constant α: the loop is (α − 1) P(s), the filter flat (f = 0).
                 let layout = exo_impedance::loop_shaping::FractionalLayout {
                     kp: spec.alpha - 1.0,

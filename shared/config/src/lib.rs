@@ -499,9 +499,10 @@ pub use ethercat::{
 pub use experiments::{ExperimentSpec, ExperimentTable, ProtocolTiming, EXPERIMENT_RANGES};
 pub use run::{
     gravity_moment_nm, BusBackend, BusSettings, ControllerSettings, LayoutError, LimitSettings,
-    LiveSettings, PlayerSettings, ProtocolMode, ProtocolSettings, RealtimeSettings,
-    ReleaseSettings, RigSettings, RunConfig, RunSettings, SafeState, SafetySettings, ServiceSet,
-    TimingMode, TunnelSettings, VoluntarySettings, GRAVITY_M_S2, RUN_RANGES,
+    LiveSettings, MultisineError, MultisineSettings, PlayerSettings, ProtocolMode,
+    ProtocolSettings, RealtimeSettings, ReleaseSettings, RigSettings, RunConfig, RunSettings,
+    SafeState, SafetySettings, ServiceSet, TimingMode, TunnelSettings, VoluntarySettings,
+    GRAVITY_M_S2, RUN_RANGES,
 };
 pub use subject::{ReportedPowerLaw, Subject, SubjectExperiment, SUBJECT_RANGES};
 

@@ -5,7 +5,7 @@ use std::path::{Path, PathBuf};
 
 use serde::{Deserialize, Serialize};
 
-use crate::{read_toml, Check, ExperimentTable, ProtocolTiming, Result, Subject};
+use crate::{read_toml, Check, ExperimentSpec, ExperimentTable, ProtocolTiming, Result, Subject};
 
 mod check;
 mod services;
@@ -139,6 +139,162 @@ pub enum ProtocolMode {
     /// holds a stiffness; they are detached at once and the response shows
     /// whether the amplification loop is stable. Needs `[release]`.
     Release,
+    /// A designed periodic multisine per experiment instead of the sine
+    /// steps (issue 34; `[protocol.multisine]`, defaults when absent): each
+    /// experiment is one period of the protocol whose settling holds
+    /// `settling_periods` and whose analysis window `periods` whole periods
+    /// of the multisine.
+    Multisine,
+}
+
+/// `[protocol.multisine]`: the designed excitation of `mode = "multisine"`
+/// (issue 34 item 1; `exo_impedance::multisine`). One design serves every
+/// experiment of the run, scaled to each experiment's peak torque.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct MultisineSettings {
+    /// Band (rad/s) the lines are log-spaced over, `[low, high]`: each edge
+    /// in (0, 10 000], the high edge below the Nyquist frequency
+    /// π·`run.rate_hz`. Default: the sine-step protocol's 2–32 rad/s.
+    #[serde(default = "MultisineSettings::default_band")]
+    pub band_rad_s: [f64; 2],
+    /// Number of excited lines. Range [1, 1000]; the band must hold at
+    /// least as many frequencies the period resolves. Default 12.
+    #[serde(default = "MultisineSettings::default_lines")]
+    pub lines: u32,
+    /// Length of one multisine period (s); `period_s · run.rate_hz` must be
+    /// a whole number of samples. Range (0, 3600]. Default 10 (lines
+    /// 0.63 rad/s apart at the finest).
+    #[serde(default = "MultisineSettings::default_period_s")]
+    pub period_s: f64,
+    /// Whole periods of settling before the analysis window (the first
+    /// half of the first one fades the multisine in). Range [1, 1000].
+    /// Default 1.
+    #[serde(default = "MultisineSettings::default_settling_periods")]
+    pub settling_periods: u32,
+    /// Whole periods in the analysis window: at least 2 (the noise is
+    /// estimated from the spread between periods). Range [2, 1000].
+    /// Default 3.
+    #[serde(default = "MultisineSettings::default_periods")]
+    pub periods: u32,
+    /// Peak excitation torque (Nm); when absent, each experiment's largest
+    /// sine amplitude of the experiment table (the sine-step protocol's
+    /// peak). Range (0, 1000]; with the experiment's bias at most
+    /// `controller.limits.torque_nm`.
+    #[serde(default)]
+    pub peak_nm: Option<f64>,
+}
+
+impl MultisineSettings {
+    fn default_band() -> [f64; 2] {
+        [2.0, 32.0]
+    }
+    fn default_lines() -> u32 {
+        12
+    }
+    fn default_period_s() -> f64 {
+        10.0
+    }
+    fn default_settling_periods() -> u32 {
+        1
+    }
+    fn default_periods() -> u32 {
+        3
+    }
+
+    /// Rounds of clipping after Schroeder's phases, each at
+    /// [`MultisineSettings::CLIP`] of the current peak
+    /// (`exo_impedance::Multisine::clipped`).
+    pub const CLIP_ITERATIONS: usize = 100;
+    /// The clipping level of each round, as a fraction of the peak.
+    pub const CLIP: f64 = 0.8;
+
+    /// Samples in one period at `rate_hz`, if `period_s · rate_hz` is a
+    /// whole number (within 1e-6 of a sample).
+    pub fn period_samples(&self, rate_hz: f64) -> Option<usize> {
+        let n = self.period_s * rate_hz;
+        let whole = n.round();
+        (n.is_finite() && whole >= 1.0 && (n - whole).abs() <= 1e-6).then_some(whole as usize)
+    }
+
+    /// The period's length in samples and its excited bins at `rate_hz`:
+    /// the lines log-spaced over the band on the period's grid
+    /// (`exo_impedance::multisine::log_spaced_bins`). Cheap: what the run
+    /// file's check needs.
+    pub fn bins(&self, rate_hz: f64) -> std::result::Result<(usize, Vec<usize>), MultisineError> {
+        let n = self.period_samples(rate_hz).ok_or_else(|| MultisineError {
+            key: "protocol.multisine.period_s",
+            why: format!(
+                "{} s at run.rate_hz = {rate_hz} Hz is not a whole number of samples",
+                self.period_s
+            ),
+        })?;
+        let bins = exo_impedance::multisine::log_spaced_bins(
+            rate_hz,
+            n,
+            self.band_rad_s,
+            self.lines as usize,
+        )
+        .map_err(|e| MultisineError {
+            key: "protocol.multisine.band_rad_s",
+            why: e.to_string(),
+        })?;
+        Ok((n, bins))
+    }
+
+    /// The design at `rate_hz`, with a peak of 1 (scale it by each
+    /// experiment's peak torque): [`MultisineSettings::bins`], flat
+    /// amplitudes (flat in torque), Schroeder's phases, then
+    /// [`MultisineSettings::CLIP_ITERATIONS`] rounds of clipping.
+    /// Deterministic: every process of a run (and the fit of its recording,
+    /// from the configuration the recording holds) builds the same one.
+    pub fn design(
+        &self,
+        rate_hz: f64,
+    ) -> std::result::Result<exo_impedance::multisine::Multisine, MultisineError> {
+        let (n, bins) = self.bins(rate_hz)?;
+        let amplitudes = vec![1.0; bins.len()];
+        exo_impedance::multisine::Multisine::schroeder(rate_hz, n, &bins, &amplitudes)
+            .and_then(|m| m.clipped(Self::CLIP_ITERATIONS, Self::CLIP))
+            .and_then(|m| m.scaled_to_peak(1.0))
+            .map_err(|e| MultisineError {
+                key: "protocol.multisine",
+                why: e.to_string(),
+            })
+    }
+
+    /// The peak excitation torque (Nm) of experiment `e` of `table`:
+    /// `peak_nm`, or the experiment's largest sine amplitude.
+    pub fn peak_nm_of(&self, table: &ExperimentTable, e: &ExperimentSpec) -> f64 {
+        self.peak_nm.unwrap_or_else(|| {
+            (1..=table.periods.max(1))
+                .map(|p| table.amplitude_nm(e, p))
+                .fold(0.0, f64::max)
+        })
+    }
+}
+
+/// Why a multisine cannot be designed from `[protocol.multisine]`, naming the key.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[error("{key}: {why}")]
+pub struct MultisineError {
+    /// The run file's key at fault.
+    pub key: &'static str,
+    /// What is wrong.
+    pub why: String,
+}
+
+impl Default for MultisineSettings {
+    fn default() -> Self {
+        MultisineSettings {
+            band_rad_s: Self::default_band(),
+            lines: Self::default_lines(),
+            period_s: Self::default_period_s(),
+            settling_periods: Self::default_settling_periods(),
+            periods: Self::default_periods(),
+            peak_nm: None,
+        }
+    }
 }
 
 /// `[protocol]`.
@@ -173,6 +329,10 @@ pub struct ProtocolSettings {
     /// The whole protocol (experiments × periods × period) lasts at most a day.
     #[serde(default)]
     pub ramp_out_s: Option<f64>,
+    /// `[protocol.multisine]`: the design of `mode = "multisine"` (its
+    /// defaults when absent); refused in the other modes.
+    #[serde(default)]
+    pub multisine: Option<MultisineSettings>,
 }
 
 impl ProtocolSettings {
@@ -187,8 +347,21 @@ impl ProtocolSettings {
         ]
     }
 
-    /// Applies the overrides to the experiment table's timing.
+    /// The multisine design's settings in `mode = "multisine"` (the
+    /// defaults when `[protocol.multisine]` is absent); `None` in the other
+    /// modes.
+    pub fn multisine(&self) -> Option<MultisineSettings> {
+        (self.mode == ProtocolMode::Multisine).then(|| self.multisine.unwrap_or_default())
+    }
+
+    /// Applies the overrides to the experiment table's timing; in
+    /// multisine mode the settling and analysis windows are then
+    /// `settling_periods` and `periods` whole periods of the multisine.
     pub fn apply_timing(&self, timing: &mut ProtocolTiming) {
+        if let Some(m) = self.multisine() {
+            timing.settling_s = f64::from(m.settling_periods) * m.period_s;
+            timing.analysis_s = f64::from(m.periods) * m.period_s;
+        }
         let fields = [
             &mut timing.ramp_in_s,
             &mut timing.settling_s,
@@ -699,12 +872,17 @@ impl RunConfig {
                 .voluntary
                 .map(|v| ("voluntary.experiment", v.experiment)),
             ProtocolMode::Release => self.release.map(|r| ("release.experiment", r.experiment)),
-            ProtocolMode::Identification => None,
+            ProtocolMode::Identification | ProtocolMode::Multisine => None,
         }
     }
 
     /// The periods (1-based) each experiment of the run goes through.
+    /// In multisine mode, one: the experiment's multisine periods all lie
+    /// in its one protocol period.
     pub fn periods_run(&self, table: &ExperimentTable) -> Vec<u32> {
+        if self.protocol.mode == ProtocolMode::Multisine {
+            return vec![1];
+        }
         match &self.protocol.periods {
             Some(p) => p.clone(),
             None => (1..=table.periods).collect(),

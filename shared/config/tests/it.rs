@@ -14,6 +14,8 @@ mod common;
 mod configs;
 #[path = "it/cross_checks.rs"]
 mod cross_checks;
+#[path = "it/multisine.rs"]
+mod multisine;
 #[path = "it/safety_defaults.rs"]
 mod safety_defaults;
 #[path = "it/subjects_table3.rs"]

@@ -24,6 +24,7 @@
 
 pub mod cdr;
 pub mod drops;
+pub mod excitation;
 pub mod files;
 mod framing;
 mod in_place;

@@ -120,14 +120,28 @@ fn meta_f64(r: &Recording, key: &str, default: f64) -> Result<f64> {
     }
 }
 
-/// Runs a recording's streams through the identifier, in time order.
+/// Runs a recording's streams through the identifier, in time order;
+/// broadband windows line by line at `periodic_lines` (period samples,
+/// bins) when the recording names a periodic multisine.
 pub fn identify(
     r: &Recording,
+    periodic_lines: Option<(usize, Vec<usize>)>,
     s: IdentifierSettings,
 ) -> (BTreeMap<u32, Vec<FrfPoint>>, Vec<String>) {
-    let mut id = Identifier::new(s);
-    let mut events = Vec::new();
     let mut warnings = Vec::new();
+    let mut id = Identifier::new(s);
+    if let Some((period_samples, bins)) = periodic_lines {
+        // A window longer than the ring keeps its last part, which still
+        // holds whole periods (any period's worth of samples is one).
+        match Identifier::new(s).with_periodic_lines(period_samples, bins) {
+            Ok(periodic) => id = periodic,
+            Err(e) => warnings.push(format!(
+                "{}: {e}; broadband windows by Welch's method",
+                r.source
+            )),
+        }
+    }
+    let mut events = Vec::new();
     let mut merge = exo_analysis::Merge::new(&r.protocol, &r.command);
     for smp in &r.sensor {
         let _ = merge.up_to(smp.stamp_ns, |x| -> Result<(), std::convert::Infallible> {
@@ -329,8 +343,21 @@ pub fn identify_recording(recording: Recording, path: &Path, a: &FitOptions) -> 
         }
         (m, Vec::new())
     } else {
+        // A multisine run is estimated line by line, as online, at the
+        // lines its `exo` metadata names.
+        let lines = match exo_recording::excitation::MultisineLines::read_from(|k| r.meta(k)) {
+            Ok(l) => l,
+            Err(e) => {
+                extra.push(format!(
+                    "{}: {e}; broadband windows by Welch's method",
+                    r.source
+                ));
+                None
+            }
+        };
         identify(
             r,
+            lines.map(|l| (l.period_samples, l.bins)),
             IdentifierSettings {
                 rate_hz: rate,
                 arm_inertia_kg_m2: arm,

@@ -37,6 +37,18 @@ pub const RUN_RANGES: Ranges = &[
     ("protocol.settling_s", Range::closed(0.0, 3600.0)),
     ("protocol.analysis_s", Range::closed(0.01, 3600.0)),
     ("protocol.ramp_out_s", Range::closed(0.0, 3600.0)),
+    (
+        "protocol.multisine.band_rad_s[*]",
+        Range::above(0.0, 10_000.0),
+    ),
+    ("protocol.multisine.lines", Range::closed(1.0, 1000.0)),
+    ("protocol.multisine.period_s", Range::above(0.0, 3600.0)),
+    (
+        "protocol.multisine.settling_periods",
+        Range::closed(1.0, 1000.0),
+    ),
+    ("protocol.multisine.periods", Range::closed(2.0, 1000.0)),
+    ("protocol.multisine.peak_nm", Range::above(0.0, 1000.0)),
     ("voluntary.amplitude_rad", Range::closed(0.0, 1.5)),
     ("voluntary.omega_rad_s", Range::above(0.0, 10_000.0)),
     ("voluntary.duration_s", Range::above(0.0, 3600.0)),
@@ -152,7 +164,11 @@ impl RunConfig {
             return;
         }
         let nyquist = std::f64::consts::PI * rate;
-        if self.protocol.mode == ProtocolMode::Identification {
+        self.check_multisine_against_table(c, table);
+        if matches!(
+            self.protocol.mode,
+            ProtocolMode::Identification | ProtocolMode::Multisine
+        ) {
             let periods = self.periods_run(table);
             let mut seen = Vec::new();
             for n in &self.protocol.experiments {
@@ -161,6 +177,9 @@ impl RunConfig {
                 };
                 seen.push(*n);
                 let e = &table.experiment[idx];
+                if self.protocol.mode == ProtocolMode::Multisine {
+                    continue; // its band is checked with the design
+                }
                 let worst = periods
                     .iter()
                     .map(|p| (*p, table.omega_rad_s(e, *p)))
@@ -215,6 +234,112 @@ impl RunConfig {
                     format!(
                         "{} rad/s is not below the Nyquist frequency π·run.rate_hz = {nyquist:.1} rad/s",
                         v.omega_rad_s
+                    ),
+                );
+            }
+        }
+    }
+
+    /// `[protocol.multisine]`'s own values, and the keys multisine mode
+    /// sets itself (the periods and the settling and analysis windows).
+    fn check_multisine_values(&self, c: &Check<'_>) {
+        let p = &self.protocol;
+        if let (Some(_), false) = (&p.multisine, p.mode == ProtocolMode::Multisine) {
+            c.note(
+                "protocol.multisine",
+                "is used only with protocol.mode = \"multisine\"",
+            );
+        }
+        if p.mode != ProtocolMode::Multisine {
+            return;
+        }
+        let m = p.multisine.unwrap_or_default();
+        let [lo, hi] = m.band_rad_s;
+        if c.key("protocol.multisine.band_rad_s[0]", lo)
+            & c.key("protocol.multisine.band_rad_s[1]", hi)
+            && lo >= hi
+        {
+            c.note(
+                "protocol.multisine.band_rad_s[1]",
+                format!("must be above protocol.multisine.band_rad_s[0] = {lo} (the band is [low, high]), got {hi}"),
+            );
+        }
+        c.key("protocol.multisine.lines", f64::from(m.lines));
+        c.key("protocol.multisine.period_s", m.period_s);
+        c.key(
+            "protocol.multisine.settling_periods",
+            f64::from(m.settling_periods),
+        );
+        if m.periods < 2 {
+            c.note(
+                "protocol.multisine.periods",
+                format!("{} whole period(s) give no noise estimate (it comes from the spread between periods): at least 2", m.periods),
+            );
+        } else {
+            c.key("protocol.multisine.periods", f64::from(m.periods));
+        }
+        if let Some(peak) = m.peak_nm {
+            c.key("protocol.multisine.peak_nm", peak);
+        }
+        for (key, set) in [
+            ("protocol.periods", p.periods.is_some()),
+            ("protocol.settling_s", p.settling_s.is_some()),
+            ("protocol.analysis_s", p.analysis_s.is_some()),
+        ] {
+            if set {
+                c.note(
+                    key,
+                    "is not used in multisine mode: each experiment is one protocol period whose settling and analysis windows are protocol.multisine.settling_periods and .periods whole periods of the multisine; leave the key out",
+                );
+            }
+        }
+    }
+
+    /// In multisine mode, against the experiment table at a valid
+    /// `run.rate_hz`: the design exists (a whole number of samples per
+    /// period, the band below Nyquist and holding enough resolved
+    /// frequencies for its lines), and each experiment's bias plus its
+    /// peak excitation is within `controller.limits.torque_nm`.
+    fn check_multisine_against_table(&self, c: &Check<'_>, table: &ExperimentTable) {
+        let Some(m) = self.protocol.multisine() else {
+            return;
+        };
+        let valid = [
+            ("protocol.multisine.band_rad_s[*]", m.band_rad_s[0]),
+            ("protocol.multisine.band_rad_s[*]", m.band_rad_s[1]),
+            ("protocol.multisine.lines", f64::from(m.lines)),
+            ("protocol.multisine.period_s", m.period_s),
+            ("protocol.multisine.periods", f64::from(m.periods)),
+        ]
+        .iter()
+        .all(|(k, v)| range_of_run(k).contains(*v))
+            && m.band_rad_s[0] < m.band_rad_s[1];
+        if valid {
+            if let Err(e) = m.bins(self.run.rate_hz) {
+                c.note(e.key, e.why);
+            }
+        }
+        let limit = self.controller.limits.torque_nm;
+        let peak_ok = m
+            .peak_nm
+            .is_none_or(|v| range_of_run("protocol.multisine.peak_nm").contains(v));
+        if !(peak_ok && range_of_run("controller.limits.torque_nm").contains(limit)) {
+            return;
+        }
+        for n in &self.protocol.experiments {
+            let Some(e) = table.get(*n) else { continue };
+            let peak = m.peak_nm_of(table, e);
+            if e.bias_nm.abs() + peak > limit {
+                c.note(
+                    if m.peak_nm.is_some() {
+                        "protocol.multisine.peak_nm"
+                    } else {
+                        "controller.limits.torque_nm"
+                    },
+                    format!(
+                        "experiment {n}'s bias {} Nm and the multisine's peak {peak} Nm reach {} Nm, beyond controller.limits.torque_nm = {limit} Nm",
+                        e.bias_nm,
+                        e.bias_nm.abs() + peak
                     ),
                 );
             }
@@ -354,6 +479,7 @@ impl RunConfig {
                 c.key(key, v);
             }
         }
+        self.check_multisine_values(c);
         match (self.protocol.mode, &self.voluntary, &self.release) {
             (ProtocolMode::Voluntary, None, _) => c.note(
                 "voluntary",

@@ -168,3 +168,120 @@ pub fn periodic_frf(
         })
         .collect()
 }
+
+/// Removes a slow trend from each of `signals` (the same record's
+/// channels: whole periods of `period_samples` samples, one length) in
+/// place: the polynomial of degree `degree` in time that, fitted by least
+/// squares together with a cosine and a sine at each of the excited
+/// `bins` (cycles per period) over the whole record, explains what is not
+/// periodic at those lines; only the polynomial is subtracted. What it is
+/// for: a creep or a drift of the operating point across the analysis
+/// window (a viscoelastic joint relaxing under a bias) is not periodic, so
+/// without this it enters every line's spread between periods as "noise"
+/// and its leakage biases `X̄` and `Ȳ`. Fitted jointly with the lines, the
+/// polynomial takes none of the periodic signal. Time is scaled to
+/// [−1, 1] and the polynomials are Legendre's, nearly orthogonal to each
+/// other and to the lines, so the normal equations (one Gram matrix for
+/// every channel, solved by Cholesky) are well conditioned: O(samples ·
+/// columns²) once. Returns each signal's polynomial coefficients
+/// (Legendre basis, the signal's unit). Refused: signals of different
+/// lengths, fewer samples than twice the columns, a bin at 0 or not below
+/// Nyquist, a sample that is not finite, `degree` above 8.
+pub fn remove_slow_trend(
+    signals: &mut [&mut [f64]],
+    period_samples: usize,
+    bins: &[usize],
+    degree: usize,
+) -> Result<Vec<Vec<f64>>> {
+    use nalgebra::DMatrix;
+    if degree > 8 {
+        return Err(ScienceError::OutOfRange {
+            name: "trend degree",
+            value: degree as f64,
+            allowed: "0 to 8",
+        });
+    }
+    for &b in bins {
+        if b == 0 || 2 * b >= period_samples {
+            return Err(ScienceError::Infeasible(format!(
+                "bin {b} is not between 1 and Nyquist of a {period_samples}-sample period"
+            )));
+        }
+    }
+    let n = signals.first().map_or(0, |x| x.len());
+    for (k, x) in signals.iter().enumerate() {
+        if x.len() != n {
+            return Err(ScienceError::LengthMismatch {
+                what: "trend removal: channels",
+                left: n,
+                right: x.len(),
+            });
+        }
+        if let Some(i) = x.iter().position(|v| !v.is_finite()) {
+            return Err(ScienceError::Infeasible(format!(
+                "channel {k}: sample {i} is not finite"
+            )));
+        }
+    }
+    let cols = degree + 1 + 2 * bins.len();
+    if n < 2 * cols || n < 2 {
+        return Err(ScienceError::Infeasible(format!(
+            "{n} samples cannot carry a trend of degree {degree} beside {} lines",
+            bins.len()
+        )));
+    }
+    let half = (n - 1) as f64 / 2.0;
+    // Row `i` of the design: Legendre P_0..P_degree at u, then cos, sin of
+    // each line.
+    let row = |i: usize, out: &mut [f64]| {
+        let u = (i as f64 - half) / half;
+        out[0] = 1.0;
+        if degree >= 1 {
+            out[1] = u;
+        }
+        for k in 1..degree {
+            out[k + 1] = ((2 * k + 1) as f64 * u * out[k] - k as f64 * out[k - 1]) / (k + 1) as f64;
+        }
+        for (l, &b) in bins.iter().enumerate() {
+            let phase =
+                std::f64::consts::TAU * ((b * i) % period_samples) as f64 / period_samples as f64;
+            out[degree + 1 + 2 * l] = phase.cos();
+            out[degree + 2 + 2 * l] = phase.sin();
+        }
+    };
+    let m = signals.len();
+    let mut gram = DMatrix::<f64>::zeros(cols, cols);
+    let mut rhs = DMatrix::<f64>::zeros(cols, m);
+    let mut r = vec![0.0; cols];
+    for i in 0..n {
+        row(i, &mut r);
+        for a in 0..cols {
+            for b in a..cols {
+                gram[(a, b)] += r[a] * r[b];
+            }
+            for (k, x) in signals.iter().enumerate() {
+                rhs[(a, k)] += r[a] * x[i];
+            }
+        }
+    }
+    for a in 0..cols {
+        for b in 0..a {
+            gram[(a, b)] = gram[(b, a)];
+        }
+    }
+    let chol = gram
+        .cholesky()
+        .ok_or_else(|| ScienceError::Infeasible("trend removal: the design is singular".into()))?;
+    let coef = chol.solve(&rhs);
+    let polys: Vec<Vec<f64>> = (0..m)
+        .map(|k| (0..=degree).map(|j| coef[(j, k)]).collect())
+        .collect();
+    for i in 0..n {
+        row(i, &mut r);
+        for (x, poly) in signals.iter_mut().zip(&polys) {
+            let trend: f64 = r[..=degree].iter().zip(poly).map(|(p, c)| p * c).sum();
+            x[i] -= trend;
+        }
+    }
+    Ok(polys)
+}

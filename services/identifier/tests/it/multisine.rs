@@ -1,0 +1,279 @@
+//! The identifier in a multisine run (issue 34 item 2): one point per
+//! excited line from the analysis window's whole periods, each with its
+//! noise from the spread between periods, and the M2 fit of an M2 human.
+//!
+//! The stream is written here from the physics, not from the estimator:
+//! `θ_e` is a sum of cosines at the run's lines (phases drawn in the test),
+//! and `τ_c = Re Σ S_h(jω_l) X_l e^{jω_l t}` is the human's exact periodic
+//! steady state (a complex stiffness answers each line with `S_h(jω_l)`),
+//! plus white noise of a known σ, so the standard error each line must
+//! report follows from σ, the period and the amplitude alone.
+
+use exo_config::MultisineSettings;
+use exo_identifier::{Event, Identifier, IdentifierSettings};
+use exo_impedance::{Complex64, DynamicStiffness};
+use exo_messages::{ActuatorCommand, ProtocolPhase, ProtocolState, SensorSample};
+
+use crate::identifier::M_E;
+
+const RATE: f64 = 1000.0;
+const AMP_RAD: f64 = 0.01;
+
+fn settings() -> MultisineSettings {
+    MultisineSettings {
+        band_rad_s: [2.0, 32.0],
+        lines: 6,
+        period_s: 2.0,
+        settling_periods: 1,
+        periods: 3,
+        peak_nm: None,
+    }
+}
+
+struct Rng(u64);
+impl Rng {
+    fn uniform(&mut self) -> f64 {
+        self.0 ^= self.0 << 13;
+        self.0 ^= self.0 >> 7;
+        self.0 ^= self.0 << 17;
+        ((self.0 >> 11) as f64 + 0.5) / (1u64 << 53) as f64
+    }
+    fn gauss(&mut self) -> f64 {
+        let (a, b) = (self.uniform(), self.uniform());
+        (-2.0 * a.ln()).sqrt() * (std::f64::consts::TAU * b).cos()
+    }
+}
+
+/// Feeds `analysis_samples` of analysis (after one period of settling) of
+/// the human through `id`, and returns its events and the lines (ω, phase).
+fn run(
+    mut id: Identifier,
+    human: DynamicStiffness,
+    noise_nm: f64,
+    analysis_samples: usize,
+    seed: u64,
+) -> (Vec<Event>, Vec<(f64, f64)>) {
+    let m = settings();
+    let (n_period, bins) = m.bins(RATE).unwrap();
+    let mut rng = Rng(seed);
+    // (ω, phase) of each line, phases drawn here.
+    let lines: Vec<(f64, f64)> = bins
+        .iter()
+        .map(|b| {
+            (
+                std::f64::consts::TAU * *b as f64 * RATE / n_period as f64,
+                std::f64::consts::TAU * rng.uniform(),
+            )
+        })
+        .collect();
+    let mut events = Vec::new();
+    let total = n_period + analysis_samples + 1;
+    for k in 0..total {
+        let phase = if k < n_period {
+            ProtocolPhase::Settling
+        } else if k < n_period + analysis_samples {
+            ProtocolPhase::Analysis
+        } else {
+            ProtocolPhase::RampOut
+        };
+        let t = k as f64 / RATE;
+        let (mut x, mut tc, mut ts) = (0.0, 0.0, 0.0);
+        for (w, ph) in &lines {
+            let e = Complex64::from_polar(AMP_RAD, w * t + ph);
+            let s_h = human.response(*w);
+            x += e.re;
+            tc += (s_h * e).re;
+            ts += ((s_h - M_E * w * w) * e).re;
+        }
+        let stamp = k as u64 * 1_000_000;
+        let p = ProtocolState {
+            experiment: 1,
+            period: 1,
+            phase: phase.as_u32(),
+            omega: 0.0,
+            amplitude: 3.0,
+            alpha: 1.0,
+            load_kg: 4.5,
+            stamp_ns: stamp,
+            ..Default::default()
+        };
+        id.on_protocol(&p, &mut events);
+        id.on_command(&ActuatorCommand {
+            seq: k as u64,
+            stamp_ns: stamp,
+            sensor_seq: k as u64,
+            tau_d: ts,
+            ..Default::default()
+        });
+        id.on_sample(
+            &SensorSample {
+                seq: k as u64,
+                stamp_ns: stamp,
+                theta_e: 0.8 + x,
+                tau_c: tc + noise_nm * rng.gauss(),
+                tau_s: ts + noise_nm * rng.gauss(),
+                ..Default::default()
+            },
+            &mut events,
+        );
+    }
+    (events, lines)
+}
+
+/// An identifier estimating line by line at the design's bins.
+fn with_multisine() -> Identifier {
+    let (n, bins) = settings().bins(RATE).unwrap();
+    Identifier::try_new(IdentifierSettings::default())
+        .unwrap()
+        .with_periodic_lines(n, bins)
+        .unwrap()
+}
+
+fn points(events: &[Event]) -> Vec<exo_messages::FrfPoint> {
+    events
+        .iter()
+        .filter_map(|e| match e {
+            Event::Frf(p) => Some(*p),
+            _ => None,
+        })
+        .collect()
+}
+
+#[test]
+fn each_excited_line_gives_a_point_with_the_humans_response_and_a_calibrated_error() {
+    let human = DynamicStiffness::from_array([0.11, 0.0, 40.0, 10.0]);
+    let sigma = 0.05;
+    let (events, lines) = run(with_multisine(), human, sigma, 3 * 2000, 7);
+    let pts = points(&events);
+    assert_eq!(pts.len(), lines.len(), "{events:?}");
+    // The standard error of a line's Ȳ/X̄: the noise's DFT coefficient
+    // (1/N normalisation) has variance σ²/N a period, σ²/(N P) averaged
+    // over P periods, against |X| = A/2 of a cosine of amplitude A.
+    let want_se = (sigma * sigma / (2000.0 * 3.0)).sqrt() / (AMP_RAD / 2.0);
+    let mut worst = 0.0f64;
+    for (p, (w, _)) in pts.iter().zip(&lines) {
+        assert!((p.omega - w).abs() < 1e-9, "{} vs {w}", p.omega);
+        assert!(p.validate().is_ok(), "{p:?}");
+        let truth = human.response(*w);
+        let got = Complex64::new(p.s_h_re, p.s_h_im);
+        let se = p.noise_rel * got.norm();
+        // Three periods: the reported σ has 2·2 = 4 degrees of freedom, so
+        // it scatters; within a factor of 3 of the truth either way.
+        assert!(
+            se > want_se / 3.0 && se < want_se * 3.0,
+            "ω {w}: reported {se}, expected {want_se}"
+        );
+        worst = worst.max((got - truth).norm() / want_se);
+        let hea = Complex64::new(p.s_he_re, p.s_he_im);
+        let truth_he = truth - M_E * w * w;
+        assert!(
+            (hea - truth_he).norm() < 5.0 * want_se,
+            "ω {w}: {hea} vs {truth_he}"
+        );
+        // τ_d here is the noise-free τ_s: the SEA's tracking is 1.
+        assert!(
+            (Complex64::new(p.sea_re, p.sea_im) - 1.0).norm() < 0.01,
+            "{p:?}"
+        );
+    }
+    // Every line within 5 true standard errors (Rayleigh: P(|z| > 5σ) ≈ 4e-6).
+    assert!(worst < 5.0, "worst error {worst} standard errors");
+    // The M2 fit of the six lines recovers K and H.
+    let m2 = events
+        .iter()
+        .rev()
+        .find_map(|e| match e {
+            Event::Estimate(e) if e.model == 2 => Some(*e),
+            _ => None,
+        })
+        .expect("an M2 estimate");
+    assert!((m2.k_h - 40.0).abs() < 0.4, "K {}", m2.k_h);
+    assert!((m2.h_h - 10.0).abs() < 0.4, "H {}", m2.h_h);
+}
+
+#[test]
+fn without_noise_the_lines_are_exact() {
+    let human = DynamicStiffness::from_array([0.11, 0.3, 25.0, 6.0]);
+    let (events, lines) = run(with_multisine(), human, 0.0, 3 * 2000, 11);
+    let pts = points(&events);
+    assert_eq!(pts.len(), lines.len());
+    for (p, (w, _)) in pts.iter().zip(&lines) {
+        let got = Complex64::new(p.s_h_re, p.s_h_im);
+        let truth = human.response(*w);
+        assert!(
+            (got - truth).norm() < 1e-9 * truth.norm(),
+            "{got} vs {truth}"
+        );
+    }
+}
+
+#[test]
+fn a_window_of_fewer_than_two_whole_periods_gives_no_point_and_says_why() {
+    let human = DynamicStiffness::from_array([0.11, 0.0, 40.0, 10.0]);
+    let (events, _) = run(with_multisine(), human, 0.05, 3999, 3);
+    assert!(points(&events).is_empty());
+    assert!(
+        events.iter().any(|e| matches!(e, Event::Warning(w)
+            if w.contains("fewer than two whole multisine periods"))),
+        "{events:?}"
+    );
+}
+
+#[test]
+fn a_partial_period_at_the_windows_end_is_left_out() {
+    // 2.5 periods of analysis: the two whole ones are used; the lines
+    // stay exact without noise (a partial period would leak).
+    let human = DynamicStiffness::from_array([0.11, 0.0, 40.0, 10.0]);
+    let (events, lines) = run(with_multisine(), human, 0.0, 5000, 5);
+    let pts = points(&events);
+    assert_eq!(pts.len(), lines.len());
+    for (p, (w, _)) in pts.iter().zip(&lines) {
+        let got = Complex64::new(p.s_h_re, p.s_h_im);
+        let truth = human.response(*w);
+        assert!(
+            (got - truth).norm() < 1e-9 * truth.norm(),
+            "{got} vs {truth}"
+        );
+    }
+}
+
+#[test]
+fn lines_that_no_period_can_carry_are_refused() {
+    let id = || Identifier::new(IdentifierSettings::default());
+    for (n, bins) in [
+        (3usize, vec![1usize]),
+        (2000, vec![]),
+        (2000, vec![0, 5]),
+        (2000, vec![5, 1000]),
+        (2000, vec![5, 7, 5]),
+    ] {
+        let err = id().with_periodic_lines(n, bins.clone()).err();
+        assert_eq!(
+            err.map(|e| e.field),
+            Some("periodic_lines"),
+            "{n} samples, bins {bins:?}"
+        );
+    }
+    assert!(id().with_periodic_lines(2000, vec![1, 999]).is_ok());
+}
+
+#[test]
+fn without_the_lines_a_multisine_window_is_estimated_by_welch() {
+    // The same stream through an identifier not told the lines: Welch's
+    // points (band summaries), not one per line.
+    let human = DynamicStiffness::from_array([0.11, 0.0, 40.0, 10.0]);
+    let (events, lines) = run(
+        Identifier::new(IdentifierSettings::default()),
+        human,
+        0.0,
+        3 * 2000,
+        7,
+    );
+    let pts = points(&events);
+    assert!(!pts.is_empty());
+    let on_lines = pts
+        .iter()
+        .filter(|p| lines.iter().any(|(w, _)| (p.omega - w).abs() < 1e-9))
+        .count();
+    assert!(on_lines < lines.len(), "{pts:?}");
+}
