@@ -48,6 +48,29 @@ fn a_multisine_run_identifies_every_line_of_the_simulated_human() {
     assert!(largest <= peak + 1e-9 && largest > 0.99 * peak, "{largest}");
 
     let (_, bins) = m.bins(cfg.run.rate_hz).unwrap();
+    // `exo fit` on the recording (item 6) reads the lines from its
+    // metadata and estimates each experiment line by line, as online.
+    let recording = std::fs::read_dir(sc.dir.path())
+        .unwrap()
+        .flatten()
+        .map(|e| e.path())
+        .find(|p| p.extension().is_some_and(|x| x == "mcap"))
+        .expect("the run's recording");
+    let fit = exo(&["fit", recording.to_str().unwrap(), "--json"]);
+    assert!(fit.status.success(), "exo fit:\n{}", stderr(&fit));
+    let json: serde_json::Value = serde_json::from_str(&stdout(&fit)).unwrap();
+    for e in json["subjects"][0]["experiments"].as_array().unwrap() {
+        let omegas: Vec<f64> = e["points"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|p| p["omega"].as_f64().unwrap())
+            .collect();
+        assert_eq!(omegas.len(), bins.len(), "{e}");
+        for (w, b) in omegas.iter().zip(&bins) {
+            assert!((w - std::f64::consts::TAU * *b as f64 / m.period_s).abs() < 1e-9);
+        }
+    }
     let plant = exo_plant_model::PlantModel::from_file(&cfg.plant_model).unwrap();
     let hd = plant.human.hysteretic_damping;
     for n in [1u32, 7] {
