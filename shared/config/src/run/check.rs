@@ -309,7 +309,6 @@ impl RunConfig {
             ("protocol.multisine.band_rad_s[*]", m.band_rad_s[1]),
             ("protocol.multisine.lines", f64::from(m.lines)),
             ("protocol.multisine.period_s", m.period_s),
-            ("protocol.multisine.periods", f64::from(m.periods)),
         ]
         .iter()
         .all(|(k, v)| range_of_run(k).contains(*v))

@@ -154,6 +154,21 @@ fn a_band_beyond_nyquist_or_below_the_periods_first_line_is_refused_naming_the_b
     );
 }
 
+/// Every key at fault is named at once: too few periods and a band beyond
+/// Nyquist in the same file give both errors.
+#[test]
+fn each_key_at_fault_is_named_in_one_refusal() {
+    let (from, to) =
+        with_section("[protocol.multisine]\nperiods = 1\nband_rad_s = [2.0, 4000.0]\n");
+    let (r, _) = load_edited("ms-two-faults", &[MODE, NO_PERIODS, (from, &to)]);
+    let err = r.expect_err("two faults").to_string();
+    assert!(err.contains("protocol.multisine.periods"), "{err}");
+    assert!(
+        err.contains("protocol.multisine.band_rad_s") && err.contains("Nyquist"),
+        "{err}"
+    );
+}
+
 #[test]
 fn a_period_that_is_not_a_whole_number_of_samples_is_refused() {
     let (from, to) = with_section("[protocol.multisine]\nperiod_s = 10.0005\n");
