@@ -224,7 +224,7 @@ pub fn remove_slow_trend(
         }
     }
     let cols = degree + 1 + 2 * bins.len();
-    if n < 2 * cols || n < 2 {
+    if n < 2 * cols {
         return Err(ScienceError::Infeasible(format!(
             "{n} samples cannot carry a trend of degree {degree} beside {} lines",
             bins.len()

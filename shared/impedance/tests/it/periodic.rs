@@ -313,16 +313,76 @@ fn a_periodic_record_has_no_trend_to_remove() {
     }
 }
 
+/// The coefficients are Legendre's over the record scaled to [−1, 1]
+/// (the doc's promise), each written out here: P₂(u) = (3u² − 1)/2,
+/// P₃(u) = (5u³ − 3u)/2; and a degree-8 trend (the largest allowed) is
+/// fitted too.
+#[test]
+fn the_trends_coefficients_are_legendres_written_by_hand() {
+    use exo_impedance::frf::remove_slow_trend;
+    let (_, theta, _) = record(3);
+    let half = (theta.len() - 1) as f64 / 2.0;
+    let c = [0.1, -0.4, 0.25, 0.7];
+    let mut y: Vec<f64> = theta
+        .iter()
+        .enumerate()
+        .map(|(i, v)| {
+            let u = (i as f64 - half) / half;
+            v + c[0]
+                + c[1] * u
+                + c[2] * (3.0 * u * u - 1.0) / 2.0
+                + c[3] * (5.0 * u * u * u - 3.0 * u) / 2.0
+        })
+        .collect();
+    let poly = remove_slow_trend(&mut [&mut y], PERIOD, &BINS, 3)
+        .unwrap()
+        .remove(0);
+    for (got, want) in poly.iter().zip(c) {
+        assert!((got - want).abs() < 1e-9, "{poly:?} vs {c:?}");
+    }
+    for (a, b) in y.iter().zip(&theta) {
+        assert!((a - b).abs() < 1e-9);
+    }
+    let mut z = theta.clone();
+    let poly8 = remove_slow_trend(&mut [&mut z], PERIOD, &BINS, 8)
+        .unwrap()
+        .remove(0);
+    assert_eq!(poly8.len(), 9);
+}
+
 #[test]
 fn a_trend_that_cannot_be_fitted_is_refused() {
     use exo_impedance::frf::remove_slow_trend;
     let (_, theta, _) = record(2);
     let mut x = theta.clone();
     assert!(remove_slow_trend(&mut [&mut x], PERIOD, &BINS, 9).is_err());
-    assert!(remove_slow_trend(&mut [&mut x], PERIOD, &[0, 3], 3).is_err());
-    assert!(remove_slow_trend(&mut [&mut x], PERIOD, &[1000], 3).is_err());
-    let mut short = vec![0.0; 10];
-    assert!(remove_slow_trend(&mut [&mut short], PERIOD, &BINS, 3).is_err());
+    // A bin at 0 or at Nyquist is refused as such (not left to a singular
+    // design to fail later).
+    for bins in [&[0usize, 3][..], &[1000], &[3, 1200]] {
+        let err = remove_slow_trend(&mut [&mut x], PERIOD, bins, 3)
+            .unwrap_err()
+            .to_string();
+        assert!(err.contains("Nyquist"), "{bins:?}: {err}");
+    }
+    // Four lines of a 10-sample period and a line in time are 10 columns:
+    // 19 samples cannot carry them (named as such), 20 (two periods) can.
+    let wave = |n: usize| -> Vec<f64> {
+        (0..n)
+            .map(|i| (std::f64::consts::TAU * 3.0 * i as f64 / 10.0).cos() + 0.01 * i as f64)
+            .collect()
+    };
+    let mut short = wave(19);
+    let err = remove_slow_trend(&mut [&mut short], 10, &[1, 2, 3, 4], 1)
+        .unwrap_err()
+        .to_string();
+    assert!(err.contains("cannot carry"), "{err}");
+    let mut enough = wave(20);
+    let poly = remove_slow_trend(&mut [&mut enough], 10, &[1, 2, 3, 4], 1).unwrap();
+    // 0.01 i is 0.095 + 0.095 u over i = 0…19 (u = (i − 9.5)/9.5).
+    assert!(
+        (poly[0][0] - 0.095).abs() < 1e-9 && (poly[0][1] - 0.095).abs() < 1e-9,
+        "{poly:?}"
+    );
     let mut other = vec![0.0; x.len() - 1];
     assert!(remove_slow_trend(&mut [&mut x, &mut other], PERIOD, &BINS, 3).is_err());
     x[17] = f64::NAN;
