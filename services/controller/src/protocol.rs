@@ -569,7 +569,26 @@ mod tests {
         let n = ((tau_stop + elapsed - 1.0) * rate).round() as usize;
         let s = p.stopping(0, tau_stop, elapsed);
         assert!((s.tau_excitation_nm - fade * 3.0 * by_hand(n % n_period) / peak).abs() < 1e-9);
+        // A stop in the fade-in keeps the envelope it had (0.3 s into the
+        // settling window: ½ − ½ cos(0.3π)) under the ramp-out's fade.
+        let (tau_stop, elapsed) = (1.3, 0.25);
+        let envelope = 0.5 - 0.5 * (std::f64::consts::PI * 0.3).cos();
+        let fade = 0.5 + 0.5 * (std::f64::consts::PI * elapsed).cos();
+        let n = ((tau_stop + elapsed - 1.0) * rate).round() as usize;
+        let s = p.stopping(0, tau_stop, elapsed);
+        let want = fade * envelope * 3.0 * by_hand(n % n_period) / peak;
+        assert!(
+            (s.tau_excitation_nm - want).abs() < 1e-9,
+            "{} vs {want}",
+            s.tau_excitation_nm
+        );
         assert!(!p.quiet(0, 4.0));
+        // Before the multisine starts (during the ramp-in) it has no value:
+        // nothing is played, whatever multiplies it.
+        for before_s in [-0.005, -0.5, -1.0] {
+            assert_eq!(p.excite(0, before_s), (0.0, 3.0, 0.0), "{before_s}");
+        }
+        assert_eq!(p.excite(1, 0.0).2, by_hand(0) / peak);
     }
 
     #[test]
