@@ -169,6 +169,33 @@ fn each_key_at_fault_is_named_in_one_refusal() {
     );
 }
 
+/// A key at fault is named once: the design and the peak are checked
+/// against the table only from values that passed their own ranges, so an
+/// inverted band, a band edge, a period or a peak out of range is not
+/// reported again as an infeasible design or a peak beyond the limit.
+#[test]
+fn a_key_out_of_range_is_named_once() {
+    for (section, key) in [
+        (
+            "band_rad_s = [8.0, 8.0]",
+            "protocol.multisine.band_rad_s[1]",
+        ),
+        (
+            "band_rad_s = [20000.0, 32.0]",
+            "protocol.multisine.band_rad_s[0]",
+        ),
+        ("period_s = 5000.0", "protocol.multisine.period_s"),
+        ("peak_nm = 2000.0", "protocol.multisine.peak_nm"),
+    ] {
+        let (from, to) = with_section(&format!("[protocol.multisine]\n{section}\n"));
+        let (r, _) = load_edited("ms-once", &[MODE, NO_PERIODS, (from, &to)]);
+        let err = r.expect_err(section);
+        let each: Vec<String> = err.each().iter().map(|e| e.to_string()).collect();
+        assert_eq!(each.len(), 1, "{section}: {each:#?}");
+        assert!(each[0].contains(key), "{section}: {each:#?}");
+    }
+}
+
 #[test]
 fn a_period_that_is_not_a_whole_number_of_samples_is_refused() {
     let (from, to) = with_section("[protocol.multisine]\nperiod_s = 10.0005\n");
