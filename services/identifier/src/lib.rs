@@ -144,6 +144,15 @@ struct WindowSignals {
     rate_hz: f64,
 }
 
+impl WindowSignals {
+    /// Whether (nearly) every sample had its own command: at least 90 %,
+    /// and one at all. Only then is `τ_s/τ_d` estimated.
+    fn commands_cover_it(&self) -> bool {
+        let n = self.theta_rad.len();
+        self.exact >= n * 9 / 10 && self.exact > 0
+    }
+}
+
 impl Identifier {
     /// An identifier with rings of `rate_hz · max_window_s` samples and
     /// commands (allocated now, once). Trusts its settings: use
@@ -544,7 +553,8 @@ impl Identifier {
         self.command_coverage(what, w.exact, n, out);
         // The rate of the window's own stamps (a recording may not say its rate).
         let span_s = (last - origin) as f64 * 1e-9;
-        if n > 1 && span_s > 0.0 {
+        // A positive span holds two samples at least.
+        if span_s > 0.0 {
             w.rate_hz = (n - 1) as f64 / span_s;
         }
         w
@@ -568,8 +578,10 @@ impl Identifier {
     ) -> Option<Vec<FrfPoint>> {
         let mut w = self.window_signals(origin, end, what, out);
         let n = w.theta_rad.len();
-        let whole = (n / period_samples) * period_samples;
-        if whole < 2 * period_samples {
+        let periods = n / period_samples;
+        let whole = periods * period_samples;
+        let commands_cover_it = w.commands_cover_it();
+        if periods < 2 {
             out.push(Event::Warning(format!(
                 "{what}: {n} samples hold fewer than two whole multisine periods of {period_samples}; no FRF point"
             )));
@@ -609,12 +621,11 @@ impl Identifier {
             }
         };
         // τ_s/τ_d only when (nearly) every sample has its own command.
-        let sea = if w.exact >= n * 9 / 10 && w.exact > 0 {
+        let sea = if commands_cover_it {
             line(tau_d, tau_s).ok()
         } else {
             None
         };
-        let periods = whole / period_samples;
         Some(
             s_h.iter()
                 .zip(&s_he)
@@ -663,7 +674,7 @@ impl Identifier {
             &w.tau_s_nm,
             &w.tau_d_nm,
         );
-        let (n, exact, rate) = (th.len(), w.exact, w.rate_hz);
+        let (n, rate) = (th.len(), w.rate_hz);
         let seg = self.s.welch_segment.min(n.next_power_of_two() / 2).max(16);
         let [lo, hi] = self.s.broadband_band_rad_s;
         let spectra =
@@ -676,7 +687,7 @@ impl Identifier {
             }
         };
         // τ_s/τ_d only when (nearly) every sample has its own command.
-        let sea = if exact >= n * 9 / 10 && exact > 0 {
+        let sea = if w.commands_cover_it() {
             welch_h1(td, ts_raw, rate, seg).ok()
         } else {
             None
@@ -920,5 +931,53 @@ mod tests {
         let mut out = Vec::new();
         cuff.command_coverage("w", 0, 10, &mut out);
         assert!(out.is_empty());
+    }
+
+    /// `τ_s/τ_d` is estimated when nine in ten samples or more had their
+    /// own command, and never from none (a one-sample window included).
+    #[test]
+    fn the_sea_is_tracked_from_nine_in_ten_commands_and_never_from_none() {
+        let signals = |n: usize, exact: usize| WindowSignals {
+            theta_rad: vec![0.0; n],
+            tau_c_nm: vec![],
+            tau_s_less_gravity_nm: vec![],
+            tau_s_nm: vec![],
+            tau_d_nm: vec![],
+            exact,
+            rate_hz: 1000.0,
+        };
+        assert!(signals(10, 10).commands_cover_it());
+        assert!(signals(10, 9).commands_cover_it());
+        assert!(!signals(10, 8).commands_cover_it());
+        assert!(!signals(100, 89).commands_cover_it());
+        assert!(signals(100, 90).commands_cover_it());
+        assert!(!signals(10, 0).commands_cover_it());
+        assert!(!signals(1, 0).commands_cover_it());
+        assert!(signals(1, 1).commands_cover_it());
+    }
+
+    /// A window's rate is its own stamps' (a recording at 500 Hz read with
+    /// the default 1 kHz settings): n − 1 intervals over the span; a window
+    /// of one sample keeps the settings' rate.
+    #[test]
+    fn a_windows_rate_is_read_from_its_own_stamps() {
+        let mut id = Identifier::new(IdentifierSettings::default());
+        let mut out = Vec::new();
+        let origin = 7_000_000_000u64;
+        for k in 0..101u64 {
+            id.on_sample(
+                &SensorSample {
+                    seq: k,
+                    stamp_ns: origin + k * 2_000_000,
+                    ..Default::default()
+                },
+                &mut out,
+            );
+        }
+        let w = id.window_signals(origin, origin + 200_000_001, "w", &mut out);
+        assert_eq!(w.theta_rad.len(), 101);
+        assert!((w.rate_hz - 500.0).abs() < 1e-9, "{}", w.rate_hz);
+        let one = id.window_signals(origin, origin + 1, "w", &mut out);
+        assert_eq!((one.theta_rad.len(), one.rate_hz), (1, 1000.0));
     }
 }

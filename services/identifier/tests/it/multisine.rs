@@ -47,11 +47,28 @@ impl Rng {
 /// Feeds `analysis_samples` of analysis (after one period of settling) of
 /// the human through `id`, and returns its events and the lines (ω, phase).
 fn run(
+    id: Identifier,
+    human: DynamicStiffness,
+    noise_nm: f64,
+    analysis_samples: usize,
+    seed: u64,
+) -> (Vec<Event>, Vec<(f64, f64)>) {
+    run_with(id, human, noise_nm, analysis_samples, seed, true)
+}
+
+/// The SEA's torque tracking in the stream, `τ_s/τ_d = 1/(1 + 0.01 jω)`.
+fn sea(omega: f64) -> Complex64 {
+    1.0 / Complex64::new(1.0, 0.01 * omega)
+}
+
+/// [`run`], with the controller's commands sent or not.
+fn run_with(
     mut id: Identifier,
     human: DynamicStiffness,
     noise_nm: f64,
     analysis_samples: usize,
     seed: u64,
+    commands: bool,
 ) -> (Vec<Event>, Vec<(f64, f64)>) {
     let m = settings();
     let (n_period, bins) = m.bins(RATE).unwrap();
@@ -77,13 +94,14 @@ fn run(
             ProtocolPhase::RampOut
         };
         let t = k as f64 / RATE;
-        let (mut x, mut tc, mut ts) = (0.0, 0.0, 0.0);
+        let (mut x, mut tc, mut ts, mut td) = (0.0, 0.0, 0.0, 0.0);
         for (w, ph) in &lines {
             let e = Complex64::from_polar(AMP_RAD, w * t + ph);
             let s_h = human.response(*w);
             x += e.re;
             tc += (s_h * e).re;
             ts += ((s_h - M_E * w * w) * e).re;
+            td += ((s_h - M_E * w * w) / sea(*w) * e).re;
         }
         let stamp = k as u64 * 1_000_000;
         let p = ProtocolState {
@@ -98,13 +116,15 @@ fn run(
             ..Default::default()
         };
         id.on_protocol(&p, &mut events);
-        id.on_command(&ActuatorCommand {
-            seq: k as u64,
-            stamp_ns: stamp,
-            sensor_seq: k as u64,
-            tau_d: ts,
-            ..Default::default()
-        });
+        if commands {
+            id.on_command(&ActuatorCommand {
+                seq: k as u64,
+                stamp_ns: stamp,
+                sensor_seq: k as u64,
+                tau_d: td,
+                ..Default::default()
+            });
+        }
         id.on_sample(
             &SensorSample {
                 seq: k as u64,
@@ -164,15 +184,33 @@ fn each_excited_line_gives_a_point_with_the_humans_response_and_a_calibrated_err
             "ω {w}: reported {se}, expected {want_se}"
         );
         worst = worst.max((got - truth).norm() / want_se);
+        assert_eq!((p.experiment, p.period), (1, 1));
         let hea = Complex64::new(p.s_he_re, p.s_he_im);
         let truth_he = truth - M_E * w * w;
         assert!(
             (hea - truth_he).norm() < 5.0 * want_se,
             "ω {w}: {hea} vs {truth_he}"
         );
-        // τ_d here is the noise-free τ_s: the SEA's tracking is 1.
+        // τ_s carries noise of the same σ: the same standard error.
+        let se_he = p.s_he_noise_rel * hea.norm();
         assert!(
-            (Complex64::new(p.sea_re, p.sea_im) - 1.0).norm() < 0.01,
+            se_he > want_se / 3.0 && se_he < want_se * 3.0,
+            "ω {w}: S_h-e reported {se_he}, expected {want_se}"
+        );
+        // τ_d is noise-free, τ_s noisy: τ_s/τ_d is the SEA's tracking
+        // within τ_s's noise over |τ_d| at the line.
+        let g = sea(*w);
+        let td_line = (truth_he / g).norm() * AMP_RAD / 2.0;
+        let want_sea_se = (sigma * sigma / (2000.0 * 3.0)).sqrt() / td_line;
+        let got_sea = Complex64::new(p.sea_re, p.sea_im);
+        assert!(
+            (got_sea - g).norm() < 5.0 * want_sea_se,
+            "ω {w}: {got_sea} vs {g}"
+        );
+        // The coherence the noise implies over the three periods.
+        let want_coh = 1.0 / (1.0 + 3.0 * p.noise_rel * p.noise_rel);
+        assert!(
+            (p.coherence - want_coh).abs() < 1e-12 && p.coherence > 0.99,
             "{p:?}"
         );
     }
@@ -255,6 +293,20 @@ fn lines_that_no_period_can_carry_are_refused() {
         );
     }
     assert!(id().with_periodic_lines(2000, vec![1, 999]).is_ok());
+    assert!(id().with_periodic_lines(4, vec![1]).is_ok());
+}
+
+#[test]
+fn without_the_commands_there_is_no_sea_tracking_but_every_line() {
+    let human = DynamicStiffness::from_array([0.11, 0.0, 40.0, 10.0]);
+    let (events, lines) = run_with(with_multisine(), human, 0.0, 3 * 2000, 9, false);
+    let pts = points(&events);
+    assert_eq!(pts.len(), lines.len());
+    for p in &pts {
+        assert_eq!((p.sea_re, p.sea_im), (0.0, 0.0), "{p:?}");
+        let truth = human.response(p.omega);
+        assert!((Complex64::new(p.s_h_re, p.s_h_im) - truth).norm() < 1e-9 * truth.norm());
+    }
 }
 
 #[test]
