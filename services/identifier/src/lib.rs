@@ -211,16 +211,11 @@ impl Identifier {
         if bins.is_empty() {
             return err(0.0, "name at least one excited bin");
         }
-        for (i, &b) in bins.iter().enumerate() {
-            if b == 0 || 2 * b >= period_samples {
-                return err(
-                    b as f64,
-                    "each bin must lie between 1 and Nyquist (period_samples / 2)",
-                );
-            }
-            if bins[..i].contains(&b) {
-                return err(b as f64, "a bin is named twice");
-            }
+        if exo_impedance::multisine::check_bins(period_samples, &bins).is_err() {
+            return err(
+                period_samples as f64,
+                "each bin must lie between 1 and Nyquist (period_samples / 2), each once",
+            );
         }
         self.periodic = Some((period_samples, bins));
         Ok(self)

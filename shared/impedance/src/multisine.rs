@@ -124,6 +124,27 @@ pub fn log_spaced_bins(
     Ok(bins)
 }
 
+/// Whether `bins` can be the excited lines of a period of
+/// `period_samples` samples: each between 1 and below Nyquist
+/// (`2·bin < period_samples`), each once. The error names the line and
+/// its bin. The one check of a line set that the design, the per-line
+/// estimate, the trend removal and the identifier share.
+pub fn check_bins(period_samples: usize, bins: &[usize]) -> Result<()> {
+    for (i, &b) in bins.iter().enumerate() {
+        if b == 0 || 2 * b >= period_samples {
+            return Err(ScienceError::Infeasible(format!(
+                "line {i}: bin {b} is not between 1 and Nyquist of a {period_samples}-sample period"
+            )));
+        }
+        if bins[..i].contains(&b) {
+            return Err(ScienceError::Infeasible(format!(
+                "line {i}: bin {b} is excited twice"
+            )));
+        }
+    }
+    Ok(())
+}
+
 impl Multisine {
     /// The multisine of `bins` (distinct, each below Nyquist) with
     /// `amplitudes` and Schroeder's phases, a period of `period_samples`
@@ -147,18 +168,7 @@ impl Multisine {
                 "a multisine needs at least one line".into(),
             ));
         }
-        for (i, &b) in bins.iter().enumerate() {
-            if b == 0 || 2 * b >= period_samples {
-                return Err(ScienceError::Infeasible(format!(
-                    "multisine line {i}: bin {b} is not between 1 and Nyquist of a {period_samples}-sample period"
-                )));
-            }
-            if bins[..i].contains(&b) {
-                return Err(ScienceError::Infeasible(format!(
-                    "multisine line {i}: bin {b} is excited twice"
-                )));
-            }
-        }
+        check_bins(period_samples, bins)?;
         for &a in amplitudes {
             positive("multisine amplitude", a)?;
         }

@@ -79,13 +79,7 @@ pub fn periodic_frf(
             "periodic response: {periods} period(s); at least two are needed to measure the noise"
         )));
     }
-    for &b in bins {
-        if b == 0 || 2 * b >= period_samples {
-            return Err(ScienceError::Infeasible(format!(
-                "periodic response: bin {b} is not between 1 and Nyquist of a {period_samples}-sample period"
-            )));
-        }
-    }
+    crate::multisine::check_bins(period_samples, bins)?;
     if let Some(i) = x.iter().chain(y).position(|v| !v.is_finite()) {
         let (which, at) = if i < x.len() {
             ("input", i)
@@ -201,13 +195,7 @@ pub fn remove_slow_trend(
             allowed: "0 to 8",
         });
     }
-    for &b in bins {
-        if b == 0 || 2 * b >= period_samples {
-            return Err(ScienceError::Infeasible(format!(
-                "bin {b} is not between 1 and Nyquist of a {period_samples}-sample period"
-            )));
-        }
-    }
+    crate::multisine::check_bins(period_samples, bins)?;
     let n = signals.first().map_or(0, |x| x.len());
     for (k, x) in signals.iter().enumerate() {
         if x.len() != n {
