@@ -119,7 +119,7 @@ impl Controller {
     pub fn from_config(cfg: &RunConfig) -> Result<Self, ControllerError> {
         let subject = cfg.subject();
         let (protocol, load_kg) = match cfg.protocol.mode {
-            ProtocolMode::Identification => {
+            ProtocolMode::Identification | ProtocolMode::Multisine => {
                 let table = cfg.experiment_table();
                 let load = cfg
                     .protocol
@@ -127,29 +127,17 @@ impl Controller {
                     .first()
                     .and_then(|n| table.get(*n))
                     .map_or(0.0, |e| e.load_kg);
-                (
-                    Protocol::new(
-                        table,
-                        &cfg.protocol.experiments,
-                        cfg.protocol.periods.as_deref(),
-                    ),
-                    load,
-                )
-            }
-            ProtocolMode::Multisine => {
-                let table = cfg.experiment_table();
-                let m = cfg.protocol.multisine().unwrap_or_default();
-                let design = m
-                    .design(cfg.run.rate_hz)
-                    .map_err(|e| ControllerError::Config(e.to_string()))?;
-                let load = cfg
-                    .protocol
-                    .experiments
-                    .first()
-                    .and_then(|n| table.get(*n))
-                    .map_or(0.0, |e| e.load_kg);
-                let protocol = Protocol::new(table, &cfg.protocol.experiments, Some(&[1]))
-                    .with_multisine(&design, |e| m.peak_nm_of(table, e));
+                let periods = cfg.periods_run(table);
+                let protocol = Protocol::new(table, &cfg.protocol.experiments, Some(&periods));
+                let protocol = match cfg.protocol.multisine() {
+                    None => protocol,
+                    Some(m) => {
+                        let design = m
+                            .design(cfg.run.rate_hz)
+                            .map_err(|e| ControllerError::Config(e.to_string()))?;
+                        protocol.with_multisine(&design, |e| m.peak_nm_of(table, e))
+                    }
+                };
                 (protocol, load)
             }
             ProtocolMode::Voluntary => {

@@ -229,13 +229,11 @@ fn each_excited_line_gives_a_point_with_the_humans_response_and_a_calibrated_err
     assert!((m2.h_h - 10.0).abs() < 0.4, "H {}", m2.h_h);
 }
 
-#[test]
-fn without_noise_the_lines_are_exact() {
-    let human = DynamicStiffness::from_array([0.11, 0.3, 25.0, 6.0]);
-    let (events, lines) = run(with_multisine(), human, 0.0, 3 * 2000, 11);
-    let pts = points(&events);
+/// One point per line, each `S_h` the human's own to 1e-9 (noise-free).
+fn assert_every_line_exact(events: &[Event], lines: &[(f64, f64)], human: DynamicStiffness) {
+    let pts = points(events);
     assert_eq!(pts.len(), lines.len());
-    for (p, (w, _)) in pts.iter().zip(&lines) {
+    for (p, (w, _)) in pts.iter().zip(lines) {
         let got = Complex64::new(p.s_h_re, p.s_h_im);
         let truth = human.response(*w);
         assert!(
@@ -243,6 +241,13 @@ fn without_noise_the_lines_are_exact() {
             "{got} vs {truth}"
         );
     }
+}
+
+#[test]
+fn without_noise_the_lines_are_exact() {
+    let human = DynamicStiffness::from_array([0.11, 0.3, 25.0, 6.0]);
+    let (events, lines) = run(with_multisine(), human, 0.0, 3 * 2000, 11);
+    assert_every_line_exact(&events, &lines, human);
 }
 
 #[test]
@@ -263,16 +268,7 @@ fn a_partial_period_at_the_windows_end_is_left_out() {
     // stay exact without noise (a partial period would leak).
     let human = DynamicStiffness::from_array([0.11, 0.0, 40.0, 10.0]);
     let (events, lines) = run(with_multisine(), human, 0.0, 5000, 5);
-    let pts = points(&events);
-    assert_eq!(pts.len(), lines.len());
-    for (p, (w, _)) in pts.iter().zip(&lines) {
-        let got = Complex64::new(p.s_h_re, p.s_h_im);
-        let truth = human.response(*w);
-        assert!(
-            (got - truth).norm() < 1e-9 * truth.norm(),
-            "{got} vs {truth}"
-        );
-    }
+    assert_every_line_exact(&events, &lines, human);
 }
 
 #[test]
