@@ -15,6 +15,8 @@ Rust simulator, not fit_frf.py, not write_recording.py. It exists so that
         [--rate-hz 500|1000] [--cuff-delay S] [--sea-delay S] [--encoder-delay S] [--encoder-bits N]
         [--cuff-compliance K [--cuff-damping B]] [--posture-shift E:RAD,...] [--mass-scale X]
         [--sea-hz F] [--sea-zeta Z] [--sea-model lowpass|tustin] [--saturation NM]
+        [--protocol sines|multisine [--ms-band LO,HI] [--ms-lines L] [--ms-period S]
+         [--ms-settle-periods N] [--ms-periods N]] [--damping prony]
     independent_rig.py --monte-carlo N --out-dir DIR --seed S0 [--experiments 1,3] [the options of the last two lines]
         (N recordings DIR/mc000.mcap, ... with seeds S0+i, plus DIR/truth.json)
 
@@ -88,6 +90,28 @@ and command, seq +1 per written sample) are written from 1 s
 states at every change and once a second throughout, idle (0) before and
 after the protocol.
 
+--protocol multisine (issue 34): one protocol period per experiment whose
+excitation is a periodic multisine of this script's own design
+(multisine_design: L lines log-spaced over a band, rounded to the bins of a
+period of S seconds, flat amplitudes, phases the best crest factor of
+Schroeder's and 400 seeded random draws), playing from the settling phase's
+first tick: --ms-settle-periods periods of settling, then --ms-periods of
+analysis. The recording names its lines in the exo metadata
+(docs/recording-format.md: excitation, multisine_period_samples, _bins,
+_amplitudes, _phases_rad) and its protocol states say omega 0 (broadband)
+with the peak torque as amplitude. Its human is --damping prony: a causal
+hysteretic joint, a static spring k0 beside a bank of Maxwell elements
+whose relaxation rates are spread evenly in log over [LO/2, 2 HI], each
+holding the same stiffness, so the loss is close to H across the band;
+k0 is set so that Re S_h = K at the band's geometric centre. A causal
+constant loss makes Re S_h rise with frequency (Kramers-Kronig: about
+(2/pi) H per e-fold), so no causal human is the paper's M2 at every line;
+the truth file gives S_h(j w) exactly at every excited line
+(experiments.E.lines) for checking the estimate line by line, and the M2
+that fits those values (experiments.E.m2_of_lines). --damping prony also
+runs with the sine steps (each period's S_h in the truth), so both
+protocols can be held to one human.
+
 Randomness: the subject's parameters come from default_rng([seed, 0x5B])
 (--random-subject, and Monte Carlo), each period's posture, twitch and noise
 from default_rng([seed, 1, experiment, period]); so a Monte-Carlo recording
@@ -156,6 +180,17 @@ AMP_BOOST_FROM = 8  # 1-based period from which the amplitude is x 10^0.2
 N_PERIODS = 10
 
 RAMP_IN_S, SETTLE_S, ANALYSIS_S, RAMP_OUT_S, REST_S = 5.0, 5.0, 5.0, 5.0, 5.0
+# --protocol multisine defaults (issue 34): the band of the sine steps, 12
+# lines, 10 s periods, one of settling and three analysed, the peak the sine
+# steps' largest amplitude.
+MS_BAND = (2.0, 32.0)
+MS_LINES = 12
+MS_PERIOD_S = 10.0
+MS_SETTLE_PERIODS = 1
+MS_PERIODS = 3
+MS_RANDOM_DRAWS = 400
+# --damping prony: Maxwell elements per decade of relaxation rate.
+PRONY_PER_DECADE = 5
 PRE_WINDOW_S = 1.0
 
 
@@ -164,14 +199,14 @@ class Timing:
     (s), the stamp step tick_ns, and a period's phase boundaries (local
     ticks)."""
 
-    def __init__(self, rate_hz=RATE_HZ):
+    def __init__(self, rate_hz=RATE_HZ, settle_s=SETTLE_S, analysis_s=ANALYSIS_S):
         self.rate_hz = rate_hz
         self.dt = 1.0 / rate_hz
         self.tick_ns = 1_000_000_000 // rate_hz
         self.lead_ticks = rate_hz  # 1 s of idle before the first period
         self.t_sine = self.ticks(RAMP_IN_S)  # local tick the sine starts (phase 2)
-        self.t_analysis = self.t_sine + self.ticks(SETTLE_S)  # phase 3
-        self.t_ramp_out = self.t_analysis + self.ticks(ANALYSIS_S)  # phase 4
+        self.t_analysis = self.t_sine + self.ticks(settle_s)  # phase 3
+        self.t_ramp_out = self.t_analysis + self.ticks(analysis_s)  # phase 4
         self.t_rest = self.t_ramp_out + self.ticks(RAMP_OUT_S)  # phase 5
         self.t_period = self.t_rest + self.ticks(REST_S)
         self.n_sim = self.t_ramp_out + 1  # simulated ticks 0..t_ramp_out inclusive
@@ -187,12 +222,21 @@ class Rig:
     defaults are the nominal rig): rate_hz, encoder_bits, the SEA's low pass
     (sea_hz, sea_zeta, sea_model lowpass|tustin), the drive's current limit
     saturation_nm (0 = none), the sensors' pure delays (s), the cuff's
-    stiffness cuff_k (Nm/rad, 0 = rigid) and damping cuff_b (Nm s/rad)."""
+    stiffness cuff_k (Nm/rad, 0 = rigid) and damping cuff_b (Nm s/rad);
+    multisine: None (the sine steps) or multisine_design()'s dict, whose
+    settling and analysed periods then set the timing; prony_band (rad/s):
+    the band of --damping prony's loss."""
 
     def __init__(self, rate_hz=RATE_HZ, encoder_bits=ENC_BITS, sea_hz=SEA_HZ, sea_zeta=SEA_ZETA,
                  sea_model="lowpass", saturation_nm=0.0, cuff_delay_s=0.0, sea_delay_s=0.0,
-                 encoder_delay_s=0.0, cuff_k=0.0, cuff_b=CUFF_DAMPING):
-        self.tm = Timing(rate_hz)
+                 encoder_delay_s=0.0, cuff_k=0.0, cuff_b=CUFF_DAMPING, multisine=None, prony_band=MS_BAND):
+        self.multisine = multisine
+        self.prony_band = prony_band
+        if multisine:
+            per_s = multisine["n"] / rate_hz
+            self.tm = Timing(rate_hz, multisine["settle_periods"] * per_s, multisine["periods"] * per_s)
+        else:
+            self.tm = Timing(rate_hz)
         self.encoder_bits = encoder_bits
         self.enc_q = 2.0 * math.pi / 2**encoder_bits
         self.sea_hz, self.sea_zeta, self.sea_model = sea_hz, sea_zeta, sea_model
@@ -202,6 +246,96 @@ class Rig:
 
 
 NOMINAL = Rig()
+
+
+def multisine_design(rate_hz, band, lines, period_s, settle_periods, periods, peak_nm):
+    """This rig's periodic multisine: `lines` frequencies log-spaced over
+    band (rad/s), each rounded to the nearest bin of a period of period_s
+    seconds (a bin taken twice moves up to the next free one), equal
+    amplitudes, and the phases of the lowest crest factor among Schroeder's
+    (phi_l = -pi l (l - 1) / L) and MS_RANDOM_DRAWS uniform draws from a
+    fixed stream. Returns n (samples a period), bins, the amplitudes over
+    the peak (so that the period's largest |value| is 1), the phases (rad)
+    at a period's sample 0, the period's waveform of unit peak (cosines),
+    its crest factor, and the peak torque (Nm)."""
+    n = int(round(period_s * rate_hz))
+    if abs(n - period_s * rate_hz) > 1e-9 * n:
+        raise SystemExit(f"--ms-period {period_s!r} s is not a whole number of samples at {rate_hz} Hz")
+    lo, hi = band
+    bins = []
+    for w in np.geomspace(lo, hi, lines):
+        b = max(1, int(round(w * period_s / (2.0 * math.pi))))
+        while b in bins:
+            b += 1
+        bins.append(b)
+    if bins[-1] >= n // 2:
+        raise SystemExit(f"--ms-band {lo:g},{hi:g}: bin {bins[-1]} is not below Nyquist ({n // 2})")
+    b = np.array(bins, dtype=float)
+    m = np.arange(n, dtype=float)
+    arg = 2.0 * math.pi * np.outer(b, m) / n
+
+    def wave(phi):
+        return np.cos(arg + phi[:, None]).sum(axis=0)
+
+    def crest(x):
+        return float(np.max(np.abs(x)) / math.sqrt(np.mean(x * x)))
+
+    ell = np.arange(1, lines + 1, dtype=float)
+    best = -math.pi * ell * (ell - 1.0) / lines
+    best_cf = crest(wave(best))
+    rng = np.random.default_rng([lines, n, 0x3A])
+    for _ in range(MS_RANDOM_DRAWS):
+        phi = rng.uniform(-math.pi, math.pi, lines)
+        cf = crest(wave(phi))
+        if cf < best_cf:
+            best, best_cf = phi, cf
+    x = wave(best)
+    top = float(np.max(np.abs(x)))
+    phases = (best + math.pi) % (2.0 * math.pi) - math.pi
+    return dict(n=n, bins=bins, amplitudes=[1.0 / top] * lines, phases=[float(p) for p in phases],
+                wave=x / top, crest=best_cf, peak_nm=peak_nm, settle_periods=settle_periods, periods=periods,
+                omega=[2.0 * math.pi * bb / period_s for bb in bins], band=(lo, hi))
+
+
+def prony_realisation(k, h, band):
+    """A causal hysteretic joint for broadband excitation: k0 + b0 s +
+    sum_i km_i tau_i s / (1 + tau_i s), b0 = 0, relaxation rates 1/tau_i
+    spread evenly in log over [lo/2, 2 hi] (PRONY_PER_DECADE a decade), each
+    km_i = (2 H / pi) d(ln rate) so the loss is about H across the band (a
+    flat relaxation spectrum gives (pi/2) times its density), and k0 such
+    that Re S_h = K at sqrt(lo hi)."""
+    lo, hi = band
+    r_lo, r_hi = 0.5 * lo, 2.0 * hi
+    m = max(2, int(math.ceil(PRONY_PER_DECADE * math.log10(r_hi / r_lo)))) + 1
+    rates = np.geomspace(r_lo, r_hi, m)
+    km = np.full(m, 2.0 * h / math.pi * math.log(rates[1] / rates[0]))
+    wc = math.sqrt(lo * hi)
+    k0 = k - float(np.sum(km * wc * wc / (wc * wc + rates * rates)))
+    if k0 <= 0.0:
+        raise SystemExit(f"--damping prony: K {k:.3g} is too small for H {h:.3g} over the band "
+                         "(the static spring would be negative)")
+    return dict(k0=k0, b0=0.0, km=[float(x) for x in km], tau_m=[float(1.0 / r) for r in rates])
+
+
+def human_response(sp, w):
+    """The realisation's S_h(j w) = k0 - M_h w^2 + j w b0 + sum km_i j w tau_i
+    / (1 + j w tau_i) (complex, Nm/rad), exactly."""
+    s = 1j * w
+    km, tau = np.atleast_1d(sp["km"]), np.atleast_1d(sp["tau_m"])
+    return complex(sp["k0"] - sp["m_h"] * w * w + sp["b0"] * s + np.sum(km * tau * s / (1.0 + tau * s)))
+
+
+def m2_of(ws, values):
+    """The paper's M2 (K - M w^2 + j H) that fits the complex values at ws
+    by least squares, each real and imaginary part weighted alike: (K, H,
+    M)."""
+    ws = np.asarray(ws, dtype=float)
+    v = np.asarray(values, dtype=complex)
+    a = np.zeros((2 * len(ws), 3))
+    a[:len(ws), 0], a[:len(ws), 2] = 1.0, -ws * ws
+    a[len(ws):, 1] = 1.0
+    x = np.linalg.lstsq(a, np.concatenate([v.real, v.imag]), rcond=None)[0]
+    return float(x[0]), float(x[1]), float(x[2])
 
 
 def experiment_settings(e):
@@ -291,9 +425,17 @@ def closed_loop_mode(sp, rig=NOMINAL):
     sampled_loop() takes them in)."""
     w_s = 2.0 * math.pi * rig.sea_hz
     d = np.array([1.0, 2.0 * rig.sea_zeta * w_s, w_s * w_s])
-    tau = sp["tau_m"]
-    lag = np.array([tau, 1.0])
-    n_h = np.polyadd(np.polymul([sp["m_h"], sp["b0"], sp["k0"]], lag), [sp["km"] * tau, 0.0])
+    kms, taus = np.atleast_1d(sp["km"]), np.atleast_1d(sp["tau_m"])
+    lag = np.array([1.0])
+    for tau in taus:
+        lag = np.polymul(lag, [tau, 1.0])
+    n_h = np.polymul([sp["m_h"], sp["b0"], sp["k0"]], lag)
+    for i, (km, tau) in enumerate(zip(kms, taus)):
+        rest = np.array([1.0])
+        for j, t in enumerate(taus):
+            if j != i:
+                rest = np.polymul(rest, [t, 1.0])
+        n_h = np.polyadd(n_h, np.polymul([km * tau, 0.0], rest))
     me = m_e(sp["load_kg"])
     char = np.polyadd(np.polymul(np.polymul([me, 0.0, 0.0], d), lag),
                       np.polymul(np.polyadd(d, [0.0, 0.0, (sp["alpha"] - 1.0) * w_s * w_s]), n_h))
@@ -357,16 +499,18 @@ def sampled_loop(sp, rig=NOMINAL, k_exo_spring=0.0, horizontal=False):
     tm = rig.tm
     dt = tm.dt
     me, mh = m_e(sp["load_kg"]), sp["m_h"]
-    b0, k0, km, tau = sp["b0"], sp["k0"], sp["km"], sp["tau_m"]
+    b0, k0 = sp["b0"], sp["k0"]
+    kms, taus = np.atleast_1d(sp["km"]), np.atleast_1d(sp["tau_m"])
+    nq = len(kms)  # the Maxwell elements' damper nodes
     c_th = 0.0 if horizontal else math.cos(sp["theta_goal"])
     gt = G * (ARM_MASS * ARM_COM + sp["load_kg"] * LEVER) * c_th
     gc = G * (COMP_ARM_MASS_FACTOR * ARM_MASS * ARM_COM + COMP_LOAD_MASS_FACTOR * sp["load_kg"] * LEVER) * c_th
     kc, bc = rig.cuff_k, rig.cuff_b
     tustin = rig.sea_model == "tustin"
-    # Plant states: rigid th, om, q; compliant th_e, om_e, th_h, om_h, q;
-    # then ts, and dts with the low pass. Input: tau_d (low pass) or the
-    # rate of the tustin torque's ramp over the tick.
-    nm = 5 if kc else 3
+    # Plant states: rigid th, om, q...; compliant th_e, om_e, th_h, om_h,
+    # q...; then ts, and dts with the low pass. Input: tau_d (low pass) or
+    # the rate of the tustin torque's ramp over the tick.
+    nm = (4 if kc else 2) + nq
     n = nm + (1 if tustin else 2)
     A, B = np.zeros((n, n)), np.zeros(n)
     c_th_row = np.zeros(n)
@@ -380,23 +524,27 @@ def sampled_loop(sp, rig=NOMINAL, k_exo_spring=0.0, horizontal=False):
         A[nm + 1, nm], A[nm + 1, nm + 1], B[nm + 1] = -w * w, -2.0 * rig.sea_zeta * w, w * w
     if kc:
         fh = np.zeros(n)  # the human's passive torque on th_h, om_h, q
-        fh[2], fh[3], fh[4] = k0 + km, b0, -km
+        fh[2], fh[3] = k0 + kms.sum(), b0
+        fh[4:4 + nq] = -kms
         tc = np.zeros(n)
         tc[0], tc[1], tc[2], tc[3] = kc, bc, -kc, -bc
         A[0, 1], A[2, 3] = 1.0, 1.0
         A[1] = (ex - tc) / me
         A[1, 0] -= (gt + k_exo_spring) / me
         A[3] = (tc - fh) / mh
-        A[4, 2], A[4, 4] = 1.0 / tau, -1.0 / tau
+        for i, tau in enumerate(taus):
+            A[4 + i, 2], A[4 + i, 4 + i] = 1.0 / tau, -1.0 / tau
         c_tc_row = tc
     else:
         fh = np.zeros(n)
-        fh[0], fh[1], fh[2] = k0 + km, b0, -km
+        fh[0], fh[1] = k0 + kms.sum(), b0
+        fh[2:2 + nq] = -kms
         mt = me + mh
         A[0, 1] = 1.0
         A[1] = (ex - fh) / mt
         A[1, 0] -= (gt + k_exo_spring) / mt
-        A[2, 0], A[2, 2] = 1.0 / tau, -1.0 / tau
+        for i, tau in enumerate(taus):
+            A[2 + i, 0], A[2 + i, 2 + i] = 1.0 / tau, -1.0 / tau
         c_tc_row = mh * A[1] + fh  # tau_c = M_h acc + the human's passive torque
     c_th_row[0] = 1.0
     aug = np.zeros((n + 1, n + 1))
@@ -452,13 +600,15 @@ def period_specs(seed, subject, experiments, n_periods, noise_scale, twitch_sigm
     the offset of the subject's posture reference th_p in that experiment."""
     tm = rig.tm
     specs = []
+    ms = rig.multisine
     for e in experiments:
         st = experiment_settings(e)
-        for k in range(n_periods):
+        for k in range(1 if ms else n_periods):
             rng = np.random.default_rng([seed, 1, e, k])
-            w = period_omega(e, k)
+            # A multisine is one broadband protocol period (omega 0 on the wire).
+            w = 0.0 if ms else period_omega(e, k)
             spec = dict(
-                experiment=e, period=k + 1, omega=w, amplitude=period_amplitude(k),
+                experiment=e, period=k + 1, omega=w, amplitude=ms["peak_nm"] if ms else period_amplitude(k),
                 alpha=st["alpha"], load_kg=st["load_kg"], grip_kg=st["grip_kg"],
                 bias_nm=st["bias_nm"], m_h=subject["m_h"], k=subject["k"][e - 1],
                 h=subject["h"][e - 1],
@@ -468,8 +618,11 @@ def period_specs(seed, subject, experiments, n_periods, noise_scale, twitch_sigm
                 twitch_nm=twitch_sigma * rng.standard_normal() / (tm.twitch_ticks * tm.dt),
                 posture_shift=float((posture_shift or {}).get(e, 0.0)),
             )
-            spec.update(human_realisation(spec["k"], spec["h"], spec["m_h"], spec["alpha"],
-                                          spec["load_kg"], w, damping))
+            if damping == "prony":
+                spec.update(prony_realisation(spec["k"], spec["h"], rig.prony_band))
+            else:
+                spec.update(human_realisation(spec["k"], spec["h"], spec["m_h"], spec["alpha"],
+                                              spec["load_kg"], w, damping))
             spec["mode_omega"], spec["mode_zeta"] = closed_loop_mode(spec, rig)
             spec["noise_enc"] = SIGMA_ENC * noise_scale * rng.standard_normal(tm.n_sim)
             spec["noise_tc"] = SIGMA_TAU_C * noise_scale * rng.standard_normal(tm.n_sim)
@@ -602,6 +755,13 @@ def simulate(specs, pre_window_s=PRE_WINDOW_S, k_cubic=0.0, k_exo_spring=0.0, k_
     col = lambda key: np.array([s[key] for s in specs], dtype=float)
     alpha, load, m_h = col("alpha"), col("load_kg"), col("m_h")
     k, b, km, inv_tau = col("k0"), col("b0"), col("km"), 1.0 / col("tau_m")
+    bank = km.ndim == 2  # --damping prony: (P, elements)
+
+    def maxwell(x, q_):  # the Maxwell elements' torque on a body at angle x
+        return np.sum(km * (x[:, None] - q_), axis=1) if bank else km * (x - q_)
+
+    def relax(x, q_):  # their damper nodes' rates
+        return (x[:, None] - q_) * inv_tau if bank else (x - q_) * inv_tau
     # The static stiffness at every tick: k0 + k_drift K t / 60.
     t_exp = ((col("period") - 1.0) * tm.t_period)[:, None] * dt + (np.arange(n_sim) - t_analysis)[None, :] * dt
     k_t = k[:, None] + (k_drift / 60.0) * col("k")[:, None] * t_exp
@@ -627,6 +787,7 @@ def simulate(specs, pre_window_s=PRE_WINDOW_S, k_cubic=0.0, k_exo_spring=0.0, k_
         (sb0, sb1, sb2), (sa1, sa2) = tustin_sea(rig)
     sat = rig.saturation_nm
     enc_q = rig.enc_q
+    ms_wave = rig.multisine["wave"] if rig.multisine else None
 
     # The subject's input u = K th_p + tau_tw, held over each tick at its
     # mid-tick value. th_p: the planned arm angle, minus the offset the
@@ -658,7 +819,7 @@ def simulate(specs, pre_window_s=PRE_WINDOW_S, k_cubic=0.0, k_exo_spring=0.0, k_
     tc0 = (g_comp - g_true) * np.sin(th if (shifted or kc) else th_rest) / alpha
     th_h = th - tc0 / kc if kc else th  # the forearm (compliant cuff)
     om_h = np.zeros(P)
-    q = th_h.copy()  # the Maxwell element's damper node, relaxed
+    q = np.repeat(th_h[:, None], km.shape[1], axis=1) if bank else th_h.copy()  # damper nodes, relaxed
     ts = g_true * np.sin(th if (shifted or kc) else th_rest) + tc0
     dts = np.zeros(P)
     # The motor side at rest, in contact on the side its torque pushes.
@@ -688,7 +849,7 @@ def simulate(specs, pre_window_s=PRE_WINDOW_S, k_cubic=0.0, k_exo_spring=0.0, k_
         if kc:
             tau_c = kc * (th - th_h) + bc * (om - om_h)
         else:
-            f_h = b * om + kn * th + km * (th - q) - un  # the human's passive torque less the voluntary
+            f_h = b * om + kn * th + maxwell(th, q) - un  # the human's passive torque less the voluntary
             if k_cubic:
                 f_h = f_h + k_cubic * (th - th_p[:, n]) ** 3
             if b_cubic:
@@ -708,7 +869,9 @@ def simulate(specs, pre_window_s=PRE_WINDOW_S, k_cubic=0.0, k_exo_spring=0.0, k_
         t_gc = g_comp * np.sin(th_m)
         t_amp = (1.0 - alpha) * tc_m + 0.0  # + 0.0: no -0.0 at alpha = 1
         t_bias = bias * float(smooth_ramp(t / RAMP_IN_S))
-        if t_sine <= n < t_ramp_out:
+        if t_sine <= n < t_ramp_out and ms_wave is not None:
+            t_x = amp * ms_wave[(n - t_sine) % len(ms_wave)]  # the multisine from its period's sample 0
+        elif t_sine <= n < t_ramp_out:
             t_x = amp * np.sin(omega * ((n - t_sine) * dt))
         else:
             t_x = np.zeros(P)
@@ -739,8 +902,8 @@ def simulate(specs, pre_window_s=PRE_WINDOW_S, k_cubic=0.0, k_exo_spring=0.0, k_
                 tc = kc * (th_ - thh_) + bc * (om_ - omh_)
                 drive_ = mesh(motor[0] - th_, motor[1] - om_, lash) if lash else ts_
                 d = (om_, (drive_ - g_true * np.sin(th_) - k_exo_spring * (th_ - th_goal) - tc) * inv_me,
-                     dts_, w2 * (tau_in - ts_) - z2 * dts_, (thh_ - q_) * inv_tau,
-                     omh_, (tc - b * omh_ - kn * thh_ - km * (thh_ - q_) - nonlin + un) * inv_mh)
+                     dts_, w2 * (tau_in - ts_) - z2 * dts_, relax(thh_, q_),
+                     omh_, (tc - b * omh_ - kn * thh_ - maxwell(thh_, q_) - nonlin + un) * inv_mh)
                 return d + (motor[1], (ts_ - drive_) / MOTOR_SIDE_INERTIA) if lash else d
             y = rk4(f, (th, om, ts, dts, q, th_h, om_h) + ((mot, om_mot) if lash else ()), h / substeps, substeps)
             th, om, ts, dts, q, th_h, om_h = y[:7]
@@ -752,9 +915,9 @@ def simulate(specs, pre_window_s=PRE_WINDOW_S, k_cubic=0.0, k_exo_spring=0.0, k_
             nonlin = ((k_cubic * (th_ - thp) ** 3 if k_cubic else 0.0) + (b_cubic * om_ ** 3 if b_cubic else 0.0)
                       + (0.5 * k_quad * (th_ - pln) ** 2 if k_quad else 0.0))
             spring = k_exo_spring * (th_ - th_goal)
-            return (om_, (ts_ - g_true * np.sin(th_) - spring - b * om_ - kn * th_ - km * (th_ - q_) - nonlin + un)
+            return (om_, (ts_ - g_true * np.sin(th_) - spring - b * om_ - kn * th_ - maxwell(th_, q_) - nonlin + un)
                     * inv_m,
-                    dts_, w2 * (tau_in - ts_) - z2 * dts_, (th_ - q_) * inv_tau)
+                    dts_, w2 * (tau_in - ts_) - z2 * dts_, relax(th_, q_))
         if lash:
             def f(th_, om_, ts_, dts_, q_, mot_, om_mot_):
                 nonlin = ((k_cubic * (th_ - thp) ** 3 if k_cubic else 0.0)
@@ -762,9 +925,9 @@ def simulate(specs, pre_window_s=PRE_WINDOW_S, k_cubic=0.0, k_exo_spring=0.0, k_
                          + (0.5 * k_quad * (th_ - pln) ** 2 if k_quad else 0.0))
                 spring = k_exo_spring * (th_ - th_goal)
                 tm_ = mesh(mot_ - th_, om_mot_ - om_, lash)
-                return (om_, (tm_ - g_true * np.sin(th_) - spring - b * om_ - kn * th_ - km * (th_ - q_) - nonlin
+                return (om_, (tm_ - g_true * np.sin(th_) - spring - b * om_ - kn * th_ - maxwell(th_, q_) - nonlin
                               + un) * inv_m,
-                        dts_, w2 * (tau_in - ts_) - z2 * dts_, (th_ - q_) * inv_tau,
+                        dts_, w2 * (tau_in - ts_) - z2 * dts_, relax(th_, q_),
                         om_mot_, (ts_ - tm_) / MOTOR_SIDE_INERTIA)
             th, om, ts, dts, q, mot, om_mot = rk4(f, (th, om, ts, dts, q, mot, om_mot), h / substeps, substeps)
             continue
@@ -970,9 +1133,20 @@ def phase_at(lt, tm):
     return 5
 
 
-def write_recording(path, subject_name, seed, specs, sim, noise_scale, writer="own", extra_meta=None, tm=NOMINAL.tm):
+def multisine_meta(ms):
+    """The exo metadata keys that name a multisine's lines
+    (docs/recording-format.md), written by this script's own hand."""
+    floats = lambda v: ",".join(repr(float(x)) for x in v)
+    return {"protocol_mode": "multisine", "excitation": "multisine",
+            "multisine_period_samples": str(ms["n"]), "multisine_bins": ",".join(str(b) for b in ms["bins"]),
+            "multisine_amplitudes": floats(ms["amplitudes"]), "multisine_phases_rad": floats(ms["phases"])}
+
+
+def write_recording(path, subject_name, seed, specs, sim, noise_scale, writer="own", extra_meta=None, tm=NOMINAL.tm,
+                    ms=None):
     """Writes one recording: the periods of specs (in order) with their
-    simulated samples sim (rows in the order of specs) at tm's rate."""
+    simulated samples sim (rows in the order of specs) at tm's rate; ms (a
+    multisine_design) names the lines in the metadata."""
     n_rec = sim["theta"].shape[1]  # recorded ticks per period: the last n_rec simulated ones
     rec0 = tm.n_sim - n_rec
     TICK_NS = tm.tick_ns
@@ -991,6 +1165,7 @@ def write_recording(path, subject_name, seed, specs, sim, noise_scale, writer="o
         "recorded_samples": f"from {(tm.t_analysis - rec0) / tm.rate_hz:g} s before each analysis window "
                             "to its end (inclusive); seq counts the written samples",
     }
+    meta.update(multisine_meta(ms) if ms else {})
     meta.update(extra_meta or {})
     w.add_metadata("exo", meta)
 
@@ -1086,7 +1261,11 @@ def write_recording(path, subject_name, seed, specs, sim, noise_scale, writer="o
 
 
 # ---------------------------------------------------------------- truth
-def subject_truth(name, seed, subject, specs, tm=NOMINAL.tm):
+def subject_truth(name, seed, subject, specs, tm=NOMINAL.tm, ms=None):
+    """The truth of one subject's recording: per experiment its settings,
+    each period's realisation and S_h at the period's omega (s_h_re, s_h_im;
+    exact), and with a multisine ms S_h at every excited line (lines) with
+    the M2 that fits those values (m2_of_lines)."""
     exps = {}
     for sp in specs:
         e = exps.setdefault(str(sp["experiment"]), dict(
@@ -1097,6 +1276,16 @@ def subject_truth(name, seed, subject, specs, tm=NOMINAL.tm):
             loop_growth_per_s=[], loop_omega=[]))
         e["omega"].append(sp["omega"])
         e["amplitude"].append(sp["amplitude"])
+        if not ms:
+            z = human_response(sp, sp["omega"])
+            e.setdefault("s_h_re", []).append(z.real)
+            e.setdefault("s_h_im", []).append(z.imag)
+        elif "lines" not in e:
+            zs = [human_response(sp, w) for w in ms["omega"]]
+            e["lines"] = dict(omega=list(ms["omega"]), bins=list(ms["bins"]), s_h_re=[z.real for z in zs],
+                              s_h_im=[z.imag for z in zs])
+            kk, hh, mm = m2_of(ms["omega"], zs)
+            e["m2_of_lines"] = dict(K=kk, H=hh, M=mm)
         for key in ("k0", "b0", "km", "tau_m"):
             e["realisation"][key].append(sp[key])
         e["mode_omega"].append(sp["mode_omega"])
@@ -1211,10 +1400,41 @@ def rig_from_args(a):
     if not (math.isfinite(a.saturation) and a.saturation >= 0.0):
         raise SystemExit(f"--saturation must be finite and >= 0 Nm (0 = no limit), got {a.saturation!r}")
     in_range("--mass-scale", a.mass_scale, 0.5, 2.0, "")
+    ms, band = None, MS_BAND
+    if a.damping is None:
+        a.damping = "prony" if a.protocol == "multisine" else "two-point"
+    if a.protocol == "multisine":
+        if a.damping != "prony":
+            raise SystemExit(f"--protocol multisine needs --damping prony (got {a.damping}: an equivalent viscous "
+                             "human is exact at one sine only)")
+        band = parse_band(a.ms_band, a.rate_hz)
+        if not 2 <= a.ms_lines <= 64:
+            raise SystemExit(f"--ms-lines must be in [2, 64], got {a.ms_lines}")
+        in_range("--ms-period", a.ms_period, 1.0, 120.0, "s")
+        if not 0 <= a.ms_settle_periods <= 10:
+            raise SystemExit(f"--ms-settle-periods must be in [0, 10], got {a.ms_settle_periods}")
+        if not 2 <= a.ms_periods <= 20:
+            raise SystemExit(f"--ms-periods must be in [2, 20] (the noise is their spread), got {a.ms_periods}")
+        ms = multisine_design(a.rate_hz, band, a.ms_lines, a.ms_period, a.ms_settle_periods, a.ms_periods,
+                              period_amplitude(N_PERIODS - 1))
+    elif a.damping == "prony":
+        band = parse_band(a.ms_band, a.rate_hz)
     return Rig(rate_hz=a.rate_hz, encoder_bits=a.encoder_bits, sea_hz=a.sea_hz, sea_zeta=a.sea_zeta,
                sea_model=a.sea_model, saturation_nm=a.saturation, cuff_delay_s=a.cuff_delay,
                sea_delay_s=a.sea_delay, encoder_delay_s=a.encoder_delay, cuff_k=a.cuff_compliance,
-               cuff_b=CUFF_DAMPING if a.cuff_damping is None else a.cuff_damping)
+               cuff_b=CUFF_DAMPING if a.cuff_damping is None else a.cuff_damping, multisine=ms,
+               prony_band=band)
+
+
+def parse_band(s, rate_hz):
+    """--ms-band LO,HI (rad/s): 0 < LO < HI below Nyquist."""
+    try:
+        lo, hi = (float(x) for x in s.split(","))
+    except ValueError:
+        raise SystemExit(f"--ms-band must be LO,HI in rad/s, got {s!r}") from None
+    if not (math.isfinite(lo) and math.isfinite(hi) and 0.0 < lo < hi < math.pi * rate_hz):
+        raise SystemExit(f"--ms-band {s}: needs 0 < LO < HI < Nyquist ({math.pi * rate_hz:g} rad/s)")
+    return lo, hi
 
 
 def main(argv=None):
@@ -1229,9 +1449,23 @@ def main(argv=None):
                     help="multiplies the sensor noise (tau_c, tau_s, encoder); quantisation stays")
     ap.add_argument("--twitch", type=float, default=TWITCH_IMPULSE_SIGMA,
                     help="standard deviation of the analysis-window twitch impulse, N m s (0 = none)")
-    ap.add_argument("--damping", choices=("viscous", "two-point"), default="two-point",
+    ap.add_argument("--damping", choices=("viscous", "two-point", "prony"), default=None,
                     help="realisation of the hysteretic damping H: viscous B = H / omega_k; two-point: loss H "
-                         "at omega_k and at the arm's natural frequency (see human_realisation)")
+                         "at omega_k and at the arm's natural frequency (see human_realisation; the default of "
+                         "the sine steps); prony: a causal bank of Maxwell elements, loss about H across the "
+                         "band (see prony_realisation; the default and only human of --protocol multisine)")
+    ap.add_argument("--protocol", choices=("sines", "multisine"), default="sines",
+                    help="sines: the paper's sine steps (--periods of them); multisine: one period per "
+                         "experiment of a designed multisine (see multisine_design)")
+    ap.add_argument("--ms-band", default=f"{MS_BAND[0]:g},{MS_BAND[1]:g}", metavar="LO,HI",
+                    help="multisine: the band of its lines, rad/s (also the band of --damping prony's loss)")
+    ap.add_argument("--ms-lines", type=int, default=MS_LINES, metavar="L", help="multisine: lines (2-64)")
+    ap.add_argument("--ms-period", type=float, default=MS_PERIOD_S, metavar="S",
+                    help="multisine: one period, s (1-120; a whole number of samples)")
+    ap.add_argument("--ms-settle-periods", type=int, default=MS_SETTLE_PERIODS, metavar="N",
+                    help="multisine: periods of settling before the analysis (0-10)")
+    ap.add_argument("--ms-periods", type=int, default=MS_PERIODS, metavar="N",
+                    help="multisine: periods analysed (2-20: the noise is their spread)")
     ap.add_argument("--random-subject", action="store_true",
                     help="draw the subject's parameters from the seed (default: the built-in table)")
     ap.add_argument("--params", help="JSON with m_h, k[9], h[9] overriding the table")
@@ -1310,7 +1544,7 @@ def main(argv=None):
         if not a.out_dir or a.out:
             raise SystemExit("--monte-carlo N needs --out-dir DIR and no OUT")
         os.makedirs(a.out_dir, exist_ok=True)
-        per = len(experiments) * a.periods
+        per = len(experiments) * (1 if rig.multisine else a.periods)
         per_batch = max(1, a.batch_periods // per)
         truth = dict(rig=rig_truth(rig), seed0=a.seed, experiments=experiments, periods=a.periods,
                      noise_scale=a.noise_scale, twitch_sigma_nms=a.twitch, damping=a.damping,
@@ -1336,8 +1570,8 @@ def main(argv=None):
             for i, (name, seed, subj, specs) in enumerate(batch):
                 part = {key: v[i * per:(i + 1) * per] for key, v in sim.items()}
                 write_recording(os.path.join(a.out_dir, f"{name}.mcap"), name, seed, specs, part,
-                                a.noise_scale, a.writer, tm=rig.tm)
-                truth["subjects"][name] = subject_truth(name, seed, subj, specs, rig.tm)
+                                a.noise_scale, a.writer, tm=rig.tm, ms=rig.multisine)
+                truth["subjects"][name] = subject_truth(name, seed, subj, specs, rig.tm, rig.multisine)
             t_write += time.perf_counter() - t1
             t_sim += t1 - t0
         with open(os.path.join(a.out_dir, "truth.json"), "w") as f:
@@ -1367,9 +1601,9 @@ def main(argv=None):
     if not (math.isfinite(a.k2) and abs(a.k2) <= 1e3):
         raise SystemExit("--k2 must be finite, in [-1000, 1000] Nm/rad^2")
     sim = simulate(specs, a.pre_window, a.k3, a.exo_spring, a.k_drift, a.lash, a.b3, a.k2, a.horizontal, rig)
-    write_recording(a.out, name, a.seed, specs, sim, a.noise_scale, a.writer, tm=rig.tm)
+    write_recording(a.out, name, a.seed, specs, sim, a.noise_scale, a.writer, tm=rig.tm, ms=rig.multisine)
     if a.truth:
-        t = subject_truth(name, a.seed, subj, specs, rig.tm)
+        t = subject_truth(name, a.seed, subj, specs, rig.tm, rig.multisine)
         t.update(**options_truth(rig, shift, experiments, a.mass_scale))
         t.update(rig=rig_truth(rig), k3_nm_per_rad3=a.k3, k2_nm_per_rad2=a.k2, horizontal=a.horizontal, b3_nm_s3_per_rad3=a.b3, exo_spring_nm_per_rad=a.exo_spring,
                  k_drift_per_min=a.k_drift, lash_rad=a.lash, noise_scale=a.noise_scale, twitch_sigma_nms=a.twitch, damping=a.damping,

@@ -606,7 +606,7 @@ impl Identifier {
         let [theta, tau_c, tau_s_less_gravity, tau_s, tau_d] = channels;
         let rate = self.s.rate_hz;
         let line = |x: &[f64], y: &[f64]| {
-            exo_impedance::frf::periodic_frf(x, y, rate, period_samples, bins)
+            exo_impedance::frf::periodic_frf_each(x, y, rate, period_samples, bins)
         };
         let (s_h, s_he) = match (line(theta, tau_c), line(theta, tau_s_less_gravity)) {
             (Ok(a), Ok(b)) => (a, b),
@@ -621,35 +621,50 @@ impl Identifier {
         } else {
             None
         };
-        Some(
-            s_h.iter()
-                .zip(&s_he)
-                .enumerate()
-                .map(|(i, (c, a))| {
-                    let sea = sea
-                        .as_ref()
-                        .map_or(Complex64::new(0.0, 0.0), |s| s[i].ratio);
-                    FrfPoint {
-                        experiment: p.experiment,
-                        period: p.period,
-                        omega: c.omega_rad_s,
-                        s_h_re: c.ratio.re,
-                        s_h_im: c.ratio.im,
-                        s_he_re: a.ratio.re,
-                        s_he_im: a.ratio.im,
-                        s_he_noise_rel: a.noise_rel,
-                        sea_re: sea.re,
-                        sea_im: sea.im,
-                        // The coherence its noise implies over `periods`
-                        // averaged periods: a period's SNR is
-                        // 1/(P·noise_rel²), γ² = SNR/(1 + SNR).
-                        coherence: 1.0 / (1.0 + periods as f64 * c.noise_rel * c.noise_rel),
-                        noise_rel: c.noise_rel,
-                        ..Default::default()
-                    }
-                })
-                .collect(),
-        )
+        // A line the angle does not carry beyond its noise is left out by
+        // name; the window's other lines stand.
+        let mut points = Vec::with_capacity(bins.len());
+        for (i, (c, a)) in s_h.iter().zip(&s_he).enumerate() {
+            let (c, a) = match (c, a) {
+                (Ok(c), Ok(a)) => (c, a),
+                (Err(e), _) | (_, Err(e)) => {
+                    out.push(Event::Warning(format!(
+                        "{what}: line at bin {} left out: {e}",
+                        bins[i]
+                    )));
+                    continue;
+                }
+            };
+            let sea = sea
+                .as_ref()
+                .and_then(|s| s[i].as_ref().ok())
+                .map_or(Complex64::new(0.0, 0.0), |s| s.ratio);
+            points.push(FrfPoint {
+                experiment: p.experiment,
+                period: p.period,
+                omega: c.omega_rad_s,
+                s_h_re: c.ratio.re,
+                s_h_im: c.ratio.im,
+                s_he_re: a.ratio.re,
+                s_he_im: a.ratio.im,
+                s_he_noise_rel: a.noise_rel,
+                sea_re: sea.re,
+                sea_im: sea.im,
+                // The coherence its noise implies over `periods`
+                // averaged periods: a period's SNR is
+                // 1/(P·noise_rel²), γ² = SNR/(1 + SNR).
+                coherence: 1.0 / (1.0 + periods as f64 * c.noise_rel * c.noise_rel),
+                noise_rel: c.noise_rel,
+                ..Default::default()
+            });
+        }
+        if points.is_empty() {
+            out.push(Event::Warning(format!(
+                "{what}: no line above its noise; no FRF point"
+            )));
+            return None;
+        }
+        Some(points)
     }
 
     /// Points from Welch H1 over the excited band (allocates: window ends only).

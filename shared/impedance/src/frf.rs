@@ -79,7 +79,9 @@ pub use lpm::{
     hann_mean, local_polynomial_ratio, mean_standard_error, mean_standard_error_beside,
     LocalPolynomialPoint, BESIDE_BINS, HANN_MEAN_NOISE_GAIN,
 };
-pub use periodic::{periodic_frf, remove_slow_trend, PeriodicLine};
+pub use periodic::{
+    periodic_frf, periodic_frf_each, remove_slow_trend, LineEstimate, PeriodicLine,
+};
 pub use sine::{
     sine_amplitude, sine_ratio, whole_cycles, SineAmplitude, SineCorrelator, SinePoint,
 };

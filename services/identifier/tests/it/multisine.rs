@@ -325,3 +325,37 @@ fn without_the_lines_a_multisine_window_is_estimated_by_welch() {
         .count();
     assert!(on_lines < lines.len(), "{pts:?}");
 }
+
+/// A line the angle does not carry (here a bin the identifier is told of
+/// but the stream never excites) is left out by name, and the window's
+/// other lines stand, exact: one weak line must not cost the experiment
+/// its other points (the rig's random subject 33, experiment 9, had lost
+/// all twelve for one, stop 48).
+#[test]
+fn a_line_with_nothing_in_the_angle_is_left_out_alone() {
+    let human = DynamicStiffness::from_array([0.11, 0.3, 25.0, 6.0]);
+    let (n, bins) = settings().bins(RATE).unwrap();
+    let extra = (1..n / 2).find(|b| !bins.contains(b)).unwrap();
+    let mut told = bins.clone();
+    told.push(extra);
+    told.sort_unstable();
+    let id = Identifier::try_new(IdentifierSettings::default())
+        .unwrap()
+        .with_periodic_lines(n, told)
+        .unwrap();
+    let (events, lines) = run(id, human, 0.0, 3 * 2000, 11);
+    assert_every_line_exact(&events, &lines, human);
+    let warned: Vec<&String> = events
+        .iter()
+        .filter_map(|e| match e {
+            Event::Warning(w) if w.contains("left out") => Some(w),
+            _ => None,
+        })
+        .collect();
+    assert_eq!(warned.len(), 1, "{warned:?}");
+    assert!(
+        warned[0].contains(&format!("line at bin {extra} left out"))
+            && warned[0].contains("nothing at bin"),
+        "{warned:?}"
+    );
+}

@@ -43,6 +43,10 @@ pub struct PeriodicLine {
     pub periods: usize,
 }
 
+/// One excited line's estimate, or why it has none (its input has nothing
+/// at that bin beyond its noise: [`periodic_frf_each`]).
+pub type LineEstimate = Result<PeriodicLine>;
+
 /// `Y/X` at each of `bins` from the whole periods of `period_samples`
 /// samples in `x` and `y` (sampled at `rate_hz`, starting on a period's
 /// first sample), with its noise from the spread between the periods
@@ -51,7 +55,8 @@ pub struct PeriodicLine {
 /// at 0 or not below Nyquist, a sample that is not finite, or an input with
 /// nothing at an excited bin (its line not above its own scatter between
 /// periods at the 1 % level of F(2, 2(P − 1)), or below 2e-9 of the
-/// input's RMS).
+/// input's RMS). [`periodic_frf_each`] keeps the other lines when one has
+/// nothing.
 pub fn periodic_frf(
     x: &[f64],
     y: &[f64],
@@ -59,6 +64,23 @@ pub fn periodic_frf(
     period_samples: usize,
     bins: &[usize],
 ) -> Result<Vec<PeriodicLine>> {
+    periodic_frf_each(x, y, rate_hz, period_samples, bins)?
+        .into_iter()
+        .collect()
+}
+
+/// [`periodic_frf`] line by line: the record's faults (lengths, periods,
+/// bins, samples that are not finite) refuse the whole, while a line whose
+/// input has nothing at its bin beyond its noise is refused alone, in its
+/// place, and the others are estimated (a multisine's weakest line in a
+/// noisy window must not cost the experiment its other lines).
+pub fn periodic_frf_each(
+    x: &[f64],
+    y: &[f64],
+    rate_hz: f64,
+    period_samples: usize,
+    bins: &[usize],
+) -> Result<Vec<LineEstimate>> {
     let rate_hz = crate::error::positive("rate_hz", rate_hz)?;
     if x.len() != y.len() {
         return Err(ScienceError::LengthMismatch {
@@ -112,7 +134,8 @@ pub fn periodic_frf(
     let x_scale =
         (x.iter().map(|v| v * v).sum::<f64>() / x.len() as f64).sqrt() * period_samples as f64;
     let d_omega = std::f64::consts::TAU * rate_hz / period_samples as f64;
-    bins.iter()
+    Ok(bins
+        .iter()
         .enumerate()
         .map(|(j, &bin)| {
             let xm = xs.iter().map(|s| s[j]).sum::<Complex64>() / p;
@@ -160,7 +183,7 @@ pub fn periodic_frf(
                 periods,
             })
         })
-        .collect()
+        .collect())
 }
 
 /// Removes a slow trend from each of `signals` (the same record's

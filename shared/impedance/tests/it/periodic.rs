@@ -4,7 +4,7 @@
 //! (`G(jω) = K − Mω² + jBω`, sampled with `f64::cos`), and the noise
 //! estimate against the scatter of many seeded repetitions.
 
-use exo_impedance::frf::periodic_frf;
+use exo_impedance::frf::{periodic_frf, periodic_frf_each};
 use exo_impedance::multisine::Multisine;
 use exo_impedance::Complex64;
 
@@ -387,4 +387,33 @@ fn a_trend_that_cannot_be_fitted_is_refused() {
     assert!(remove_slow_trend(&mut [&mut x, &mut other], PERIOD, &BINS, 3).is_err());
     x[17] = f64::NAN;
     assert!(remove_slow_trend(&mut [&mut x], PERIOD, &BINS, 3).is_err());
+}
+
+/// Line by line (`periodic_frf_each`): a bin the input does not carry is
+/// refused in its place, naming it, while every other line is the closed
+/// form; the strict form refuses the whole for it; and a fault of the
+/// record (here a sample that is not finite) still refuses the whole.
+#[test]
+fn a_line_with_nothing_is_refused_in_its_place() {
+    let (_, theta, tau) = record(3);
+    let bins = [3, 4, 8, 13];
+    let each = periodic_frf_each(&theta, &tau, RATE_HZ, PERIOD, &bins).unwrap();
+    assert_eq!(each.len(), bins.len());
+    for (l, &bin) in each.iter().zip(&bins) {
+        match l {
+            Ok(l) => {
+                assert_ne!(bin, 4);
+                assert_eq!(l.bin, bin);
+                assert!((l.ratio - g(l.omega_rad_s)).norm() < 1e-9 * g(l.omega_rad_s).norm());
+            }
+            Err(e) => {
+                assert_eq!(bin, 4);
+                assert!(e.to_string().contains("nothing at bin 4 "), "{e}");
+            }
+        }
+    }
+    assert!(periodic_frf(&theta, &tau, RATE_HZ, PERIOD, &bins).is_err());
+    let mut bad = tau.clone();
+    bad[10] = f64::NAN;
+    assert!(periodic_frf_each(&theta, &bad, RATE_HZ, PERIOD, &bins).is_err());
 }
