@@ -145,11 +145,7 @@ pub fn controller_margins(
                     ));
                 }
             }
-            None if matches!(
-                cfg.protocol.mode,
-                ProtocolMode::Identification | ProtocolMode::Multisine
-            ) && spec.alpha > 1.0 =>
-            {
+            None if cfg.protocol.mode.identifies() && spec.alpha > 1.0 => {
                 // Constant α: the loop is (α − 1) P(s), the filter flat (f = 0).
                 let layout = exo_impedance::loop_shaping::FractionalLayout {
                     kp: spec.alpha - 1.0,

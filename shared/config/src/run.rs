@@ -147,6 +147,15 @@ pub enum ProtocolMode {
     Multisine,
 }
 
+impl ProtocolMode {
+    /// Whether the mode excites the subject for identification (the sine
+    /// steps or the multisine): its experiments are the run's list, its
+    /// recording is fitted and reported after the run.
+    pub fn identifies(self) -> bool {
+        matches!(self, ProtocolMode::Identification | ProtocolMode::Multisine)
+    }
+}
+
 /// `[protocol.multisine]`: the designed excitation of `mode = "multisine"`
 /// (issue 34 item 1; `exo_impedance::multisine`). One design serves every
 /// experiment of the run, scaled to each experiment's peak torque.

@@ -56,6 +56,16 @@ fn a_multisine_run_identifies_every_line_of_the_simulated_human() {
         .map(|e| e.path())
         .find(|p| p.extension().is_some_and(|x| x == "mcap"))
         .expect("the run's recording");
+    // The run fits its recording and writes the report beside it, as the
+    // sine steps' runs do.
+    let said = stdout(&out);
+    let page = said
+        .lines()
+        .find_map(|l| l.strip_prefix("report:"))
+        .map(|p| std::path::PathBuf::from(p.trim()))
+        .unwrap_or_else(|| panic!("exo run named no report:\n{said}"));
+    assert!(page.is_file(), "{}", page.display());
+    assert!(said.contains("M2 parameters"), "{said}");
     let fit = exo(&["fit", recording.to_str().unwrap(), "--json"]);
     assert!(fit.status.success(), "exo fit:\n{}", stderr(&fit));
     let json: serde_json::Value = serde_json::from_str(&stdout(&fit)).unwrap();

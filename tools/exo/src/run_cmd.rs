@@ -6,7 +6,7 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result};
 use clap::Args;
-use exo_config::{ProtocolMode, RunConfig, TimingMode};
+use exo_config::{RunConfig, TimingMode};
 
 use std::time::Instant;
 
@@ -300,11 +300,12 @@ pub fn run(args: &RunArgs) -> Result<()> {
 
 /// After a run: fits the recording and writes its report beside it
 /// (`<recording>-report/`), printing the tables and `recording: PATH`,
-/// `report: PATH`; only for the identification protocol, which alone
-/// excites the subject for a fit (a replay republishes whatever the
-/// recording's protocol was), and not with `no_report`.
+/// `report: PATH`; only for the modes that excite the subject for a fit
+/// (the sine steps and the multisine: `ProtocolMode::identifies`; a replay
+/// republishes whatever the recording's protocol was), and not with
+/// `no_report`.
 pub fn fit_and_report(cfg: &RunConfig, recording: &Path, no_report: bool) -> Result<()> {
-    if no_report || cfg.protocol.mode != ProtocolMode::Identification {
+    if no_report || !cfg.protocol.mode.identifies() {
         return Ok(());
     }
     let fit_args = FitOptions::for_recordings(vec![recording.to_path_buf()]);

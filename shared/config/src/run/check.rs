@@ -165,10 +165,7 @@ impl RunConfig {
         }
         let nyquist = std::f64::consts::PI * rate;
         self.check_multisine_against_table(c, table);
-        if matches!(
-            self.protocol.mode,
-            ProtocolMode::Identification | ProtocolMode::Multisine
-        ) {
+        if self.protocol.mode.identifies() {
             let periods = self.periods_run(table);
             let mut seen = Vec::new();
             for n in &self.protocol.experiments {
