@@ -118,12 +118,27 @@ pub struct Identifier {
     /// A periodic excitation's period (samples) and excited bins
     /// ([`Identifier::with_periodic_lines`]).
     periodic: Option<(usize, Vec<usize>)>,
+    /// Samples taken so far in the open analysis window (a multisine's
+    /// interim fits fall due at whole periods of them).
+    window_samples: usize,
+    /// The experiment whose points are an interim fit's (replaced by the
+    /// window's own when it closes, or dropped if it is discarded).
+    interim_of: Option<u32>,
 }
 
 /// Degree of the slow trend removed from a periodic window's signals
 /// beside its lines ([`exo_impedance::frf::remove_slow_trend`]): a cubic
 /// follows a creep whose time constant is a third of the window or more.
 const TREND_DEGREE: usize = 3;
+
+/// A window's point stamped at its `end` (ns) with `S_h-e/α` re-created
+/// from its `S_h` (`M_e` kg·m², effective α), as published.
+fn completed(mut pt: FrfPoint, end: u64, m_e: f64, alpha: f64) -> FrfPoint {
+    pt.stamp_ns = end;
+    let s_hea = recreate_coupled(Complex64::new(pt.s_h_re, pt.s_h_im), pt.omega, m_e, alpha);
+    (pt.s_hea_re, pt.s_hea_im) = (s_hea.re, s_hea.im);
+    pt
+}
 
 /// One broadband window's signals, sample by sample, and how many samples
 /// had their own command.
@@ -178,6 +193,8 @@ impl Identifier {
             power_law: None,
             recommended_f: None,
             periodic: None,
+            window_samples: 0,
+            interim_of: None,
         }
     }
 
@@ -251,7 +268,62 @@ impl Identifier {
     pub fn on_sample(&mut self, s: &SensorSample, out: &mut Vec<Event>) {
         self.sensor
             .push(s.stamp_ns, [s.theta_e, s.tau_c, s.tau_s], s.status);
+        if self
+            .window
+            .is_some_and(|w| w.end_ns.is_none() && w.contains(s.stamp_ns))
+        {
+            self.window_samples += 1;
+            self.try_interim(out);
+        }
         self.try_finish(out);
+    }
+
+    /// A multisine's fits as its periods accrue (issue 34 item 2): at each
+    /// whole period from the second on, the open window's lines so far are
+    /// estimated and M1–M3 refitted for its experiment, and the estimates
+    /// published, without FRF points (the window's own, when it closes,
+    /// replace them). The interim lines' warnings are not repeated: the
+    /// window's own analysis names them. Allocates: at whole periods only.
+    fn try_interim(&mut self, out: &mut Vec<Event>) {
+        let (Some(w), Some((period_samples, bins))) = (self.window, self.periodic.as_ref()) else {
+            return;
+        };
+        let (n, k) = (*period_samples, self.window_samples / *period_samples);
+        let p = w.state;
+        if !(self.window_samples.is_multiple_of(n) && k >= 2 && p.omega == 0.0 && p.amplitude > 0.0)
+        {
+            return;
+        }
+        let Some(latest) = self.sensor.latest() else {
+            return;
+        };
+        let end = latest.saturating_add(1);
+        let Some((origin, _, _)) = self.sensor.window(w.start_ns, end).next() else {
+            return;
+        };
+        let bins = bins.clone();
+        let what = format!(
+            "experiment {} period {} (interim, {k} periods)",
+            p.experiment, p.period
+        );
+        let mut quiet = Vec::new();
+        let Some(lines) = self.periodic_points(&p, origin, end, (n, &bins), &what, &mut quiet)
+        else {
+            return;
+        };
+        let (m_e, alpha) = (self.m_e(p.load_kg), effective_alpha(p.alpha));
+        let lines: Vec<FrfPoint> = lines
+            .into_iter()
+            .map(|pt| completed(pt, end, m_e, alpha))
+            .filter(|pt| pt.validate().is_ok())
+            .collect();
+        if lines.is_empty() {
+            return;
+        }
+        self.settings_of.insert(p.experiment, (p.alpha, p.load_kg));
+        self.points.insert(p.experiment, lines);
+        self.interim_of = Some(p.experiment);
+        self.refit(p.experiment, p.period, end, out);
     }
 
     /// A controller command (`τ_d` for `τ_s/τ_d`, `τ_gravity` to remove
@@ -277,6 +349,7 @@ impl Identifier {
                 // A previous window still waits for its last samples: analyse what is there.
                 self.finish(out);
             }
+            self.window_samples = 0;
             match p.validate() {
                 Ok(()) => self.window = Some(AnalysisWindow::opened_by(p)),
                 Err(e) => out.push(Event::Warning(format!(
@@ -312,6 +385,12 @@ impl Identifier {
     }
 
     fn finish(&mut self, out: &mut Vec<Event>) {
+        // An interim fit's points give way to the window's own (or to none,
+        // when the window is discarded below).
+        if let Some(e) = self.interim_of.take() {
+            self.points.remove(&e);
+            self.m2.remove(&e);
+        }
         let Some(w) = self.window.take() else { return };
         let Some(end) = w.end_ns else { return };
         let p = w.state;
@@ -374,12 +453,9 @@ impl Identifier {
         let Some(new_points) = new_points else { return };
         self.settings_of.insert(p.experiment, (p.alpha, p.load_kg));
         let (m_e, alpha) = (self.m_e(p.load_kg), effective_alpha(p.alpha));
-        for mut pt in new_points {
+        for pt in new_points {
+            let mut pt = completed(pt, end, m_e, alpha);
             pt.seq = self.frf_seq;
-            pt.stamp_ns = end;
-            let s_hea =
-                recreate_coupled(Complex64::new(pt.s_h_re, pt.s_h_im), pt.omega, m_e, alpha);
-            (pt.s_hea_re, pt.s_hea_im) = (s_hea.re, s_hea.im);
             if let Err(e) = pt.validate() {
                 out.push(Event::Warning(format!(
                     "{what}: FRF point at {:.3} rad/s not published: {e}",

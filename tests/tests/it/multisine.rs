@@ -9,7 +9,7 @@
 
 use exo_config::{MultisineSettings, RunConfig};
 use exo_messages::{FrfPoint, ProtocolPhase};
-use exo_service_kit::channels::{COMMAND, IDENTIFIER_FRF, PROTOCOL};
+use exo_service_kit::channels::{COMMAND, IDENTIFIER_ESTIMATE, IDENTIFIER_FRF, PROTOCOL};
 use exo_tests::*;
 use num_complex::Complex64;
 
@@ -19,9 +19,15 @@ fn a_multisine_run_identifies_every_line_of_the_simulated_human() {
     let protocol = sc.collect(PROTOCOL);
     let commands = sc.collect(COMMAND);
     let frf = sc.collect(IDENTIFIER_FRF);
+    let estimates = sc.collect(IDENTIFIER_ESTIMATE);
     let out = exo(&["run", sc.config.to_str().unwrap()]);
     assert!(out.status.success(), "exo run failed:\n{}", stderr(&out));
-    let (protocol, commands, frf) = (protocol.finish(), commands.finish(), frf.finish());
+    let (protocol, commands, frf, estimates) = (
+        protocol.finish(),
+        commands.finish(),
+        frf.finish(),
+        estimates.finish(),
+    );
     let cfg = RunConfig::from_file(&sc.config).unwrap();
     let table = cfg.experiment_table();
     let m: MultisineSettings = cfg.protocol.multisine().unwrap();
@@ -38,6 +44,35 @@ fn a_multisine_run_identifies_every_line_of_the_simulated_human() {
         assert!(analysis
             .iter()
             .all(|p| p.omega == 0.0 && p.amplitude == peak && p.period == 1));
+        // Estimated live as the periods accrue: an M2 estimate of the
+        // experiment once two of its three periods are in (stamped just
+        // after their last sample), before its window closes, and the
+        // window's own at its end. (After the third, the window's close may
+        // come first: the same periods, then estimated once.)
+        let opens = analysis.iter().map(|p| p.stamp_ns).min().unwrap();
+        let two_periods_ns = (2.0 * m.period_s * 1e9) as u64;
+        let closes = protocol
+            .iter()
+            .filter(|p| p.experiment == n && p.protocol_phase() == Some(ProtocolPhase::RampOut))
+            .map(|p| p.stamp_ns)
+            .min()
+            .expect("the window closes");
+        let m2: Vec<_> = estimates
+            .iter()
+            .filter(|e| e.experiment == n && e.model == 2)
+            .collect();
+        let first = m2.first().expect("an M2 estimate");
+        assert!(first.stamp_ns < closes, "experiment {n}: {m2:?}");
+        let tick_ns = (1e9 / cfg.run.rate_hz) as u64;
+        assert_eq!(
+            first.stamp_ns,
+            opens + two_periods_ns - tick_ns + 1,
+            "experiment {n}: {m2:?}"
+        );
+        assert!(
+            m2.iter().any(|e| e.stamp_ns >= closes),
+            "experiment {n}: {m2:?}"
+        );
     }
     // The excitation reaches its peak and never passes it.
     let peak = 2.0 * 10f64.powf(0.2);

@@ -359,3 +359,93 @@ fn a_line_with_nothing_in_the_angle_is_left_out_alone() {
         "{warned:?}"
     );
 }
+
+/// The fits as periods accrue (issue 34 item 2): with four analysed
+/// periods, M2 estimates are published as the second, third and fourth
+/// whole period of the window is complete (stamped just after its last
+/// sample), each from the lines of the periods so far, before the window
+/// closes; no FRF point is published until it closes, and then one a line
+/// with the window's own estimate (the same four periods). Each K and H
+/// lies within four of its own standard errors (plus 1 %) of the human's,
+/// and the standard errors shrink as periods accrue (noise alone: as
+/// 1/√P, by about √2 from two periods to four).
+#[test]
+fn estimates_are_published_as_the_periods_accrue() {
+    let human = DynamicStiffness::from_array([0.11, 0.0, 40.0, 10.0]);
+    let n = 2000u64;
+    let ms = 1_000_000u64;
+    let (events, lines) = run(with_multisine(), human, 0.05, 4 * n as usize, 21);
+    let window_start_ns = n * ms; // after one period of settling
+    let window_end_ns = window_start_ns + 4 * n * ms;
+    let m2: Vec<_> = events
+        .iter()
+        .filter_map(|e| match e {
+            Event::Estimate(e) if e.model == 2 => Some(*e),
+            _ => None,
+        })
+        .collect();
+    let interim: Vec<_> = m2.iter().filter(|e| e.stamp_ns < window_end_ns).collect();
+    // Whole periods of samples behind each: the last sample's stamp + 1 ns.
+    let periods: Vec<u64> = interim
+        .iter()
+        .map(|e| (e.stamp_ns - 1 - window_start_ns) / ms + 1)
+        .collect();
+    assert_eq!(
+        periods,
+        [2 * n, 3 * n, 4 * n],
+        "interim M2 after {periods:?} samples"
+    );
+    // The first FRF point comes after every interim estimate.
+    let first_frf = events
+        .iter()
+        .position(|e| matches!(e, Event::Frf(_)))
+        .unwrap();
+    let last_interim = events
+        .iter()
+        .rposition(|e| matches!(e, Event::Estimate(x) if x.stamp_ns < window_end_ns))
+        .unwrap();
+    assert!(last_interim < first_frf);
+    assert_eq!(points(&events).len(), lines.len());
+    let last = *m2.last().unwrap();
+    assert_eq!(last.stamp_ns, window_end_ns);
+    assert_eq!((last.k_h, last.h_h), (interim[2].k_h, interim[2].h_h));
+    for e in &interim {
+        assert_eq!(e.n_points as usize, lines.len());
+        assert!(
+            (e.k_h - 40.0).abs() < 4.0 * e.k_h_se + 0.4,
+            "K {} ± {}",
+            e.k_h,
+            e.k_h_se
+        );
+        assert!(
+            (e.h_h - 10.0).abs() < 4.0 * e.h_h_se + 0.1,
+            "H {} ± {}",
+            e.h_h,
+            e.h_h_se
+        );
+    }
+    // Over seeds: the mean standard error of K and of H from four periods
+    // against two (√(2/4) = 0.71 for noise alone).
+    let (mut k2, mut k4, mut h2, mut h4) = (0.0, 0.0, 0.0, 0.0);
+    for seed in 100..120 {
+        let (events, _) = run(with_multisine(), human, 0.05, 4 * n as usize, seed);
+        let e: Vec<_> = events
+            .iter()
+            .filter_map(|e| match e {
+                Event::Estimate(e) if e.model == 2 => Some(*e),
+                _ => None,
+            })
+            .collect();
+        (k2, h2) = (k2 + e[0].k_h_se, h2 + e[0].h_h_se);
+        (k4, h4) = (k4 + e[2].k_h_se, h4 + e[2].h_h_se);
+    }
+    eprintln!(
+        "se ratio four / two periods: K {:.3}, H {:.3}",
+        k4 / k2,
+        h4 / h2
+    );
+    assert!(
+        k4 / k2 < 0.9 && h4 / h2 < 0.9,
+        "K {k2} → {k4}, H {h2} → {h4}"
+    );
+}
