@@ -19,6 +19,7 @@ use crate::protocol::{Protocol, ProtocolPoint};
 use crate::safety::{Fault, FaultLatch, Limits};
 
 mod operator;
+mod stop_when;
 
 pub use operator::{OperatorOutcome, OperatorRefusal, ProtocolRun};
 
@@ -38,6 +39,10 @@ pub enum ControllerError {
 pub struct TickInput {
     /// Sample sequence number; time is `(seq − first seq)/rate`.
     pub seq: u64,
+    /// The sample's time stamp (ns): when it was taken, on the clock the
+    /// identifier's estimates are stamped with (`protocol.stop_when`
+    /// compares the two).
+    pub stamp_ns: u64,
     /// θ_e (rad).
     pub theta_e_rad: f64,
     /// ω_e (rad/s).
@@ -112,6 +117,11 @@ pub struct Controller {
     /// What is needed to rebuild the fractional amplifier with a new f.
     design: FractionalLayout,
     gravity_compensation: bool,
+    /// `protocol.stop_when` in ticks, when the run has it.
+    stop_rule: Option<stop_when::StopRule>,
+    /// The experiment whose K and H the latest estimate found known, and
+    /// where that estimate's data end (its `stamp_ns`).
+    known: Option<(u32, u64)>,
 }
 
 impl Controller {
@@ -206,6 +216,7 @@ impl Controller {
             run: ProtocolRun::Running {
                 from_step: 0,
                 since_tick: 0,
+                skipped_ticks: 0,
             },
             operator_seqs: SeenSeqs::default(),
             amplifier,
@@ -221,6 +232,8 @@ impl Controller {
             f_bounds: cfg.controller.f_bounds,
             design,
             gravity_compensation: cfg.controller.gravity_compensation,
+            stop_rule: stop_when::StopRule::of_run(cfg),
+            known: None,
         })
     }
 
@@ -286,7 +299,7 @@ impl Controller {
         let t_s = tick as f64 / self.rate_hz;
         self.last_tick = Some(tick);
         self.validate(s);
-        let (p, held) = self.protocol_at(tick);
+        let (p, held) = self.protocol_at(tick, s.stamp_ns);
         let theta_for_gravity = if s.theta_e_rad.is_finite() {
             s.theta_e_rad
         } else {
@@ -431,6 +444,7 @@ mod tests {
             tau_c_nm: tau_c,
             tau_s_nm: 0.0,
             status: 0,
+            ..Default::default()
         }
     }
 

@@ -106,9 +106,25 @@ impl ControllerNode {
         outcome
     }
 
-    /// Takes the identifier's estimate: adopts its recommended f when the
+    /// Takes the identifier's estimate: with `protocol.stop_when`, whether
+    /// its experiment's K and H are known ([`crate::Controller::on_estimate`];
+    /// logged when that changes), and adopts its recommended f when the
     /// run asks for it (`controller.adopt_recommended_f`).
     pub fn on_estimate(&mut self, e: &ImpedanceEstimate) {
+        let was = self.controller.known_experiment();
+        if let Some(met) = self.controller.on_estimate(e) {
+            if met && was != Some(e.experiment) {
+                info!(
+                    "controller: experiment {}: K = {:.2} ± {:.2}, H = {:.2} ± {:.2} Nm/rad (standard errors, {} lines) within protocol.stop_when: its analysis ends at the next whole period",
+                    e.experiment, e.k_h, e.k_h_se, e.h_h, e.h_h_se, e.n_points
+                );
+            } else if !met && was == Some(e.experiment) {
+                info!(
+                    "controller: experiment {}: K and H no longer within protocol.stop_when; its analysis goes on",
+                    e.experiment
+                );
+            }
+        }
         if self.adopt_recommended_f
             && e.recommended_f > 0.0
             && self.controller.adopt_fractional_order(e.recommended_f)
@@ -124,6 +140,7 @@ impl ControllerNode {
     pub fn on_sample(&mut self, s: &SensorSample) -> Answer {
         let tick = self.controller.tick(&TickInput {
             seq: s.seq,
+            stamp_ns: s.stamp_ns,
             theta_e_rad: s.theta_e,
             omega_e_rad_s: s.omega_e,
             tau_c_nm: s.tau_c,

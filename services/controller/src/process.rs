@@ -60,7 +60,8 @@ pub struct ControllerProcess {
     command_out: Outbox<ActuatorCommand>,
     protocol_out: Outbox<ProtocolState>,
     /// The identifier's estimates, only when the run adopts its
-    /// recommended f (`controller.adopt_recommended_f`): otherwise the
+    /// recommended f or stops an analysis once K and H are known
+    /// (`RunConfig::controller_hears_identifier`): otherwise the
     /// control path holds no port of the identifier's, so a restarted
     /// identifier's new segments are never mapped in the controller's tick
     /// (issue 32 item 4).
@@ -93,7 +94,7 @@ impl Process for ControllerProcess {
         let reply_out = ipc.outbox(OPERATOR_REPLY)?;
         let command_out = ipc.outbox(COMMAND)?;
         let protocol_out = ipc.outbox(PROTOCOL)?;
-        let estimate_in = if cfg.controller.adopt_recommended_f {
+        let estimate_in = if cfg.controller_hears_identifier() {
             Some(ipc.inbox(IDENTIFIER_ESTIMATE, 16)?)
         } else {
             None

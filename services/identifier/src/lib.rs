@@ -204,6 +204,22 @@ impl Identifier {
         Ok(Identifier::new(s))
     }
 
+    /// The identifier of run `cfg` (loaded by `RunConfig::from_file`): its
+    /// settings ([`IdentifierSettings::of_run`]) and, in multisine mode, the
+    /// design's lines ([`with_periodic_lines`](Self::with_periodic_lines)),
+    /// as the identifier process and `exo sim` both build it. The error
+    /// says why the run's multisine has no lines (a run file that was
+    /// checked always has them).
+    pub fn of_run(cfg: &exo_config::RunConfig) -> Result<Self, String> {
+        let id = Identifier::new(IdentifierSettings::of_run(cfg));
+        let Some(m) = cfg.protocol.multisine() else {
+            return Ok(id);
+        };
+        let (period_samples, bins) = m.bins(cfg.run.rate_hz).map_err(|e| e.to_string())?;
+        id.with_periodic_lines(period_samples, bins)
+            .map_err(|e| e.to_string())
+    }
+
     /// Broadband windows of a periodic excitation (issue 34: a designed
     /// multisine) are estimated line by line at `bins` (cycles per period)
     /// from the window's whole periods of `period_samples` samples at

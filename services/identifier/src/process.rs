@@ -8,7 +8,7 @@
 //!
 //! Each step also publishes how far it has taken the run
 //! (`<instance>/identifier/progress`, [`Taken`]): in lockstep, when its
-//! estimates feed the controller (`controller.adopt_recommended_f`), the
+//! estimates feed the controller (`controller.adopt_recommended_f` or `protocol.stop_when`), the
 //! plant holds simulated time while the identifier is behind, so it misses
 //! no sample; the samples it missed are logged at the end.
 
@@ -27,7 +27,7 @@ use exo_service_kit::{monotonic_ns, RealtimeProcess, ServiceArgs, StopFlag};
 use tracing::{info, warn};
 
 use crate::taken::Taken;
-use crate::{Event, Identifier, IdentifierSettings};
+use crate::{Event, Identifier};
 
 /// The progress is published when it changed, and at least this often.
 const PROGRESS_EVERY: Duration = Duration::from_millis(50);
@@ -76,16 +76,7 @@ impl Process for IdentifierProcess {
             ..Default::default()
         };
         progress_out.send(told)?;
-        let mut id = Identifier::new(IdentifierSettings::of_run(cx.cfg));
-        if let Some(m) = cx.cfg.protocol.multisine() {
-            // Line by line at the design's bins (the run file was checked).
-            let (period_samples, bins) = m
-                .bins(cx.cfg.run.rate_hz)
-                .map_err(|e| IdentifierProcessError::Multisine(e.to_string()))?;
-            id = id
-                .with_periodic_lines(period_samples, bins)
-                .map_err(|e| IdentifierProcessError::Multisine(e.to_string()))?;
-        }
+        let id = Identifier::of_run(cx.cfg).map_err(IdentifierProcessError::Multisine)?;
         let p = IdentifierProcess {
             id,
             events: Vec::with_capacity(64),

@@ -118,7 +118,7 @@ impl Process for PlantProcess {
                         ProcessName::Recorder,
                         ipc.inbox(RECORDER_PROGRESS, 16)?,
                     )];
-                    if cfg.controller.adopt_recommended_f {
+                    if cfg.controller_hears_identifier() {
                         w.push(Watch::new(
                             ProcessName::Identifier,
                             ipc.inbox(IDENTIFIER_PROGRESS, 16)?,

@@ -501,7 +501,7 @@ pub use run::{
     gravity_moment_nm, BusBackend, BusSettings, ControllerSettings, LayoutError, LimitSettings,
     LiveSettings, MultisineError, MultisineSettings, PlayerSettings, ProtocolMode,
     ProtocolSettings, RealtimeSettings, ReleaseSettings, RigSettings, RunConfig, RunSettings,
-    SafeState, SafetySettings, ServiceSet, TimingMode, TunnelSettings, VoluntarySettings,
+    SafeState, SafetySettings, ServiceSet, StopWhen, TimingMode, TunnelSettings, VoluntarySettings,
     GRAVITY_M_S2, RUN_RANGES,
 };
 pub use subject::{ReportedPowerLaw, Subject, SubjectExperiment, SUBJECT_RANGES};

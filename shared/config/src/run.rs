@@ -342,6 +342,46 @@ pub struct ProtocolSettings {
     /// defaults when absent); refused in the other modes.
     #[serde(default)]
     pub multisine: Option<MultisineSettings>,
+    /// `[protocol.stop_when]`: in multisine mode, end each experiment's
+    /// analysis as soon as its M2 K and H are known well enough (issue 34
+    /// item 3); every analysis window runs its whole `periods` when absent.
+    #[serde(default)]
+    pub stop_when: Option<StopWhen>,
+}
+
+/// `[protocol.stop_when]` (issue 34 item 3): an experiment of a multisine
+/// run has been measured enough once the identifier's M2 fit of its lines
+/// gives K and H with 95 % intervals (Student's t at the fit's degrees of
+/// freedom times the standard error, `exo_impedance::fit`) no wider than
+/// these fractions of K and H; its analysis window then ends at the next
+/// whole period of the multisine, but never before `min_periods` periods
+/// and never after `[protocol.multisine] periods` (the most).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct StopWhen {
+    /// The largest 95 % half-width of K over K (dimensionless, (0, 1]).
+    pub k_rel_ci: f64,
+    /// The largest 95 % half-width of H over H (dimensionless, (0, 1]).
+    pub h_rel_ci: f64,
+    /// Whole periods analysed before the window may end (at least 2: the
+    /// noise comes from their spread; at most the multisine's `periods`).
+    #[serde(default = "default_stop_min_periods")]
+    pub min_periods: u32,
+}
+
+fn default_stop_min_periods() -> u32 {
+    2
+}
+
+impl StopWhen {
+    /// Whether an M2 fit with stiffness `k` and hysteretic damping `h`
+    /// (Nm/rad) and 95 % half-widths `k_ci95`, `h_ci95` (Nm/rad) is known
+    /// well enough: both positive and finite, each interval within its
+    /// fraction.
+    pub fn met(&self, k: f64, k_ci95: f64, h: f64, h_ci95: f64) -> bool {
+        let within = |x: f64, ci: f64, rel: f64| x > 0.0 && ci.is_finite() && ci <= rel * x;
+        within(k, k_ci95, self.k_rel_ci) && within(h, h_ci95, self.h_rel_ci)
+    }
 }
 
 impl ProtocolSettings {
@@ -883,6 +923,16 @@ impl RunConfig {
             ProtocolMode::Release => self.release.map(|r| ("release.experiment", r.experiment)),
             ProtocolMode::Identification | ProtocolMode::Multisine => None,
         }
+    }
+
+    /// Whether the controller listens to the identifier's estimates: to
+    /// adopt its recommended f (`controller.adopt_recommended_f`) or to end
+    /// an analysis window once K and H are known (`protocol.stop_when`). In
+    /// lockstep the plant then paces itself to the identifier as to the
+    /// recorder, so the estimates reach the controller at the same tick in
+    /// every run.
+    pub fn controller_hears_identifier(&self) -> bool {
+        self.controller.adopt_recommended_f || self.protocol.stop_when.is_some()
     }
 
     /// The periods (1-based) each experiment of the run goes through.

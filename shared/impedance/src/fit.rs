@@ -450,12 +450,11 @@ fn fit_terms(
     if dof > 0 {
         let s2 = chi2 / dof as f64;
         let inv = chol.inverse();
-        let t = interval_quantile(dof)?;
         let (mut se, mut ci) = ([0.0; 4], [0.0; 4]);
         for term in Term::ALL.into_iter().filter(|t| active(*t)) {
             let i = term.index();
             se[i] = (s2 * inv[(i, i)]).sqrt() / scale[i];
-            ci[i] = t * se[i];
+            ci[i] = ci95_half_width(se[i], dof)?;
         }
         std_errors = Some(DynamicStiffness::from_array(se));
         ci95 = Some(DynamicStiffness::from_array(ci));
@@ -481,6 +480,13 @@ fn fit_terms(
         dof,
         held_at_zero: held,
     })
+}
+
+/// The 95 % half-width (units of `std_error`) of a fitted parameter with
+/// standard error `std_error` at `dof` degrees of freedom, as
+/// [`ModelFit::ci95`] has it: Student's t quantile times the error.
+pub fn ci95_half_width(std_error: f64, dof: usize) -> Result<f64> {
+    Ok(interval_quantile(dof)? * std_error)
 }
 
 /// Degrees of freedom whose 95 % quantile is kept after its first use.

@@ -376,7 +376,7 @@ pub const CHANNELS: [ChannelInfo; 11] = [
         payload: OffPathProgress::TYPE_NAME,
         publisher: ProcessName::Identifier,
         // In lockstep, when the identifier's estimates feed the controller
-        // (`controller.adopt_recommended_f`), the plant holds its next
+        // (`controller.adopt_recommended_f` or `protocol.stop_when`), the plant holds its next
         // frame while the identifier is more than
         // `OffPathProgress::MAX_LAG_FRAMES` behind.
         subscribers: &[ProcessName::PlantSim],

@@ -5,7 +5,7 @@
 //! that falls behind by more than its buffers hold loses samples
 //! (iceoryx2's safe overflow drops the oldest). The recorder (always) and
 //! the identifier (when its estimates feed the controller,
-//! `controller.adopt_recommended_f`) therefore say how far they have taken
+//! `controller.adopt_recommended_f`, `protocol.stop_when`) therefore say how far they have taken
 //! the run, each on its own channel, and the plant holds the next frame
 //! while one is more than [`OffPathProgress::MAX_LAG_FRAMES`] frames
 //! behind. In real time nobody reads them: control never waits, and what

@@ -152,3 +152,103 @@ fn a_multisine_run_identifies_every_line_of_the_simulated_human() {
         }
     }
 }
+
+/// `protocol.stop_when` end to end (issue 34 item 3): the shipped multisine
+/// run with up to five analysed periods and `stop_when = { k_rel_ci = 0.05,
+/// h_rel_ci = 0.10 }`, through the real processes (lockstep) and through
+/// `exo sim` (the nodes in one process). Each experiment's analysis window
+/// is a whole number of multisine periods, at least two, and ends before
+/// its fifth when the identifier's estimate, published before the end,
+/// had K and H within the fractions; both paths end every window at the
+/// same point (the plant paces itself to the identifier); and the
+/// recording is fitted line by line as any other.
+#[test]
+fn stop_when_ends_an_analysis_once_k_and_h_are_known() {
+    let edits: &[(&str, &str)] = &[
+        ("periods = 3 ", "periods = 5 "),
+        (
+            "[controller]\n",
+            "[protocol.stop_when]\nk_rel_ci = 0.05\nh_rel_ci = 0.10\n\n[controller]\n",
+        ),
+    ];
+    let sc = Scenario::of("multisine.toml", "msstop", edits);
+    let out = exo(&["run", sc.config.to_str().unwrap()]);
+    assert!(out.status.success(), "exo run failed:\n{}", stderr(&out));
+    let cfg = RunConfig::from_file(&sc.config).unwrap();
+    let period_ns = (cfg.protocol.multisine().unwrap().period_s * 1e9) as u64;
+    let recordings: Vec<_> = std::fs::read_dir(sc.dir.path())
+        .unwrap()
+        .flatten()
+        .map(|e| e.path())
+        .filter(|p| p.extension().is_some_and(|x| x == "mcap"))
+        .collect();
+    assert_eq!(recordings.len(), 1, "{recordings:?}");
+    let sim_rec = sc.dir.path().join("sim.mcap");
+    let sim = exo(&[
+        "sim",
+        sc.config.to_str().unwrap(),
+        "--no-report",
+        "--output",
+        sim_rec.to_str().unwrap(),
+    ]);
+    assert!(sim.status.success(), "exo sim failed:\n{}", stderr(&sim));
+    let mut lengths = Vec::new();
+    for rec in [&recordings[0], &sim_rec] {
+        let r = exo_recording::read_recording(rec).unwrap();
+        let mut per_experiment = Vec::new();
+        for n in [1, 7] {
+            let opens = r
+                .protocol
+                .iter()
+                .filter(|p| {
+                    p.experiment == n && p.protocol_phase() == Some(ProtocolPhase::Analysis)
+                })
+                .map(|p| p.stamp_ns)
+                .min()
+                .unwrap();
+            let closes = r
+                .protocol
+                .iter()
+                .filter(|p| p.experiment == n && p.protocol_phase() == Some(ProtocolPhase::RampOut))
+                .map(|p| p.stamp_ns)
+                .min()
+                .unwrap();
+            let len = closes - opens;
+            assert_eq!(len % period_ns, 0, "{}: experiment {n}", rec.display());
+            let periods = len / period_ns;
+            assert!(
+                (2..=5).contains(&periods),
+                "experiment {n}: {periods} periods"
+            );
+            if periods < 5 {
+                // Ended early: an M2 estimate within the rule came first
+                // (twelve lines, three parameters: t at 21 degrees of
+                // freedom, 2.0796 from the tables).
+                const T21: f64 = 2.0796;
+                let w = cfg.protocol.stop_when.unwrap();
+                assert!(
+                    r.estimate.iter().any(|e| e.experiment == n
+                        && e.model == 2
+                        && e.stamp_ns < closes
+                        && w.met(e.k_h, T21 * e.k_h_se, e.h_h, T21 * e.h_h_se)),
+                    "experiment {n} ended after {periods} periods with no estimate within the rule"
+                );
+            }
+            per_experiment.push(periods);
+        }
+        lengths.push(per_experiment);
+    }
+    eprintln!("analysed periods (exo run, exo sim): {lengths:?}");
+    assert_eq!(lengths[0], lengths[1], "exo run and exo sim differ");
+    assert!(
+        lengths[0].iter().any(|&p| p < 5),
+        "no experiment ended early: {lengths:?}"
+    );
+    // The run's own fit of the recording: one point a line.
+    let fit = exo(&["fit", recordings[0].to_str().unwrap(), "--json"]);
+    assert!(fit.status.success(), "exo fit:\n{}", stderr(&fit));
+    let json: serde_json::Value = serde_json::from_str(&stdout(&fit)).unwrap();
+    for e in json["subjects"][0]["experiments"].as_array().unwrap() {
+        assert_eq!(e["points"].as_array().unwrap().len(), 12, "{e}");
+    }
+}

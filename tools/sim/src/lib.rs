@@ -34,7 +34,7 @@ use std::path::Path;
 use exo_config::RunConfig;
 use exo_controller::node::ControllerNode;
 use exo_controller::ControllerError;
-use exo_identifier::{Event, Identifier, IdentifierSettings};
+use exo_identifier::{Event, Identifier};
 use exo_messages::BusMotorCommand;
 use exo_plant_sim::{PlantModel, PlantNode, StepMismatch};
 use exo_recorder::{start_recording, Drops, FileWriter};
@@ -56,6 +56,9 @@ pub enum SimError {
     /// The recording could not be written.
     #[error(transparent)]
     Recording(#[from] RecordingError),
+    /// The identifier cannot be built from the run (its multisine's lines).
+    #[error("identifier: protocol.multisine: {0}")]
+    Identifier(String),
 }
 
 /// How a simulation ended.
@@ -86,10 +89,10 @@ impl Sim {
             plant: PlantNode::new(cfg, model, None)?,
             driver: DriverNode::new(cfg),
             controller: ControllerNode::new(cfg)?,
-            identifier: cfg
-                .services
-                .identifier
-                .then(|| Identifier::new(IdentifierSettings::of_run(cfg))),
+            identifier: match cfg.services.identifier {
+                true => Some(Identifier::of_run(cfg).map_err(SimError::Identifier)?),
+                false => None,
+            },
             events: Vec::with_capacity(64),
             motor_seq: 0,
         })

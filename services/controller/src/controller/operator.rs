@@ -23,6 +23,10 @@ pub enum ProtocolRun {
         from_step: usize,
         /// The tick it (re)started at.
         since_tick: u64,
+        /// Ticks of analysis skipped since then because K and H were known
+        /// (`protocol.stop_when`): the protocol's time is the ticks since
+        /// `since_tick` plus these.
+        skipped_ticks: u64,
     },
     /// Ramping out after an operator stop, or before an operator start
     /// that came in the middle of a period: bias and excitation of step
@@ -379,8 +383,14 @@ impl Controller {
 
     /// The running step and the time into its period, at tick `tick`
     /// (`None` once the protocol is over).
-    fn running_at(&self, from_step: usize, since_tick: u64, tick: u64) -> Option<(usize, f64)> {
-        let rel_s = tick.saturating_sub(since_tick) as f64 / self.rate_hz;
+    fn running_at(
+        &self,
+        from_step: usize,
+        since_tick: u64,
+        skipped_ticks: u64,
+        tick: u64,
+    ) -> Option<(usize, f64)> {
+        let rel_s = (tick.saturating_sub(since_tick) + skipped_ticks) as f64 / self.rate_hz;
         self.protocol.locate_from(from_step, rel_s)
     }
 
@@ -390,8 +400,11 @@ impl Controller {
             ProtocolRun::Running {
                 from_step,
                 since_tick,
+                skipped_ticks,
             } => {
-                let Some((step, tau_s)) = self.running_at(from_step, since_tick, now) else {
+                let Some((step, tau_s)) =
+                    self.running_at(from_step, since_tick, skipped_ticks, now)
+                else {
                     return OperatorOutcome::Refused {
                         kind: OperatorCommandKind::StopProtocol,
                         reason: OperatorRefusal::ProtocolOver,
@@ -460,8 +473,9 @@ impl Controller {
             ProtocolRun::Running {
                 from_step,
                 since_tick,
+                skipped_ticks,
             } => Some(
-                self.running_at(from_step, since_tick, now)
+                self.running_at(from_step, since_tick, skipped_ticks, now)
                     .ok_or(OperatorRefusal::ProtocolOver)?,
             ),
             _ => None,
@@ -538,13 +552,16 @@ impl Controller {
         self.run = ProtocolRun::Running {
             from_step: step,
             since_tick: tick,
+            skipped_ticks: 0,
         };
         self.amplifier.reset();
     }
 
-    /// The protocol's state at tick `tick`, after the transitions due by
-    /// then (a ramp-out that has ended); and whether it is held stopped.
-    pub(super) fn protocol_at(&mut self, tick: u64) -> (ProtocolPoint, bool) {
+    /// The protocol's state at tick `tick` (its sample stamped `stamp_ns`),
+    /// after the transitions due by then (a ramp-out that has ended, an
+    /// analysis ended by `protocol.stop_when`); and whether it is held
+    /// stopped.
+    pub(super) fn protocol_at(&mut self, tick: u64, stamp_ns: u64) -> (ProtocolPoint, bool) {
         if let ProtocolRun::RampingOut {
             step,
             tau_s,
@@ -569,9 +586,21 @@ impl Controller {
             ProtocolRun::Running {
                 from_step,
                 since_tick,
+                skipped_ticks,
             } => {
-                let rel_s = tick.saturating_sub(since_tick) as f64 / self.rate_hz;
-                (self.protocol.at_from(from_step, rel_s), false)
+                let mut rel = tick.saturating_sub(since_tick) + skipped_ticks;
+                if let Some(skip) = self.analysis_skip(from_step, rel, stamp_ns) {
+                    rel += skip;
+                    self.run = ProtocolRun::Running {
+                        from_step,
+                        since_tick,
+                        skipped_ticks: skipped_ticks + skip,
+                    };
+                }
+                (
+                    self.protocol.at_from(from_step, rel as f64 / self.rate_hz),
+                    false,
+                )
             }
             ProtocolRun::RampingOut {
                 step,

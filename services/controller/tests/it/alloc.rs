@@ -44,6 +44,7 @@ fn controller_tick_operator_commands_and_adopting_f_do_not_allocate() {
             tau_c_nm: (3.0 * t).sin(),
             tau_s_nm: 0.0,
             status: 0,
+            stamp_ns: 0,
         });
         acc += tick.tau_d_nm;
     }

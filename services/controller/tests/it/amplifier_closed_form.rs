@@ -148,6 +148,7 @@ fn controller_publishes_the_closed_form_amplification() {
                 omega_e_rad_s: 0.0,
                 tau_c_nm: u,
                 tau_s_nm: 0.0,
+                stamp_ns: 0,
                 status: 0,
             });
             assert!(c.fault().is_none(), "fault at tick {k}: {:?}", c.fault());

@@ -49,6 +49,9 @@ pub const RUN_RANGES: Ranges = &[
     ),
     ("protocol.multisine.periods", Range::closed(2.0, 1000.0)),
     ("protocol.multisine.peak_nm", Range::above(0.0, 1000.0)),
+    ("protocol.stop_when.k_rel_ci", Range::above(0.0, 1.0)),
+    ("protocol.stop_when.h_rel_ci", Range::above(0.0, 1.0)),
+    ("protocol.stop_when.min_periods", Range::closed(2.0, 1000.0)),
     ("voluntary.amplitude_rad", Range::closed(0.0, 1.5)),
     ("voluntary.omega_rad_s", Range::above(0.0, 10_000.0)),
     ("voluntary.duration_s", Range::above(0.0, 3600.0)),
@@ -247,10 +250,31 @@ impl RunConfig {
                 "is used only with protocol.mode = \"multisine\"",
             );
         }
+        if let (Some(_), false) = (&p.stop_when, p.mode == ProtocolMode::Multisine) {
+            c.note(
+                "protocol.stop_when",
+                "is used only with protocol.mode = \"multisine\" (it ends an analysis window at a whole period of the multisine)",
+            );
+        }
         if p.mode != ProtocolMode::Multisine {
             return;
         }
         let m = p.multisine.unwrap_or_default();
+        if let Some(w) = p.stop_when {
+            c.key("protocol.stop_when.k_rel_ci", w.k_rel_ci);
+            c.key("protocol.stop_when.h_rel_ci", w.h_rel_ci);
+            if c.key("protocol.stop_when.min_periods", f64::from(w.min_periods))
+                && w.min_periods > m.periods
+            {
+                c.note(
+                    "protocol.stop_when.min_periods",
+                    format!(
+                        "must be at most protocol.multisine.periods = {} (the most periods analysed), got {}",
+                        m.periods, w.min_periods
+                    ),
+                );
+            }
+        }
         let [lo, hi] = m.band_rad_s;
         if c.key("protocol.multisine.band_rad_s[0]", lo)
             & c.key("protocol.multisine.band_rad_s[1]", hi)

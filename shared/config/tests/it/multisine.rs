@@ -256,3 +256,78 @@ fn non_finite_and_out_of_range_multisine_values_are_refused_by_name() {
         );
     }
 }
+
+/// `[protocol.stop_when]` (issue 34 item 3): accepted in multisine mode with
+/// its default `min_periods` (2); its rule met only when both 95 %
+/// half-widths are within their fractions of K and H.
+#[test]
+fn stop_when_is_read_with_its_default_and_judges_both_intervals() {
+    let (from, to) = with_section("[protocol.stop_when]\nk_rel_ci = 0.05\nh_rel_ci = 0.10\n");
+    let cfg = accepted("sw-ok", &[MODE, NO_PERIODS, (from, &to)]);
+    let w = cfg.protocol.stop_when.expect("stop_when read");
+    assert_eq!((w.k_rel_ci, w.h_rel_ci, w.min_periods), (0.05, 0.10, 2));
+    assert!(cfg.controller_hears_identifier());
+    // K 40 ± 2 (5 %) and H 10 ± 1 (10 %): at the limits, met.
+    assert!(w.met(40.0, 2.0, 10.0, 1.0));
+    assert!(!w.met(40.0, 2.01, 10.0, 1.0));
+    assert!(!w.met(40.0, 2.0, 10.0, 1.01));
+    // A K or H that is not positive, or an interval that is not finite.
+    assert!(!w.met(-40.0, 0.1, 10.0, 0.1));
+    assert!(!w.met(40.0, 0.1, 0.0, 0.0));
+    assert!(!w.met(40.0, f64::NAN, 10.0, 0.1));
+    assert!(!w.met(40.0, 0.1, 10.0, f64::INFINITY));
+    // Without the table the controller does not listen to the identifier.
+    let cfg = accepted("sw-none", &[MODE, NO_PERIODS]);
+    assert!(cfg.protocol.stop_when.is_none());
+    assert!(!cfg.controller_hears_identifier());
+}
+
+/// Bad input: an interval of 0, NaN, ∞ or beyond 1, a `min_periods` below
+/// 2 (no noise estimate) or above the multisine's `periods`, a missing
+/// key, and the table in another mode: each refused naming its key.
+#[test]
+fn bad_stop_when_values_are_refused_by_name() {
+    for (i, (body, key)) in [
+        (
+            "k_rel_ci = 0.0\nh_rel_ci = 0.1",
+            "protocol.stop_when.k_rel_ci",
+        ),
+        (
+            "k_rel_ci = nan\nh_rel_ci = 0.1",
+            "protocol.stop_when.k_rel_ci",
+        ),
+        (
+            "k_rel_ci = 0.05\nh_rel_ci = inf",
+            "protocol.stop_when.h_rel_ci",
+        ),
+        (
+            "k_rel_ci = 0.05\nh_rel_ci = 1.5",
+            "protocol.stop_when.h_rel_ci",
+        ),
+        (
+            "k_rel_ci = 0.05\nh_rel_ci = -0.1",
+            "protocol.stop_when.h_rel_ci",
+        ),
+        (
+            "k_rel_ci = 0.05\nh_rel_ci = 0.1\nmin_periods = 1",
+            "protocol.stop_when.min_periods",
+        ),
+        (
+            "k_rel_ci = 0.05\nh_rel_ci = 0.1\nmin_periods = 4",
+            "protocol.stop_when.min_periods",
+        ),
+        ("k_rel_ci = 0.05", "h_rel_ci"),
+    ]
+    .into_iter()
+    .enumerate()
+    {
+        let (from, to) = with_section(&format!("[protocol.stop_when]\n{body}\n"));
+        refused_naming(
+            &format!("sw-bad-{i}"),
+            &[MODE, NO_PERIODS, (from, &to)],
+            key,
+        );
+    }
+    let (from, to) = with_section("[protocol.stop_when]\nk_rel_ci = 0.05\nh_rel_ci = 0.1\n");
+    refused_naming("sw-wrong-mode", &[(from, &to)], "protocol.stop_when");
+}

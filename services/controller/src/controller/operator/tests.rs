@@ -272,7 +272,7 @@ fn operator_start_n_restarts_at_the_experiment_after_a_ramp_out() {
     );
     assert!(matches!(
         k.protocol_run(),
-        ProtocolRun::Running { from_step: 3, since_tick } if since_tick == start
+        ProtocolRun::Running { from_step: 3, since_tick, skipped_ticks: 0 } if since_tick == start
     ));
     // Experiment 7's three periods, then the end.
     let t = ticks(&mut k, start + 1, start + 2 * period + 10 * RATE);
@@ -414,7 +414,8 @@ fn operator_start_refusals_change_nothing() {
         k.protocol_run(),
         ProtocolRun::Running {
             from_step: 0,
-            since_tick: 0
+            since_tick: 0,
+            skipped_ticks: 0
         }
     );
     // Stopped at the last measured period: nothing left to resume.
