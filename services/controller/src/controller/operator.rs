@@ -554,6 +554,9 @@ impl Controller {
             since_tick: tick,
             skipped_ticks: 0,
         };
+        // A window started again is measured afresh: an estimate of an
+        // earlier one does not end it (`protocol.stop_when`).
+        self.known = None;
         self.amplifier.reset();
     }
 

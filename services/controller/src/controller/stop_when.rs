@@ -375,4 +375,45 @@ mod tests {
         });
         assert_eq!(first(&t, 1, ProtocolPhase::RampOut), analysis + 800);
     }
+
+    /// An operator's stop and start of the known experiment measures it
+    /// afresh: the earlier window's estimate does not end the new window,
+    /// which runs its whole periods without a new one.
+    #[test]
+    fn a_window_started_again_is_not_ended_by_an_earlier_estimate() {
+        use exo_messages::{OperatorCommand, OperatorCommandKind as K};
+        let cfg = run(2);
+        let (_, analysis) = timing(&cfg);
+        let mut c = Controller::from_config(&cfg).unwrap();
+        let stop = analysis + 100;
+        let t = ticks(&mut c, 0, 3 * analysis + 2000, |c, seq| {
+            if seq == analysis + 50 {
+                c.on_estimate(&m2_to(1, 0.5, 0.25, analysis + 49));
+            }
+            if seq == stop {
+                c.on_operator(&OperatorCommand::new(1, 0, K::StopProtocol, 0.0));
+            }
+            if seq == stop + 2000 {
+                c.on_operator(&OperatorCommand::new(2, 0, K::StartProtocol, 1.0));
+            }
+        });
+        assert_eq!(c.known_experiment(), None);
+        // The second analysis window of experiment 1 runs four periods.
+        let opens: Vec<u64> = t
+            .windows(2)
+            .filter(|w| {
+                w[1].1 == 1
+                    && w[1].2 == ProtocolPhase::Analysis
+                    && w[0].2 != ProtocolPhase::Analysis
+            })
+            .map(|w| w[1].0)
+            .collect();
+        assert_eq!(opens.len(), 2, "{opens:?}");
+        let closes = t
+            .iter()
+            .find(|x| x.0 > opens[1] && x.1 == 1 && x.2 == ProtocolPhase::RampOut)
+            .map(|x| x.0)
+            .unwrap();
+        assert_eq!(closes - opens[1], 4 * 200);
+    }
 }
