@@ -22,6 +22,7 @@ mod operator;
 mod stop_when;
 
 pub use operator::{OperatorOutcome, OperatorRefusal, ProtocolRun};
+pub use stop_when::StopNews;
 
 /// Errors building a controller from a configuration.
 #[derive(Debug, Error)]

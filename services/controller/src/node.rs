@@ -19,7 +19,7 @@ use exo_messages::{
 };
 use tracing::{error, info, warn};
 
-use crate::controller::OperatorOutcome;
+use crate::controller::{OperatorOutcome, StopNews};
 use crate::{Controller, ControllerError, Fault, TickInput};
 
 /// What the controller publishes for one sample.
@@ -111,19 +111,16 @@ impl ControllerNode {
     /// logged when that changes), and adopts its recommended f when the
     /// run asks for it (`controller.adopt_recommended_f`).
     pub fn on_estimate(&mut self, e: &ImpedanceEstimate) {
-        let was = self.controller.known_experiment();
-        if let Some(met) = self.controller.on_estimate(e) {
-            if met && was != Some(e.experiment) {
-                info!(
-                    "controller: experiment {}: K = {:.2} ± {:.2}, H = {:.2} ± {:.2} Nm/rad (standard errors, {} lines) within protocol.stop_when: its analysis ends at the next whole period",
-                    e.experiment, e.k_h, e.k_h_se, e.h_h, e.h_h_se, e.n_points
-                );
-            } else if !met && was == Some(e.experiment) {
-                info!(
-                    "controller: experiment {}: K and H no longer within protocol.stop_when; its analysis goes on",
-                    e.experiment
-                );
-            }
+        match self.controller.on_estimate(e) {
+            Some(StopNews::Known) => info!(
+                "controller: experiment {}: K = {:.2} ± {:.2}, H = {:.2} ± {:.2} Nm/rad (standard errors, {} lines) within protocol.stop_when: its analysis ends a whole period after these data",
+                e.experiment, e.k_h, e.k_h_se, e.h_h, e.h_h_se, e.n_points
+            ),
+            Some(StopNews::NoLongerKnown) => info!(
+                "controller: experiment {}: K and H no longer within protocol.stop_when; its analysis goes on",
+                e.experiment
+            ),
+            Some(StopNews::Unchanged { .. }) | None => {}
         }
         if self.adopt_recommended_f
             && e.recommended_f > 0.0
