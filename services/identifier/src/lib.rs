@@ -304,10 +304,11 @@ impl Identifier {
         let (Some(w), Some((period_samples, bins))) = (self.window, self.periodic.as_ref()) else {
             return;
         };
+        // At whole periods (after one, `periodic_points` refuses: no
+        // spread between periods yet).
         let (n, k) = (*period_samples, self.window_samples / *period_samples);
         let p = w.state;
-        if !(self.window_samples.is_multiple_of(n) && k >= 2 && p.omega == 0.0 && p.amplitude > 0.0)
-        {
+        if !(self.window_samples.is_multiple_of(n) && p.omega == 0.0 && p.amplitude > 0.0) {
             return;
         }
         let Some(latest) = self.sensor.latest() else {

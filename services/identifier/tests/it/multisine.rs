@@ -53,7 +53,14 @@ fn run(
     analysis_samples: usize,
     seed: u64,
 ) -> (Vec<Event>, Vec<(f64, f64)>) {
-    run_with(id, human, noise_nm, analysis_samples, seed, true)
+    run_with(
+        id,
+        human,
+        noise_nm,
+        analysis_samples,
+        seed,
+        Stream::default(),
+    )
 }
 
 /// The SEA's torque tracking in the stream, `τ_s/τ_d = 1/(1 + 0.01 jω)`.
@@ -61,15 +68,38 @@ fn sea(omega: f64) -> Complex64 {
     1.0 / Complex64::new(1.0, 0.01 * omega)
 }
 
-/// [`run`], with the controller's commands sent or not.
+/// How [`run_with`] delivers the stream.
+struct Stream {
+    /// Whether the controller's commands are sent.
+    commands: bool,
+    /// The protocol states' excitation amplitude (Nm).
+    amplitude_nm: f64,
+    /// Ticks each sample (and command) reaches the identifier after the
+    /// protocol state of its tick (as a process reading its protocol
+    /// inbox first, a batch at a time, may see them).
+    sample_lag: usize,
+}
+
+impl Default for Stream {
+    fn default() -> Self {
+        Stream {
+            commands: true,
+            amplitude_nm: 3.0,
+            sample_lag: 0,
+        }
+    }
+}
+
+/// [`run`], delivered as `stream` says.
 fn run_with(
     mut id: Identifier,
     human: DynamicStiffness,
     noise_nm: f64,
     analysis_samples: usize,
     seed: u64,
-    commands: bool,
+    stream: Stream,
 ) -> (Vec<Event>, Vec<(f64, f64)>) {
+    let mut late = std::collections::VecDeque::new();
     let m = settings();
     let (n_period, bins) = m.bins(RATE).unwrap();
     let mut rng = Rng(seed);
@@ -109,34 +139,44 @@ fn run_with(
             period: 1,
             phase: phase.as_u32(),
             omega: 0.0,
-            amplitude: 3.0,
+            amplitude: stream.amplitude_nm,
             alpha: 1.0,
             load_kg: 4.5,
             stamp_ns: stamp,
             ..Default::default()
         };
         id.on_protocol(&p, &mut events);
-        if commands {
-            id.on_command(&ActuatorCommand {
-                seq: k as u64,
-                stamp_ns: stamp,
-                sensor_seq: k as u64,
-                tau_d: td,
-                ..Default::default()
-            });
+        let command = ActuatorCommand {
+            seq: k as u64,
+            stamp_ns: stamp,
+            sensor_seq: k as u64,
+            tau_d: td,
+            ..Default::default()
+        };
+        let sample = SensorSample {
+            seq: k as u64,
+            stamp_ns: stamp,
+            theta_e: 0.8 + x,
+            tau_c: tc + noise_nm * rng.gauss(),
+            tau_s: ts + noise_nm * rng.gauss(),
+            ..Default::default()
+        };
+        late.push_back((command, sample));
+        while late.len() > stream.sample_lag {
+            let (c, s) = late.pop_front().unwrap();
+            if stream.commands {
+                id.on_command(&c);
+            }
+            id.on_sample(&s, &mut events);
         }
-        id.on_sample(
-            &SensorSample {
-                seq: k as u64,
-                stamp_ns: stamp,
-                theta_e: 0.8 + x,
-                tau_c: tc + noise_nm * rng.gauss(),
-                tau_s: ts + noise_nm * rng.gauss(),
-                ..Default::default()
-            },
-            &mut events,
-        );
     }
+    for (c, s) in late {
+        if stream.commands {
+            id.on_command(&c);
+        }
+        id.on_sample(&s, &mut events);
+    }
+    id.flush(&mut events);
     (events, lines)
 }
 
@@ -295,7 +335,11 @@ fn lines_that_no_period_can_carry_are_refused() {
 #[test]
 fn without_the_commands_there_is_no_sea_tracking_but_every_line() {
     let human = DynamicStiffness::from_array([0.11, 0.0, 40.0, 10.0]);
-    let (events, lines) = run_with(with_multisine(), human, 0.0, 3 * 2000, 9, false);
+    let stream = Stream {
+        commands: false,
+        ..Stream::default()
+    };
+    let (events, lines) = run_with(with_multisine(), human, 0.0, 3 * 2000, 9, stream);
     let pts = points(&events);
     assert_eq!(pts.len(), lines.len());
     for p in &pts {
@@ -447,5 +491,54 @@ fn estimates_are_published_as_the_periods_accrue() {
     assert!(
         k4 / k2 < 0.9 && h4 / h2 < 0.9,
         "K {k2} → {k4}, H {h2} → {h4}"
+    );
+}
+
+/// When the window's close is known before its last samples arrive (the
+/// ramp-out's state read ahead of them), the periods completed after it
+/// are the window's own analysis's, fitted once: interim fits only while
+/// the window is open (after two and three of four periods), then the
+/// window's own. And a window without excitation (amplitude 0) is not
+/// fitted along the way, as it is not at its end.
+#[test]
+fn interim_fits_only_while_the_window_is_open_and_excited() {
+    let human = DynamicStiffness::from_array([0.11, 0.0, 40.0, 10.0]);
+    let n = 2000u64;
+    let ms = 1_000_000u64;
+    let window_end_ns = n * ms + 4 * n * ms;
+    let stream = Stream {
+        sample_lag: 50,
+        ..Stream::default()
+    };
+    let (events, _) = run_with(with_multisine(), human, 0.05, 4 * n as usize, 21, stream);
+    let m2: Vec<u64> = events
+        .iter()
+        .filter_map(|e| match e {
+            Event::Estimate(e) if e.model == 2 => Some(e.stamp_ns),
+            _ => None,
+        })
+        .collect();
+    // Just after the last sample of the second and third periods (the
+    // window's samples counted from its own first, whenever they come),
+    // then the window's own at its close.
+    let window_start_ns = n * ms;
+    assert_eq!(
+        m2,
+        [
+            window_start_ns + 2 * n * ms - ms + 1,
+            window_start_ns + 3 * n * ms - ms + 1,
+            window_end_ns
+        ]
+    );
+    let quiet = Stream {
+        amplitude_nm: 0.0,
+        ..Stream::default()
+    };
+    let (events, _) = run_with(with_multisine(), human, 0.05, 4 * n as usize, 21, quiet);
+    assert!(
+        !events
+            .iter()
+            .any(|e| matches!(e, Event::Estimate(_) | Event::Frf(_))),
+        "{events:?}"
     );
 }
