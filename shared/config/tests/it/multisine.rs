@@ -276,6 +276,12 @@ fn stop_when_is_read_with_its_default_and_judges_both_intervals() {
     assert!(!w.met(40.0, 0.1, 0.0, 0.0));
     assert!(!w.met(40.0, f64::NAN, 10.0, 0.1));
     assert!(!w.met(40.0, 0.1, 10.0, f64::INFINITY));
+    // `min_periods` may be the multisine's `periods` (3 by default): the
+    // window then runs them all.
+    let (from, to) =
+        with_section("[protocol.stop_when]\nk_rel_ci = 0.05\nh_rel_ci = 0.10\nmin_periods = 3\n");
+    let cfg = accepted("sw-min-all", &[MODE, NO_PERIODS, (from, &to)]);
+    assert_eq!(cfg.protocol.stop_when.unwrap().min_periods, 3);
     // Without the table the controller does not listen to the identifier.
     let cfg = accepted("sw-none", &[MODE, NO_PERIODS]);
     assert!(cfg.protocol.stop_when.is_none());
@@ -330,4 +336,21 @@ fn bad_stop_when_values_are_refused_by_name() {
     }
     let (from, to) = with_section("[protocol.stop_when]\nk_rel_ci = 0.05\nh_rel_ci = 0.1\n");
     refused_naming("sw-wrong-mode", &[(from, &to)], "protocol.stop_when");
+}
+
+/// Which modes excite the subject for identification (their recordings
+/// fitted and reported after the run, their experiments the run's list):
+/// the sine steps and the multisine, not the voluntary motion or the
+/// spring release (`ProtocolMode`'s documented meaning).
+#[test]
+fn the_sine_steps_and_the_multisine_identify_the_others_do_not() {
+    use exo_config::ProtocolMode as M;
+    for (mode, identifies) in [
+        (M::Identification, true),
+        (M::Multisine, true),
+        (M::Voluntary, false),
+        (M::Release, false),
+    ] {
+        assert_eq!(mode.identifies(), identifies, "{mode:?}");
+    }
 }
