@@ -201,3 +201,52 @@ pub fn controller_margins(
         warnings,
     })
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use exo_config::VoluntarySettings;
+
+    fn default_run() -> (std::path::PathBuf, RunConfig) {
+        let file = exo_config::configs_dir().join("default.toml");
+        let cfg = RunConfig::from_file(&file).unwrap();
+        (file, cfg)
+    }
+
+    /// The constant α of Table I closes an amplification loop only where
+    /// α > 1 and only in the modes that run the table's experiments (the
+    /// sine steps and the multisine): experiments 2 and 3 (α = 2, 4) are
+    /// judged, experiment 1 (α = 1) has no loop, and a voluntary-motion run
+    /// (its own protocol, α 1) none either, whichever experiment's load it
+    /// borrows.
+    #[test]
+    fn constant_alpha_is_judged_where_it_closes_a_loop_in_the_identifying_modes() {
+        let (file, mut cfg) = default_run();
+        let no_loop = "constant α per experiment, no amplification loop (α ≤ 1)";
+        for mode in [ProtocolMode::Identification, ProtocolMode::Multisine] {
+            cfg.protocol.mode = mode;
+            cfg.protocol.experiments = vec![2, 3];
+            let m = controller_margins(&file, &cfg, 10.0, 0.7).unwrap();
+            assert!(
+                m.summary
+                    .starts_with("constant α per experiment: smallest phase margin"),
+                "{mode:?}: {}",
+                m.summary
+            );
+            cfg.protocol.experiments = vec![1];
+            let m = controller_margins(&file, &cfg, 10.0, 0.7).unwrap();
+            assert_eq!(m.summary, no_loop, "{mode:?}");
+        }
+        cfg.protocol.mode = ProtocolMode::Voluntary;
+        cfg.voluntary = Some(VoluntarySettings {
+            amplitude_rad: 0.2,
+            omega_rad_s: 2.0,
+            duration_s: 10.0,
+            grip_kg: 0.0,
+            bias_nm: 0.0,
+            experiment: 3,
+        });
+        let m = controller_margins(&file, &cfg, 10.0, 0.7).unwrap();
+        assert_eq!(m.summary, no_loop);
+    }
+}
