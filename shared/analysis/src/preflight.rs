@@ -13,9 +13,38 @@ pub struct Margins {
     pub summary: String,
     /// Margins below [`REFUSE_BELOW_MARGIN_DEG`], naming the key.
     pub errors: Vec<String>,
-    /// Negative margins above it.
+    /// Negative margins above it, and multisine lines the loop amplifies
+    /// beyond [`LINE_GAIN_WARN`].
     pub warnings: Vec<String>,
+    /// In a multisine run with an amplification loop, the loop's gain on
+    /// the excitation at every excited line of every experiment.
+    pub line_gains: Vec<LineGain>,
 }
+
+/// How much the amplification loop amplifies a multisine's line (issue 34
+/// item 6): the closed loop's sensitivity `|1 / (1 + L(jω))|` at the line,
+/// `L = (α(s) − 1) P(s)` the model loop at the stiffness the subject holds
+/// in the experiment. 1 where the loop leaves the line alone; the inverse
+/// of the loop's distance from −1 there, so a line near a crossover with
+/// little phase margin is amplified most.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct LineGain {
+    /// Experiment.
+    pub experiment: u32,
+    /// The line's frequency (rad/s).
+    pub omega_rad_s: f64,
+    /// `|1 / (1 + L(jω))|` (dimensionless).
+    pub gain: f64,
+    /// `∠L(jω)` (degrees), continuous from `ω → 0`.
+    pub loop_phase_deg: f64,
+}
+
+/// Above this gain on a multisine's line `exo run --check` warns: a
+/// sensitivity peak of 2 (6 dB) is the usual robustness bound (it keeps a
+/// phase margin of at least 29° and a gain margin of 6 dB; Åström and
+/// Murray, *Feedback Systems*, 2nd ed., section 13.3). Not refused: the
+/// loop's stability is judged by the phase margin.
+pub const LINE_GAIN_WARN: f64 = 2.0;
 
 /// Below this phase margin (degrees) of the model loop `exo run` refuses a
 /// controller; between it and 0° it warns. The model (complex stiffness
@@ -73,6 +102,30 @@ pub fn controller_margins(
     let law = fit_power_law(&ks, &hs).ok().map(|fit| fit.law);
     // (margin, where, which key sets the gain)
     let mut found: Vec<(f64, String, String)> = Vec::new();
+    let mut line_gains = Vec::new();
+    // A multisine's excited lines (rad/s), whose gain through each loop is judged.
+    let lines: Vec<f64> = match cfg.protocol.multisine() {
+        Some(m) => {
+            let rate = cfg.run.rate_hz;
+            let (n, bins) = m
+                .bins(rate)
+                .map_err(|e| format!("protocol.multisine: {e}"))?;
+            bins.iter()
+                .map(|&b| std::f64::consts::TAU * b as f64 * rate / n as f64)
+                .collect()
+        }
+        None => Vec::new(),
+    };
+    let mut gains_of = |n: u32, l: &exo_impedance::loop_shaping::AmplificationLoop| {
+        for &w in &lines {
+            line_gains.push(LineGain {
+                experiment: n,
+                omega_rad_s: w,
+                gain: 1.0 / (1.0 + l.response(w)).norm(),
+                loop_phase_deg: l.phase_deg(w),
+            });
+        }
+    };
     let mut seen = Vec::new();
     for n in held {
         if seen.contains(&n) {
@@ -121,6 +174,12 @@ pub fn controller_margins(
                     .min_phase_margin_deg(f, &[at])
                     .map_err(|e| science("controller.f", e))?;
                 found.push((m, holds, key.clone()));
+                gains_of(
+                    n,
+                    &layout
+                        .loop_at(f, at)
+                        .map_err(|e| science("controller.f", e))?,
+                );
                 for k in [k_lo, k_hi] {
                     let loss = match law {
                         Some(l) => l.loss_factor(k).ok(),
@@ -157,6 +216,12 @@ pub fn controller_margins(
                 let m = layout
                     .min_phase_margin_deg(0.0, &[at])
                     .map_err(|e| science("experiment alpha", e))?;
+                gains_of(
+                    n,
+                    &layout
+                        .loop_at(0.0, at)
+                        .map_err(|e| science("experiment alpha", e))?,
+                );
                 let idx = table.index_of(n).unwrap_or(0);
                 found.push((
                     m,
@@ -184,6 +249,16 @@ pub fn controller_margins(
             ));
         }
     }
+    for g in line_gains.iter().filter(|g| g.gain > LINE_GAIN_WARN) {
+        warnings.push(format!(
+            "experiment {}: the amplification loop amplifies the multisine's line at {:.2} rad/s ×{:.2} (|1 + L| = {:.2}, ∠L = {:.0}°; warned above ×{LINE_GAIN_WARN}): that line's torque and motion grow with it; move protocol.multisine.band_rad_s or lower the gain",
+            g.experiment,
+            g.omega_rad_s,
+            g.gain,
+            1.0 / g.gain,
+            g.loop_phase_deg
+        ));
+    }
     let worst = found.iter().map(|(m, ..)| *m).fold(f64::INFINITY, f64::min);
     let summary = match (c.f, found.is_empty()) {
         (Some(f), false) => format!(
@@ -195,10 +270,18 @@ pub fn controller_margins(
         (Some(f), true) => format!("α(s) = k_p F(s) + 1, f = {f}"),
         (None, true) => "constant α per experiment, no amplification loop (α ≤ 1)".into(),
     };
+    let summary = match line_gains.iter().max_by(|a, b| a.gain.total_cmp(&b.gain)) {
+        Some(g) => format!(
+            "{summary}; multisine lines: the loop amplifies them at most ×{:.2} ({:.2} rad/s, experiment {})",
+            g.gain, g.omega_rad_s, g.experiment
+        ),
+        None => summary,
+    };
     Ok(Margins {
         summary,
         errors,
         warnings,
+        line_gains,
     })
 }
 
@@ -248,5 +331,116 @@ mod tests {
         });
         let m = controller_margins(&file, &cfg, 10.0, 0.7).unwrap();
         assert_eq!(m.summary, no_loop);
+    }
+
+    /// A multisine run's lines through each experiment's loop (issue 34
+    /// item 6), against the loop written here from the paper: `L(jω) =
+    /// (α − 1) S_h/S_h-e · G_SEA` with `S_h = K + jH − M_h ω²`, `S_h-e =
+    /// S_h − M_e ω²`, `G_SEA = ω_n² / (ω_n² − ω² + 2jζω_n ω)`; the gain is
+    /// `1/|1 + L|`. Experiments with α = 1 have no loop and no gains; the
+    /// sine steps have no lines.
+    #[test]
+    fn a_multisines_lines_are_judged_through_each_experiments_loop() {
+        use exo_impedance::Complex64;
+        let file = exo_config::configs_dir().join("multisine.toml");
+        let mut cfg = RunConfig::from_file(&file).unwrap();
+        cfg.protocol.experiments = vec![1, 2, 3];
+        let (sea_hz, zeta) = (10.0, 0.7);
+        let m = controller_margins(&file, &cfg, sea_hz, zeta).unwrap();
+        let (n, bins) = cfg
+            .protocol
+            .multisine()
+            .unwrap()
+            .bins(cfg.run.rate_hz)
+            .unwrap();
+        assert_eq!(
+            m.line_gains.len(),
+            2 * bins.len(),
+            "experiments 2 and 3 only"
+        );
+        let wn = std::f64::consts::TAU * sea_hz;
+        let mut worst = 0.0f64;
+        for g in &m.line_gains {
+            let spec = cfg.experiment_table().get(g.experiment).unwrap();
+            let e = cfg.subject().get(g.experiment).unwrap();
+            assert!(spec.alpha > 1.0);
+            let w = g.omega_rad_s;
+            assert!(bins
+                .iter()
+                .any(
+                    |&b| (w - std::f64::consts::TAU * b as f64 * cfg.run.rate_hz / n as f64).abs()
+                        < 1e-9
+                ));
+            let kc = Complex64::new(e.stiffness_nm_per_rad, e.hysteretic_damping_nm_per_rad);
+            let s_h = kc - cfg.subject().inertia_kg_m2 * w * w;
+            let s_he = s_h - cfg.exo_inertia_kg_m2(spec.load_kg) * w * w;
+            let sea = wn * wn / Complex64::new(wn * wn - w * w, 2.0 * zeta * wn * w);
+            let l = (spec.alpha - 1.0) * s_h / s_he * sea;
+            let want = 1.0 / (1.0 + l).norm();
+            assert!((g.gain - want).abs() < 1e-9 * want, "{g:?}: {want}");
+            worst = worst.max(g.gain);
+        }
+        assert!(
+            m.summary
+                .contains("multisine lines: the loop amplifies them at most"),
+            "{}",
+            m.summary
+        );
+        let warned = m
+            .warnings
+            .iter()
+            .filter(|w| w.contains("multisine's line"))
+            .count();
+        assert_eq!(
+            warned,
+            m.line_gains
+                .iter()
+                .filter(|g| g.gain > LINE_GAIN_WARN)
+                .count(),
+            "{:?} (largest gain {worst})",
+            m.warnings
+        );
+        // A slower SEA (3 Hz, ζ 0.5) puts the loop's crossover among the
+        // lines: some are amplified beyond ×2 and each is warned about,
+        // naming its experiment and frequency; the run is not refused.
+        let slow = controller_margins(&file, &cfg, 3.0, 0.5).unwrap();
+        let loud: Vec<&LineGain> = slow
+            .line_gains
+            .iter()
+            .filter(|g| g.gain > LINE_GAIN_WARN)
+            .collect();
+        assert!(!loud.is_empty());
+        for g in &loud {
+            let named = format!("experiment {}: the amplification loop amplifies the multisine's line at {:.2} rad/s", g.experiment, g.omega_rad_s);
+            assert!(
+                slow.warnings.iter().any(|w| w.starts_with(&named)),
+                "{named}: {:?}",
+                slow.warnings
+            );
+        }
+        assert_eq!(
+            slow.warnings
+                .iter()
+                .filter(|w| w.contains("multisine's line"))
+                .count(),
+            loud.len()
+        );
+        assert!(slow.errors.is_empty(), "{:?}", slow.errors);
+        // With a fractional-order controller every experiment has a loop
+        // (α(s) − 1 = k_p F(s) whatever Table I's α): every line of each.
+        let mut frac = cfg.clone();
+        frac.controller.f = Some(0.3);
+        let m = controller_margins(&file, &frac, sea_hz, zeta).unwrap();
+        assert_eq!(m.line_gains.len(), 3 * bins.len());
+        assert!(m
+            .line_gains
+            .iter()
+            .all(|g| g.gain.is_finite() && g.gain > 0.0));
+        // The sine steps excite no designed lines.
+        let (file, cfg) = default_run();
+        assert!(controller_margins(&file, &cfg, sea_hz, zeta)
+            .unwrap()
+            .line_gains
+            .is_empty());
     }
 }
