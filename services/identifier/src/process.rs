@@ -156,3 +156,75 @@ impl Process for IdentifierProcess {
         Ok(())
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use exo_config::RunConfig;
+    use exo_messages::OffPathProgress;
+    use exo_service_kit::channels::IDENTIFIER_PROGRESS;
+    use exo_service_kit::ipc::{Inbox, Ipc};
+    use exo_service_kit::runner::{Context, Process};
+    use exo_service_kit::{monotonic_ns, ServiceArgs, StopFlag};
+
+    use super::{IdentifierProcess, PROGRESS_EVERY};
+
+    /// The default run's identifier process on the instance `id<tag><pid>`,
+    /// with the plant's side of its progress channel, opened first.
+    fn rig(tag: &str) -> (IdentifierProcess, Inbox<OffPathProgress>, Ipc) {
+        let file = exo_config::configs_dir().join("default.toml");
+        let mut cfg = RunConfig::from_file(&file).unwrap();
+        cfg.run.instance = format!("id{tag}{}", std::process::id());
+        let ipc = Ipc::open("identifier_step_test", &cfg.run.instance, None).unwrap();
+        let progress = ipc.inbox(IDENTIFIER_PROGRESS, 16).unwrap();
+        let args = ServiceArgs {
+            config: file,
+            iceoryx2_config: None,
+            output: None,
+            inject_fault_at: None,
+        };
+        let process = IdentifierProcess::open(Context {
+            cfg: &cfg,
+            ipc: &ipc,
+            args: &args,
+        })
+        .unwrap();
+        (process, progress, ipc)
+    }
+
+    /// The first progress, sent as the process opens, names it (its pid:
+    /// the plant stops waiting for a process whose pid is gone) with a
+    /// stamp on the monotonic clock, nothing taken.
+    #[test]
+    fn the_first_progress_names_the_process_with_nothing_taken() {
+        let before = monotonic_ns();
+        let (_p, progress, _ipc) = rig("first");
+        let first = progress.try_recv().unwrap().expect("a progress at open");
+        assert_eq!(first.pid, std::process::id());
+        assert!(
+            first.stamp_ns >= before && first.stamp_ns <= monotonic_ns(),
+            "{first:?}"
+        );
+        assert_eq!((first.seq, first.frames_taken, first.missed), (0, 0, 0));
+    }
+
+    /// With nothing taken the progress is repeated once `PROGRESS_EVERY`
+    /// has passed (a heartbeat: the plant sees the process alive), not at
+    /// every step.
+    #[test]
+    fn with_nothing_taken_the_progress_is_a_heartbeat() {
+        let (mut p, progress, _ipc) = rig("beat");
+        while progress.try_recv().unwrap().is_some() {}
+        p.told_at = std::time::Instant::now();
+        p.step(&StopFlag::unraised()).unwrap();
+        assert!(
+            progress.try_recv().unwrap().is_none(),
+            "nothing new, not yet due"
+        );
+        p.told_at = std::time::Instant::now()
+            .checked_sub(2 * PROGRESS_EVERY)
+            .unwrap();
+        p.step(&StopFlag::unraised()).unwrap();
+        let beat = progress.try_recv().unwrap().expect("a heartbeat");
+        assert_eq!((beat.seq, beat.frames_taken), (1, 0));
+    }
+}
