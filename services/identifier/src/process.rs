@@ -227,4 +227,44 @@ mod tests {
         let beat = progress.try_recv().unwrap().expect("a heartbeat");
         assert_eq!((beat.seq, beat.frames_taken), (1, 0));
     }
+
+    /// What was taken is published at the step that took it: the frames
+    /// whose sample and command are in (here 0, 1 and 3: four frames) and
+    /// the samples missed (seq 2), with the next seq and a fresh stamp.
+    #[test]
+    fn what_a_step_takes_is_told_at_once() {
+        use exo_messages::{ActuatorCommand, SensorSample};
+        use exo_service_kit::channels::{COMMAND, SENSOR};
+        let (mut p, progress, ipc) = rig("taken");
+        let first = progress.try_recv().unwrap().expect("a progress at open");
+        let samples = ipc.outbox(SENSOR).unwrap();
+        let commands = ipc.outbox(COMMAND).unwrap();
+        for seq in [0u64, 1, 3] {
+            samples
+                .send(SensorSample {
+                    seq,
+                    stamp_ns: seq * 1_000_000,
+                    ..Default::default()
+                })
+                .unwrap();
+            commands
+                .send(ActuatorCommand {
+                    seq,
+                    stamp_ns: seq * 1_000_000,
+                    sensor_seq: seq,
+                    ..Default::default()
+                })
+                .unwrap();
+        }
+        p.told_at = std::time::Instant::now();
+        let before = monotonic_ns();
+        p.step(&StopFlag::unraised()).unwrap();
+        let told = progress.try_recv().unwrap().expect("what was taken");
+        assert_eq!(
+            (told.seq, told.frames_taken, told.missed),
+            (first.seq + 1, 4, 1)
+        );
+        assert!(told.stamp_ns >= before, "{told:?}");
+        assert_eq!(told.pid, std::process::id());
+    }
 }
