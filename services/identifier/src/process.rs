@@ -44,6 +44,18 @@ pub enum IdentifierProcessError {
     Multisine(String),
 }
 
+/// What the identifier says at its end about the samples it missed
+/// (sequence gaps in `exo/sensor`): how many and the first; nothing when
+/// it missed none.
+fn missed_note(taken: &Taken) -> Option<String> {
+    taken.first_missing.map(|first| {
+        format!(
+            "identifier: {} samples missed (sequence gaps), the first seq {first}",
+            taken.missed
+        )
+    })
+}
+
 /// The identifier process.
 pub struct IdentifierProcess {
     id: Identifier,
@@ -146,11 +158,8 @@ impl Process for IdentifierProcess {
     }
 
     fn finish(self) -> Result<(), IdentifierProcessError> {
-        if let Some(first) = self.taken.first_missing {
-            warn!(
-                "identifier: {} samples missed (sequence gaps), the first seq {first}",
-                self.taken.missed
-            );
+        if let Some(note) = missed_note(&self.taken) {
+            warn!("{note}");
         }
         info!("identifier: stopped");
         Ok(())
@@ -266,5 +275,24 @@ mod tests {
         );
         assert!(told.stamp_ns >= before, "{told:?}");
         assert_eq!(told.pid, std::process::id());
+    }
+
+    /// The end's note on missed samples: their count and the first, or
+    /// nothing when none was missed.
+    #[test]
+    fn the_end_names_the_samples_missed() {
+        use exo_messages::SensorSample;
+        let mut t = crate::taken::Taken::default();
+        assert_eq!(super::missed_note(&t), None);
+        for seq in [0u64, 1, 4, 5, 9] {
+            t.on_sample(&SensorSample {
+                seq,
+                ..Default::default()
+            });
+        }
+        assert_eq!(
+            super::missed_note(&t).as_deref(),
+            Some("identifier: 5 samples missed (sequence gaps), the first seq 2")
+        );
     }
 }
