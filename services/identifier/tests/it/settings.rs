@@ -128,3 +128,19 @@ fn ranges_and_the_window_are_refused_at_their_edges() {
     s.f_bounds = [0.2, 0.1];
     assert_eq!(field_of(&s), Some("f_bounds[1]"));
 }
+
+/// A multisine's analysis window may be longer than the default ring
+/// (60 s): the ring then holds the whole window and 5 s more for its
+/// closing samples (100 s analysed → 105 s); a shorter one keeps the
+/// default.
+#[test]
+fn the_ring_holds_a_long_analysis_window_whole() {
+    let mut cfg = RunConfig::from_file(&exo_config::configs_dir().join("multisine.toml"))
+        .expect("multisine run file");
+    assert_eq!(
+        IdentifierSettings::of_run(&cfg).max_window_s,
+        IdentifierSettings::default().max_window_s
+    );
+    cfg.experiments.as_mut().unwrap().timing.analysis_s = 100.0;
+    assert_eq!(IdentifierSettings::of_run(&cfg).max_window_s, 105.0);
+}
