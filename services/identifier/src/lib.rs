@@ -407,6 +407,9 @@ impl Identifier {
         if let Some(e) = self.interim_of.take() {
             self.points.remove(&e);
             self.m2.remove(&e);
+            // Nor does the power law (and eq. f's order) keep the interim
+            // M2; the window's own refit, if any, says its notes.
+            self.update_power_law(&mut Vec::new());
         }
         let Some(w) = self.window.take() else { return };
         let Some(end) = w.end_ns else { return };

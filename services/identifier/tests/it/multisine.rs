@@ -78,6 +78,12 @@ struct Stream {
     /// protocol state of its tick (as a process reading its protocol
     /// inbox first, a batch at a time, may see them).
     sample_lag: usize,
+    /// A tick whose sample carries the driver's fault status.
+    fault_at: Option<usize>,
+    /// The experiment, and the tick its stream starts at (stamps and seqs
+    /// count from there).
+    experiment: u32,
+    start_tick: u64,
 }
 
 impl Default for Stream {
@@ -86,19 +92,35 @@ impl Default for Stream {
             commands: true,
             amplitude_nm: 3.0,
             sample_lag: 0,
+            fault_at: None,
+            experiment: 1,
+            start_tick: 0,
         }
     }
 }
 
 /// [`run`], delivered as `stream` says.
 fn run_with(
-    mut id: Identifier,
+    id: Identifier,
     human: DynamicStiffness,
     noise_nm: f64,
     analysis_samples: usize,
     seed: u64,
     stream: Stream,
 ) -> (Vec<Event>, Vec<(f64, f64)>) {
+    let (events, lines, _) = run_kept(id, human, noise_nm, analysis_samples, seed, stream);
+    (events, lines)
+}
+
+/// [`run_with`], returning the identifier too.
+fn run_kept(
+    mut id: Identifier,
+    human: DynamicStiffness,
+    noise_nm: f64,
+    analysis_samples: usize,
+    seed: u64,
+    stream: Stream,
+) -> (Vec<Event>, Vec<(f64, f64)>, Identifier) {
     let mut late = std::collections::VecDeque::new();
     let m = settings();
     let (n_period, bins) = m.bins(RATE).unwrap();
@@ -133,9 +155,10 @@ fn run_with(
             ts += ((s_h - M_E * w * w) * e).re;
             td += ((s_h - M_E * w * w) / sea(*w) * e).re;
         }
-        let stamp = k as u64 * 1_000_000;
+        let stamp = (stream.start_tick + k as u64) * 1_000_000;
+        let seq = stream.start_tick + k as u64;
         let p = ProtocolState {
-            experiment: 1,
+            experiment: stream.experiment,
             period: 1,
             phase: phase.as_u32(),
             omega: 0.0,
@@ -147,18 +170,23 @@ fn run_with(
         };
         id.on_protocol(&p, &mut events);
         let command = ActuatorCommand {
-            seq: k as u64,
+            seq,
             stamp_ns: stamp,
-            sensor_seq: k as u64,
+            sensor_seq: seq,
             tau_d: td,
             ..Default::default()
         };
         let sample = SensorSample {
-            seq: k as u64,
+            seq,
             stamp_ns: stamp,
             theta_e: 0.8 + x,
             tau_c: tc + noise_nm * rng.gauss(),
             tau_s: ts + noise_nm * rng.gauss(),
+            status: if stream.fault_at == Some(k) {
+                exo_messages::status::ENCODER_FAULT
+            } else {
+                0
+            },
             ..Default::default()
         };
         late.push_back((command, sample));
@@ -177,7 +205,7 @@ fn run_with(
         id.on_sample(&s, &mut events);
     }
     id.flush(&mut events);
-    (events, lines)
+    (events, lines, id)
 }
 
 /// An identifier estimating line by line at the design's bins.
@@ -541,4 +569,58 @@ fn interim_fits_only_while_the_window_is_open_and_excited() {
             .any(|e| matches!(e, Event::Estimate(_) | Event::Frf(_))),
         "{events:?}"
     );
+}
+
+/// A window discarded at its end (a sample with the driver's fault status
+/// in its last period) leaves nothing of its interim fits: no points, no
+/// M2 of its experiment, and no power law from it — here experiment 1 is
+/// measured whole (K 40) and experiment 4's window (K 25), fitted along
+/// the way, is discarded: one experiment is left, too few for a power law
+/// (its interim M2 beside experiment 1's made one).
+#[test]
+fn a_discarded_window_leaves_nothing_of_its_interim_fits() {
+    let n = 2000usize;
+    let (_, _, id) = run_kept(
+        with_multisine(),
+        DynamicStiffness::from_array([0.11, 0.0, 40.0, 10.0]),
+        0.05,
+        4 * n,
+        21,
+        Stream::default(),
+    );
+    assert!(id.m2_by_experiment().contains_key(&1));
+    let stream = Stream {
+        experiment: 4,
+        start_tick: 20 * n as u64,
+        fault_at: Some(n + 3 * n + 500),
+        ..Stream::default()
+    };
+    let (events, _, id) = run_kept(
+        id,
+        DynamicStiffness::from_array([0.11, 0.0, 25.0, 7.0]),
+        0.05,
+        4 * n,
+        22,
+        stream,
+    );
+    assert!(
+        events
+            .iter()
+            .any(|e| matches!(e, Event::Estimate(x) if x.model == 2 && x.experiment == 4 && x.beta1 != 0.0)),
+        "interim estimates of experiment 4, with a power law, before the fault"
+    );
+    assert!(
+        events
+            .iter()
+            .any(|e| matches!(e, Event::Warning(w) if w.contains("window discarded"))),
+        "{events:?}"
+    );
+    assert!(points(&events).is_empty());
+    assert!(id.points().get(&4).is_none(), "{:?}", id.points());
+    assert_eq!(
+        id.m2_by_experiment().keys().copied().collect::<Vec<_>>(),
+        [1]
+    );
+    assert!(id.power_law().is_none(), "{:?}", id.power_law());
+    assert!(id.recommended_f().is_none());
 }
